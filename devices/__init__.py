@@ -1,0 +1,1 @@
+"""Device implementations (simulated, HID, replay) of the protocol in `softproxy.device`."""

@@ -1,0 +1,27 @@
+"""The command line, run as a user would run it."""
+
+import json
+import subprocess
+import sys
+
+
+def run_cli(*args):
+    out = subprocess.run([sys.executable, "-m", "softproxy.cli", *args], capture_output=True, text=True, check=True)
+    return out.stdout
+
+
+def test_models_json_lists_the_four_models_with_seed_constants():
+    """`softproxy models --json`: seed 002 Table 1 exponents and coefficients, P* from eq 27."""
+    models = {m["name"]: m for m in json.loads(run_cli("models", "--json"))["models"]}
+    assert {"CH", "MH", "VS", "LFM", "point"} <= set(models)
+    assert models["MH"]["gamma"] == 1.1433 and abs(models["MH"]["mu_prime_Nmm"] - 8.8327) < 1e-9
+    assert abs(models["LFM"]["mu_prime_Nmm"] - 9.0028) < 1e-9
+    for name in ("CH", "MH", "VS", "LFM"):
+        m = models[name]
+        assert abs(m["mu_prime_Nmm"] * m["gamma"] * m["p_star_N"] ** (m["gamma"] - 1) - 8.7855) < 1e-9
+    assert models["point"]["p_star_N"] is None
+
+
+def test_models_table():
+    text = run_cli("models")
+    assert "CH" in text and "1.3333" in text and "8.1489" in text
