@@ -1,0 +1,194 @@
+"""`SoftFingerProxy`: the 4-DOF soft-finger proxy of one finger (seed 002 §7).
+
+A god-object position (`softproxy.proxy`) plus the torsional angle α (`softproxy.torsion`),
+coupled to the device by a virtual spring-damper: F = k(x_p - x_d) + b d/dt(x_p - x_d) and
+M = k_τ(α_p - α_g) + b_τ d/dt(α_p - α_g) about the contact normal n. F and M are what the
+finger feels; the touched object gets -F at the contact point and -M·n.
+
+The twist α_s read from the device is taken about the finger's own axis pointing from the
+fingertip back toward the hand, which is +n when the finger presses straight on a surface.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from softproxy.fingertip import FingertipModel, _check_finite
+from softproxy.geometry import Shape
+from softproxy.proxy import GodObject
+from softproxy.torsion import TorsionalFriction
+
+
+@dataclass
+class FingerParams:
+    """Per-finger settings of a scene (SI units). Validated on construction."""
+
+    name: str = "finger"
+    radius: float = 0.008           # proxy sphere radius, m
+    stiffness: float = 2000.0       # k, N/m
+    damping: float = 5.0            # b, N·s/m
+    torsion_stiffness: float = 2.0  # k_τ, N·m/rad
+    torsion_damping: float = 0.002  # b_τ, N·m·s/rad
+    model: str = "CH"               # fingertip model: CH, MH, VS, LFM or point
+    mu_s: float = 1.0               # translational static friction
+    mu_d: float = 0.8               # translational dynamic friction
+    torsion_mu_s: float | None = None  # static torsional coefficient, N·m/N^γ (default: Table 1)
+    torsion_mu_d: float | None = None  # dynamic torsional coefficient (default: 0.8 static)
+    saturate: bool = False          # torsion limit follows eq 26 above P*
+    max_force: float = 40.0         # clamp on |F|, N
+    max_torque: float = 1.0         # clamp on |M|, N·m
+    device_finger: int = 0          # which finger of the device drives this one
+    offset: tuple = (0.0, 0.0, 0.0)  # device-to-world offset, m
+    scale: float = 1.0              # device-to-world workspace scale
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "damping", "torsion_damping", "mu_s", "mu_d"):
+            _check_finite(name, getattr(self, name), non_negative=True)
+        for name in ("stiffness", "torsion_stiffness", "max_force", "max_torque", "scale"):
+            _check_finite(name, getattr(self, name), positive=True)
+        if self.mu_d > self.mu_s:
+            raise ValueError(f"mu_d ({self.mu_d}) must be <= mu_s ({self.mu_s})")
+        if not isinstance(self.device_finger, int) or self.device_finger < 0:
+            raise ValueError(f"device_finger must be an integer >= 0, got {self.device_finger!r}")
+        if len(self.offset) != 3:
+            raise ValueError(f"offset must be 3 numbers (m), got {self.offset!r}")
+        self.offset = tuple(_check_finite("offset", v) for v in self.offset)
+
+
+class SoftFingerProxy:
+    """One finger: god-object + torsion + virtual coupling. `update(...)` once per tick.
+
+    Outputs after `update`: fx, fy, fz (force on the finger, world, N), torque (M about n,
+    N·m), tx, ty, tz (M·n, N·m), px, py, pz (contact point on the object, m), body (touched
+    body id or -1), normal_force (P = F·n, N), valid (False when the device sample was bad).
+    """
+
+    def __init__(self, params: FingerParams, shapes: list[Shape], model: FingertipModel,
+                 start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+        self.params = params
+        self.god = GodObject(shapes, params.radius, params.mu_s, params.mu_d, start)
+        self.model = model
+        self.torsion = TorsionalFriction(model, params.torsion_stiffness, params.torsion_mu_s,
+                                         params.torsion_mu_d, params.saturate) if model.has_torsion else None
+        self.k, self.b = params.stiffness, params.damping
+        self.b_tau = params.torsion_damping
+        self.max_force, self.max_torque = params.max_force, params.max_torque
+        self.ox, self.oy, self.oz = params.offset
+        self.scale = params.scale
+        self.xd = self.yd = self.zd = 0.0
+        self._sx = self._sy = self._sz = 0.0    # last spring stretch, for damping
+        self._stwist = 0.0
+        self.clear_output()
+        self.max_force_seen = 0.0
+        self.penetration_max = 0.0
+        self.slide_events = 0  # translational stick -> slide transitions
+        self._was_sticking = False
+
+    def place(self, x: float, y: float, z: float) -> None:
+        """Put the proxy at a device position (device frame, m), out of contact."""
+        self.god.reset(self.ox + self.scale * x, self.oy + self.scale * y, self.oz + self.scale * z)
+        if self.torsion is not None:
+            self.torsion.release()
+
+    def clear_output(self) -> None:
+        """Zero force and torque: the safe state."""
+        self.fx = self.fy = self.fz = 0.0
+        self.torque = self.tx = self.ty = self.tz = 0.0
+        self.px = self.py = self.pz = 0.0
+        self.body = -1
+        self.normal_force = 0.0
+        self.valid = False
+
+    def update(self, x: float, y: float, z: float, twist: float, dt: float) -> None:
+        """One tick from a device sample (device frame, m and rad) over period dt (s)."""
+        xd = self.ox + self.scale * x
+        yd = self.oy + self.scale * y
+        zd = self.oz + self.scale * z
+        god = self.god
+        if not god.update(xd, yd, zd) or twist != twist or twist in (math.inf, -math.inf):
+            self.clear_output()
+            return
+        self.xd, self.yd, self.zd = xd, yd, zd
+        self.valid = True
+        if not god.contact:
+            self._was_sticking = False
+            self._sx = self._sy = self._sz = 0.0
+            self._stwist = 0.0
+            if self.torsion is not None and self.torsion.in_contact:
+                self.torsion.release()
+            self.fx = self.fy = self.fz = 0.0
+            self.torque = self.tx = self.ty = self.tz = 0.0
+            self.body = -1
+            self.normal_force = 0.0
+            return
+
+        if self._was_sticking and not god.sticking:
+            self.slide_events += 1
+        self._was_sticking = god.sticking
+        # translational virtual coupling
+        sx, sy, sz = god.x - xd, god.y - yd, god.z - zd
+        c = self.b / dt
+        fx = self.k * sx + c * (sx - self._sx)
+        fy = self.k * sy + c * (sy - self._sy)
+        fz = self.k * sz + c * (sz - self._sz)
+        self._sx, self._sy, self._sz = sx, sy, sz
+        f2 = fx * fx + fy * fy + fz * fz
+        if f2 > self.max_force * self.max_force:
+            s = self.max_force / math.sqrt(f2)
+            fx, fy, fz = fx * s, fy * s, fz * s
+        nx, ny, nz = god.nx, god.ny, god.nz
+        P = fx * nx + fy * ny + fz * nz
+        if P < 0.0:  # damping pulling the finger into the surface: contact carries no pull
+            fx, fy, fz = fx - P * nx, fy - P * ny, fz - P * nz
+            P = 0.0
+        self.fx, self.fy, self.fz = fx, fy, fz
+        self.normal_force = P
+        r = self.params.radius
+        self.px, self.py, self.pz = god.x - r * nx, god.y - r * ny, god.z - r * nz
+        self.body = god.shape.body
+        fmag = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if fmag > self.max_force_seen:
+            self.max_force_seen = fmag
+
+        # torsional DOF (eqs 38–40)
+        tors = self.torsion
+        if tors is None:
+            return
+        if not tors.in_contact:
+            tors.touch(twist)
+            self._stwist = 0.0
+        M = tors.step(twist, P)
+        stretch = tors.alpha_p - twist
+        M += self.b_tau / dt * (stretch - self._stwist)
+        self._stwist = stretch
+        bound = tors.limit if tors.limit > abs(tors.torque) else abs(tors.torque)
+        if bound > self.max_torque:
+            bound = self.max_torque
+        M = bound if M > bound else -bound if M < -bound else M
+        self.torque = M
+        self.tx, self.ty, self.tz = M * nx, M * ny, M * nz
+
+    def follow_object(self, omega_x: float, omega_y: float, omega_z: float, dt: float) -> None:
+        """Eqs 41–42: the touched object's spin about n (rad/s, world) drags α_p, signed."""
+        tors = self.torsion
+        if tors is not None and tors.in_contact:
+            god = self.god
+            tors.follow_object(omega_x * god.nx + omega_y * god.ny + omega_z * god.nz, dt)
+
+    @property
+    def slip_events(self) -> int:
+        """Torsional slips plus translational stick-to-slide transitions."""
+        return self.slide_events + (self.torsion.slip_events if self.torsion is not None else 0)
+
+    def audit(self) -> float:
+        """Deepest the proxy sits inside any shape now (m, >= 0); updates penetration_max."""
+        god = self.god
+        worst = 0.0
+        for s in god.shapes:
+            inside = god.radius - s.distance(god.x, god.y, god.z)[0]
+            if inside > worst:
+                worst = inside
+        if worst > self.penetration_max:
+            self.penetration_max = worst
+        return worst

@@ -1,0 +1,289 @@
+"""The 3-DOF god-object: the point a finger of radius r would touch, kept outside every shape.
+
+Each tick the proxy moves from where it was toward the device position x_d (Zilles &
+Salisbury's god-object, Ruspini's proxy): a sphere of radius r swept against every shape
+(`softproxy.geometry`), stopping at the first surface it moves into, then sliding on up to
+three constraint planes — faces, edges, corners and concave creases — all within one
+tick. Friction follows the proxy literature's friction cone: the proxy sticks while the
+device stays inside the static cone (tangential offset ≤ μ_s × penetration) and otherwise
+slides to the edge of the dynamic cone.
+
+The proxy is stored in the frame of the geom it touches, so a moving object carries it;
+an object that moves into it pushes it out. Units: m, N, N/m, N·s/m.
+"""
+
+from __future__ import annotations
+
+import math
+
+from softproxy.geometry import CONTACT_TOL, Shape
+
+MAX_ITERATIONS = 10
+"""Sweeps per solve: three for a corner, a few more to follow a curved surface."""
+LIFT_TOL = 1e-7
+"""After sliding on a curved shape's tangent plane, re-follow the surface when the proxy has
+lifted more than this (m)."""
+PARALLEL = 1.0 - 1e-9
+
+
+def _project(px: float, py: float, pz: float, planes: list) -> tuple[float, float, float] | None:
+    """Closest point to p in the intersection of ≤ 3 half-spaces n·y ≥ c (KKT, active sets).
+
+    `planes` holds (nx, ny, nz, c, shape). Returns None when the planes admit no point (a
+    degenerate set, e.g. opposite parallel faces closer than the proxy's diameter).
+    """
+    def feasible(x, y, z, skip=()):
+        for i, (nx, ny, nz, c, _) in enumerate(planes):
+            if i not in skip and nx * x + ny * y + nz * z < c - CONTACT_TOL:
+                return False
+        return True
+
+    if feasible(px, py, pz):
+        return (px, py, pz)
+    n = len(planes)
+    # one active plane
+    for i in range(n):
+        nx, ny, nz, c, _ = planes[i]
+        lam = c - (nx * px + ny * py + nz * pz)
+        if lam > 0.0:
+            qx, qy, qz = px + lam * nx, py + lam * ny, pz + lam * nz
+            if feasible(qx, qy, qz, (i,)):
+                return (qx, qy, qz)
+    # two active planes: q = p + a n_i + b n_j on both planes, a, b ≥ 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            ax, ay, az, ci, _ = planes[i]
+            bx, by, bz, cj, _ = planes[j]
+            g = ax * bx + ay * by + az * bz
+            det = 1.0 - g * g
+            if det < 1e-12:
+                continue
+            ei = ci - (ax * px + ay * py + az * pz)
+            ej = cj - (bx * px + by * py + bz * pz)
+            a = (ei - g * ej) / det
+            b = (ej - g * ei) / det
+            if a < 0.0 or b < 0.0:
+                continue
+            qx, qy, qz = px + a * ax + b * bx, py + a * ay + b * by, pz + a * az + b * bz
+            if feasible(qx, qy, qz, (i, j)):
+                return (qx, qy, qz)
+    # three active planes: the corner point
+    if n == 3:
+        (ax, ay, az, ca, _), (bx, by, bz, cb, _), (cx, cy, cz, cc, _) = planes
+        det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+        if abs(det) > 1e-12:
+            # Cramer's rule for N q = c
+            qx = (ca * (by * cz - bz * cy) - ay * (cb * cz - bz * cc) + az * (cb * cy - by * cc)) / det
+            qy = (ax * (cb * cz - bz * cc) - ca * (bx * cz - bz * cx) + az * (bx * cc - cb * cx)) / det
+            qz = (ax * (by * cc - cb * cy) - ay * (bx * cc - cb * cx) + ca * (bx * cy - by * cx)) / det
+            return (qx, qy, qz)
+    return None
+
+
+class GodObject:
+    """Translational proxy of one finger. `update(x_d)` moves it; read the contact fields after.
+
+    Fields after `update`: x, y, z (proxy centre, m); contact (bool); nx, ny, nz (unit
+    contact normal, out of the object); shape (the touched Shape or None); depth (how far
+    the device is inside the constraint, m); sticking (bool).
+    """
+
+    __slots__ = (
+        "shapes", "radius", "mu_s", "mu_d", "x", "y", "z", "contact", "nx", "ny", "nz", "shape",
+        "depth", "sticking", "lx", "ly", "lz", "planes", "near",
+    )
+
+    def __init__(self, shapes: list[Shape], radius: float, mu_s: float = 0.0, mu_d: float = 0.0,
+                 position: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+        if not (math.isfinite(radius) and radius >= 0.0):
+            raise ValueError(f"radius must be a finite number >= 0 (m), got {radius!r}")
+        for name, mu in (("mu_s", mu_s), ("mu_d", mu_d)):
+            if not (math.isfinite(mu) and mu >= 0.0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {mu!r}")
+        if mu_d > mu_s:
+            raise ValueError(f"mu_d ({mu_d}) must be <= mu_s ({mu_s})")
+        self.shapes = shapes
+        self.radius = float(radius)
+        self.mu_s = float(mu_s)
+        self.mu_d = float(mu_d)
+        self.planes: list = []
+        self.near: list[Shape] = shapes
+        self.reset(*position)
+
+    def reset(self, x: float, y: float, z: float) -> None:
+        """Put the proxy at (x, y, z) with no contact (pushed out of any shape it overlaps)."""
+        self.x, self.y, self.z = float(x), float(y), float(z)
+        self.contact = False
+        self.nx, self.ny, self.nz = 0.0, 0.0, 0.0
+        self.shape = None
+        self.depth = 0.0
+        self.sticking = False
+        self.lx = self.ly = self.lz = 0.0
+        self.near = self.shapes
+        self._push_out()
+
+    # -- the tick -------------------------------------------------------------------
+    def update(self, xd: float, yd: float, zd: float) -> bool:
+        """Move the proxy toward the device position. Returns False (proxy held) on NaN/Inf."""
+        if not math.isfinite(xd + yd + zd):
+            return False
+        shape = self.shape
+        carrier = None
+        if shape is not None and not shape.static:
+            # carried by the touched object (stored in its frame at the end of last tick)
+            carrier = shape
+            lx, ly, lz = self.lx, self.ly, self.lz
+            self.x = shape.r00 * lx + shape.r01 * ly + shape.r02 * lz + shape.px
+            self.y = shape.r10 * lx + shape.r11 * ly + shape.r12 * lz + shape.py
+            self.z = shape.r20 * lx + shape.r21 * ly + shape.r22 * lz + shape.pz
+        x, y, z = self.x, self.y, self.z
+        self._gather(x, y, z, xd, yd, zd)
+        # Only a moving shape can have come into the proxy, or a static one if the
+        # proxy itself was carried; the carrier holds the proxy where it was, outside.
+        for s in self.near:
+            if s is not carrier and (carrier is not None or not s.static):
+                self._push_out()
+                break
+        x, y, z = self.x, self.y, self.z
+        fx, fy, fz, first = self._move(x, y, z, xd, yd, zd)
+        planes = self.planes
+        if not planes:
+            self.x, self.y, self.z = fx, fy, fz
+            self.contact = False
+            self.shape = None
+            self.depth = 0.0
+            self.sticking = False
+            return True
+
+        # constraint direction: from the device to the frictionless proxy
+        ex, ey, ez = fx - xd, fy - yd, fz - zd
+        depth = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if depth > 0.0:
+            nx, ny, nz = ex / depth, ey / depth, ez / depth
+        else:
+            nx, ny, nz = planes[-1][0], planes[-1][1], planes[-1][2]
+        # touched shape: the active plane most aligned with the constraint force
+        best, best_dot = planes[0][4], -2.0
+        for px_, py_, pz_, _, s in planes:
+            dot = px_ * nx + py_ * ny + pz_ * nz
+            if dot > best_dot:
+                best, best_dot = s, dot
+
+        # friction cone, tested from the first surface point the proxy reached this tick
+        hx, hy, hz = first
+        sx, sy, sz = hx - fx, hy - fy, hz - fz
+        slide = math.sqrt(sx * sx + sy * sy + sz * sz)
+        sticking = slide <= self.mu_s * depth
+        if sticking:
+            fx, fy, fz = hx, hy, hz
+        elif self.mu_d > 0.0 and slide > 0.0:
+            back = self.mu_d * depth / slide
+            tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
+            saved = self.planes
+            fx, fy, fz, _ = self._move(hx, hy, hz, tx, ty, tz)
+            self.planes = saved
+        self.x, self.y, self.z = fx, fy, fz
+        self.contact = True
+        self.nx, self.ny, self.nz = nx, ny, nz
+        self.depth = depth
+        self.sticking = sticking
+        self.shape = best
+        # remember the proxy in the touched geom's frame
+        self.lx, self.ly, self.lz = best.to_local(fx, fy, fz)
+        return True
+
+    # -- pieces -----------------------------------------------------------------------
+    def _gather(self, x, y, z, xd, yd, zd) -> None:
+        """Broad phase, once per tick: the shapes whose bounding sphere meets the ball that
+        holds both the proxy and the device (every sub-move of this tick stays inside it)."""
+        cx, cy, cz = 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd)
+        ex, ey, ez = xd - x, yd - y, zd - z
+        reach = 0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + 2.0 * self.radius + 1e-3
+        near = []
+        for s in self.shapes:
+            rb = s.rbound + reach
+            if rb == math.inf:  # a plane: near when the ball reaches its surface
+                if s.r02 * (cx - s.px) + s.r12 * (cy - s.py) + s.r22 * (cz - s.pz) <= reach:
+                    near.append(s)
+                continue
+            dx, dy, dz = s.px - cx, s.py - cy, s.pz - cz
+            if dx * dx + dy * dy + dz * dz <= rb * rb:
+                near.append(s)
+        self.near = near
+
+    def _push_out(self) -> None:
+        """Move the proxy out of any shape it overlaps (an object moved into it)."""
+        r = self.radius
+        for _ in range(3):
+            moved = False
+            for s in self.near:
+                d, nx, ny, nz = s.distance(self.x, self.y, self.z)
+                gap = d - r
+                if gap < 0.0:
+                    push = -gap + CONTACT_TOL
+                    self.x += push * nx
+                    self.y += push * ny
+                    self.z += push * nz
+                    moved = True
+            if not moved:
+                return
+
+    def _sweep(self, x, y, z, dx, dy, dz):
+        """Earliest hit over all shapes of the sphere moving by (dx, dy, dz): (lam, nx, ny, nz, shape)."""
+        r = self.radius
+        best = None
+        best_lam = 1.0
+        for s in self.near:
+            hit = s.sweep(x, y, z, dx, dy, dz, r)
+            if hit is not None and hit[0] < best_lam:
+                best_lam = hit[0]
+                best = (hit[0], hit[1], hit[2], hit[3], s)
+        return best
+
+    def _move(self, x, y, z, gx, gy, gz):
+        """Constrained motion toward (gx, gy, gz). Leaves the tight planes in self.planes.
+
+        Returns the end point and the first surface point reached (or the end point).
+        """
+        planes: list = []
+        first = None
+        tx, ty, tz = gx, gy, gz
+        for _ in range(MAX_ITERATIONS):
+            dx, dy, dz = tx - x, ty - y, tz - z
+            if dx * dx + dy * dy + dz * dz < 1e-24:
+                break
+            hit = self._sweep(x, y, z, dx, dy, dz)
+            if hit is None:
+                x, y, z = tx, ty, tz
+                if not planes or (tx == gx and ty == gy and tz == gz):
+                    break
+                curved = None
+                for p in planes:
+                    if not p[4].flat:
+                        curved = p[4]
+                        break
+                if curved is None or curved.distance(x, y, z)[0] - self.radius <= LIFT_TOL:
+                    break
+                # slid off a curved surface along its tangent plane: follow it again
+                planes = []
+                tx, ty, tz = gx, gy, gz
+                continue
+            lam, nx, ny, nz, s = hit
+            x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
+            if first is None:
+                first = (x, y, z)
+            c = nx * x + ny * y + nz * z
+            for i, p in enumerate(planes):
+                if p[4] is s and p[0] * nx + p[1] * ny + p[2] * nz > PARALLEL:
+                    del planes[i]
+                    break
+            planes.append((nx, ny, nz, c, s))
+            if len(planes) > 3:
+                del planes[0]
+            target = _project(gx, gy, gz, planes)
+            if target is None:
+                break
+            tx, ty, tz = target
+        # keep only the planes the proxy still rests on
+        self.planes = [p for p in planes if p[0] * x + p[1] * y + p[2] * z - p[3] <= 1e-7]
+        return x, y, z, (first if first is not None else (x, y, z))

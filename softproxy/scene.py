@@ -1,0 +1,192 @@
+"""Scenes: a MuJoCo MJCF file plus a TOML file that says what the haptic side needs.
+
+A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked):
+
+    [scene]            mjcf (required, path relative to the TOML), description, rate_hz (1000),
+                       duration_s (5.0), audit (true: track proxy penetration every tick)
+    [grasp]            object (body name), axis ([x, y, z]), squeeze_end_s: the run reports how
+                       far the object turned about the axis from squeeze_end_s to the end
+    [finger_defaults]  any `FingerParams` field, for every finger
+    [[finger]]         one per finger: any `FingerParams` field (name, device_finger, offset, ...)
+    [device]           handed as is to the device named by its `type` (e.g. "sim")
+
+Scenes are found by name in the folders registered under the `softproxy.scene_dirs` entry
+point (the shipped `scenes/` folder), or given as a path. Every error names the file, the
+field and what was expected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+from pathlib import Path
+
+import mujoco
+
+from softproxy.finger import FingerParams
+from softproxy.fingertip import MODELS
+
+_SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit"}
+_GRASP_KEYS = {"object", "axis", "squeeze_end_s"}
+_FINGER_KEYS = {f.name for f in dataclasses.fields(FingerParams)}
+
+
+class SceneError(ValueError):
+    """A scene file that cannot be used; the message names the file and the field."""
+
+
+@dataclass
+class GraspSpec:
+    object: str
+    axis: tuple[float, float, float]
+    squeeze_end_s: float
+
+
+@dataclass
+class Scene:
+    name: str
+    path: Path
+    mjcf: Path
+    description: str = ""
+    rate_hz: float = 1000.0
+    duration_s: float = 5.0
+    audit: bool = True
+    fingers: list[FingerParams] = field(default_factory=list)
+    device: dict = field(default_factory=dict)
+    grasp: GraspSpec | None = None
+
+    def load_model(self) -> mujoco.MjModel:
+        """Compile the scene's MJCF; SceneError naming the file on failure."""
+        try:
+            return mujoco.MjModel.from_xml_path(str(self.mjcf))
+        except Exception as exc:  # mujoco raises ValueError with the XML error in it
+            raise SceneError(f"{self.mjcf}: MJCF does not compile: {exc}") from None
+
+
+def scene_dirs() -> list[Path]:
+    """Folders searched for scenes by name."""
+    dirs = []
+    for ep in entry_points(group="softproxy.scene_dirs"):
+        try:
+            dirs.append(Path(ep.load()))
+        except Exception:
+            continue
+    return dirs
+
+
+def list_scenes() -> list[Path]:
+    """Every scene TOML in the registered folders."""
+    return sorted(p for d in scene_dirs() for p in d.glob("*.toml"))
+
+
+def find_scene(name_or_path: str) -> Path:
+    """Resolve a scene name (e.g. `two_finger_grasp`) or a path to its TOML file."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" and p.is_file():
+        return p
+    for d in scene_dirs():
+        q = d / f"{name_or_path}.toml"
+        if q.is_file():
+            return q
+    known = ", ".join(q.stem for q in list_scenes()) or "none found"
+    raise SceneError(f"no scene {name_or_path!r}: give a .toml path or one of: {known}")
+
+
+def _number(where: str, key: str, value, *, positive=False, non_negative=False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"{where}: {key} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise SceneError(f"{where}: {key} must be finite, got {value!r}")
+    if positive and value <= 0.0:
+        raise SceneError(f"{where}: {key} must be > 0, got {value!r}")
+    if non_negative and value < 0.0:
+        raise SceneError(f"{where}: {key} must be >= 0, got {value!r}")
+    return value
+
+
+def _table(where: str, doc: dict, key: str, allowed: set | None) -> dict:
+    t = doc.get(key, {})
+    if not isinstance(t, dict):
+        raise SceneError(f"{where}: [{key}] must be a table")
+    if allowed is not None:
+        unknown = set(t) - allowed
+        if unknown:
+            raise SceneError(f"{where}: [{key}] has unknown field(s) {sorted(unknown)}; expected some of {sorted(allowed)}")
+    return t
+
+
+def _finger(where: str, defaults: dict, entry: dict, index: int) -> FingerParams:
+    if not isinstance(entry, dict):
+        raise SceneError(f"{where}: finger[{index}] must be a table")
+    merged = {**defaults, **entry}
+    unknown = set(merged) - _FINGER_KEYS
+    if unknown:
+        raise SceneError(f"{where}: finger[{index}] has unknown field(s) {sorted(unknown)}; expected some of {sorted(_FINGER_KEYS)}")
+    merged.setdefault("name", f"finger{index}")
+    if "model" in merged and merged["model"] not in MODELS:
+        raise SceneError(f"{where}: finger[{index}].model is {merged['model']!r}; expected one of {', '.join(MODELS)}")
+    if "offset" in merged:
+        off = merged["offset"]
+        if not isinstance(off, list) or len(off) != 3:
+            raise SceneError(f"{where}: finger[{index}].offset must be [x, y, z] in m, got {off!r}")
+        merged["offset"] = tuple(_number(where, f"finger[{index}].offset", v) for v in off)
+    for key, value in merged.items():
+        if key in ("name", "model", "offset", "saturate", "device_finger"):
+            continue
+        if value is not None:
+            merged[key] = _number(where, f"finger[{index}].{key}", value)
+    if "device_finger" in merged and (isinstance(merged["device_finger"], bool) or not isinstance(merged["device_finger"], int)):
+        raise SceneError(f"{where}: finger[{index}].device_finger must be an integer, got {merged['device_finger']!r}")
+    try:
+        return FingerParams(**merged)
+    except (ValueError, TypeError) as exc:
+        raise SceneError(f"{where}: finger[{index}]: {exc}") from None
+
+
+def load_scene(name_or_path: str) -> Scene:
+    """Read and validate a scene (the MJCF is compiled later, by `Scene.load_model`)."""
+    path = find_scene(name_or_path)
+    where = str(path)
+    try:
+        doc = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise SceneError(f"{where}: not valid TOML: {exc}") from None
+    unknown = set(doc) - {"scene", "grasp", "finger_defaults", "finger", "device"}
+    if unknown:
+        raise SceneError(f"{where}: unknown table(s) {sorted(unknown)}")
+    s = _table(where, doc, "scene", _SCENE_KEYS)
+    if "mjcf" not in s or not isinstance(s["mjcf"], str):
+        raise SceneError(f"{where}: [scene] mjcf is required: the MJCF file name, relative to the scene file")
+    mjcf = (path.parent / s["mjcf"]).resolve()
+    if not mjcf.is_file():
+        raise SceneError(f"{where}: [scene] mjcf {s['mjcf']!r} does not exist ({mjcf})")
+    scene = Scene(
+        name=path.stem, path=path, mjcf=mjcf, description=str(s.get("description", "")),
+        rate_hz=_number(where, "scene.rate_hz", s.get("rate_hz", 1000.0), positive=True),
+        duration_s=_number(where, "scene.duration_s", s.get("duration_s", 5.0), positive=True),
+        audit=bool(s.get("audit", True)),
+    )
+    defaults = _table(where, doc, "finger_defaults", _FINGER_KEYS)
+    fingers = doc.get("finger", [])
+    if not isinstance(fingers, list) or not fingers:
+        raise SceneError(f"{where}: at least one [[finger]] table is required")
+    scene.fingers = [_finger(where, defaults, f, i) for i, f in enumerate(fingers)]
+    scene.device = _table(where, doc, "device", None)
+    if "grasp" in doc:
+        g = _table(where, doc, "grasp", _GRASP_KEYS)
+        axis = g.get("axis", [1.0, 0.0, 0.0])
+        if not isinstance(axis, list) or len(axis) != 3:
+            raise SceneError(f"{where}: grasp.axis must be [x, y, z], got {axis!r}")
+        axis = [_number(where, "grasp.axis", v) for v in axis]
+        norm = math.sqrt(sum(v * v for v in axis))
+        if norm == 0.0:
+            raise SceneError(f"{where}: grasp.axis must not be zero")
+        if not isinstance(g.get("object"), str):
+            raise SceneError(f"{where}: grasp.object must be the name of a body")
+        scene.grasp = GraspSpec(g["object"], tuple(v / norm for v in axis),
+                                _number(where, "grasp.squeeze_end_s", g.get("squeeze_end_s", 0.0), non_negative=True))
+    return scene

@@ -1,0 +1,202 @@
+"""`ServoLoop`: the haptic tick, its timing, its statistics and its watchdog.
+
+One tick (../shared/DESIGN.md): read the device; MuJoCo's first half-step (bodies where
+they are now); each proxy follows its body (α_c, eqs 41–42); god-object, force, torsion for
+every finger; -F and -M·n onto the touched bodies; F and M to the device; MuJoCo's second
+half-step. `tick()` can be called from another application's loop (lockstep, no threads);
+`run(..., realtime=True)` paces the ticks itself, sleeping then spinning to hold the period.
+
+The watchdog answers every fault with zero force for that tick and a count in `faults`:
+a device that raises, a NaN/invalid sample, a tick that overran its period badly. `stop()`
+(and leaving `run`) sends zero force to every finger.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from softproxy.device import Device, DeviceSample
+from softproxy.finger import SoftFingerProxy
+from softproxy.world import World
+
+FAULTS = ("device_error", "invalid_sample", "overrun", "send_error")
+
+
+class TickStats:
+    """Preallocated ring buffers of tick duration and period (s); counters of misses."""
+
+    def __init__(self, capacity: int = 1 << 16) -> None:
+        self.duration = np.zeros(capacity)
+        self.period = np.zeros(capacity)
+        self.capacity = capacity
+        self.count = 0
+        self.misses = 0
+
+    def record(self, duration: float, period: float) -> None:
+        i = self.count % self.capacity
+        self.duration[i] = duration
+        self.period[i] = period
+        self.count += 1
+
+    def durations(self) -> np.ndarray:
+        """The recorded durations (s), oldest first (at most `capacity`)."""
+        n = min(self.count, self.capacity)
+        if self.count <= self.capacity:
+            return self.duration[:n].copy()
+        i = self.count % self.capacity
+        return np.concatenate([self.duration[i:], self.duration[:i]])
+
+    def summary_us(self) -> dict:
+        """Tick duration p50 / p99 / max in µs."""
+        d = self.durations()
+        if d.size == 0:
+            return {"p50": None, "p99": None, "max": None}
+        p50, p99 = np.percentile(d, [50, 99])
+        return {"p50": round(float(p50) * 1e6, 2), "p99": round(float(p99) * 1e6, 2), "max": round(float(d.max()) * 1e6, 2)}
+
+
+class ServoLoop:
+    """Couples fingers to a world through one device at a fixed rate (Hz)."""
+
+    def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
+                 overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False) -> None:
+        if not (math.isfinite(rate_hz) and 10.0 <= rate_hz <= 100_000.0):
+            raise ValueError(f"rate_hz must be between 10 and 100000, got {rate_hz!r}")
+        for f in fingers:
+            if f.params.device_finger >= device.fingers:
+                raise ValueError(f"finger {f.params.name!r} uses device finger {f.params.device_finger}, "
+                                 f"but the device drives {device.fingers}")
+        self.world = world
+        self.fingers = fingers
+        self.device = device
+        self.rate_hz = float(rate_hz)
+        self.period = 1.0 / self.rate_hz
+        world.timestep = self.period
+        self.samples = [DeviceSample() for _ in range(device.fingers)]
+        self.stats = TickStats(stats_capacity)
+        self.faults = dict.fromkeys(FAULTS, 0)
+        self.overrun_limit = overrun_factor * self.period
+        self.audit = audit
+        self.t = 0.0
+        self.ticks = 0
+        self._safe_next = False  # the watchdog asks for one tick of zero force
+        self._started = False
+
+    def start(self) -> None:
+        """Place every proxy at its finger's first device position (pushed out of any shape)."""
+        self._started = True
+        try:
+            self.device.read(self.t, self.samples)
+        except Exception:
+            self.faults["device_error"] += 1
+            return
+        for f in self.fingers:
+            s = self.samples[f.params.device_finger]
+            if s.valid and s.is_finite():
+                f.place(s.x, s.y, s.z)
+
+    def tick(self) -> None:
+        """One servo tick at loop time `self.t`; advances time by one period."""
+        if not self._started:
+            self.start()
+        start = time.perf_counter()
+        dt = self.period
+        world = self.world
+        device = self.device
+        samples = self.samples
+        ok = True
+        try:
+            device.read(self.t, samples)
+        except Exception:  # a device that fails must not take the loop (and a motor) with it
+            self.faults["device_error"] += 1
+            ok = False
+        safe = self._safe_next
+        self._safe_next = False
+        world.begin_step()
+        for f in self.fingers:
+            if f.body >= 0:
+                wx, wy, wz = world.angular_velocity(f.body)
+                f.follow_object(wx, wy, wz, dt)
+        for f in self.fingers:
+            s = samples[f.params.device_finger]
+            if not ok or not s.valid or not s.is_finite():
+                if ok:
+                    self.faults["invalid_sample"] += 1
+                f.clear_output()
+            else:
+                f.update(s.x, s.y, s.z, s.twist, dt)
+                if f.body >= 0 and not safe:
+                    world.push(f.body, -f.fx, -f.fy, -f.fz, f.px, f.py, f.pz, -f.tx, -f.ty, -f.tz)
+            if self.audit:
+                f.audit()
+            self._send(f, safe)
+        world.end_step()
+        self.t += dt
+        self.ticks += 1
+        duration = time.perf_counter() - start
+        if duration > self.overrun_limit:
+            self.faults["overrun"] += 1
+            self._safe_next = True
+        self.stats.record(duration, dt)
+
+    def _send(self, f: SoftFingerProxy, safe: bool) -> None:
+        """Send the finger's force and torque, clamped to what the device renders (zero if safe)."""
+        device = self.device
+        if safe or not f.valid:
+            fx = fy = fz = tx = ty = tz = 0.0
+        else:
+            fx, fy, fz, tx, ty, tz = f.fx, f.fy, f.fz, f.tx, f.ty, f.tz
+            fmax, tmax = device.max_force, device.max_torque
+            f2 = fx * fx + fy * fy + fz * fz
+            if f2 > fmax * fmax:
+                s = fmax / math.sqrt(f2) if fmax > 0.0 else 0.0
+                fx, fy, fz = fx * s, fy * s, fz * s
+            t2 = tx * tx + ty * ty + tz * tz
+            if t2 > tmax * tmax:
+                s = tmax / math.sqrt(t2) if tmax > 0.0 else 0.0
+                tx, ty, tz = tx * s, ty * s, tz * s
+        try:
+            device.send(f.params.device_finger, fx, fy, fz, tx, ty, tz)
+        except Exception:
+            self.faults["send_error"] += 1
+
+    def run(self, ticks: int, realtime: bool = False, on_tick=None) -> None:
+        """Run `ticks` ticks: lockstep (as fast as possible, deterministic) or paced in real time.
+
+        `on_tick(loop)` is called after every tick, outside the timed region. Zero force is
+        sent to every finger when the run ends, however it ends.
+        """
+        try:
+            if not realtime:
+                for _ in range(ticks):
+                    self.tick()
+                    if on_tick is not None:
+                        on_tick(self)
+                return
+            period = self.period
+            next_start = time.perf_counter()
+            for _ in range(ticks):
+                now = time.perf_counter()
+                # sleep most of the wait, then spin: time.sleep alone overshoots by up to ms
+                if next_start - now > 3e-4:
+                    time.sleep(next_start - now - 2e-4)
+                while time.perf_counter() < next_start:
+                    pass
+                self.tick()
+                if time.perf_counter() > next_start + period:
+                    self.stats.misses += 1
+                next_start += period
+                if on_tick is not None:
+                    on_tick(self)
+        finally:
+            self.stop()
+
+    def stop(self) -> None:
+        """The safe state: zero force to every finger, no finger wrench left on the bodies."""
+        self.world.clear_wrenches()
+        for f in self.fingers:
+            f.clear_output()
+            self._send(f, True)

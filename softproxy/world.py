@@ -1,0 +1,96 @@
+"""`World`: the MuJoCo side of the coupling — shapes for the proxies, wrenches on the bodies.
+
+MuJoCo is stepped in two halves (mj_step1 / mj_step2) so that each tick sees the bodies
+where they are *now*: mj_step1 computes positions and velocities of the current state, the
+fingers then move their proxies with the bodies they touch and compute their forces, the
+equal and opposite wrenches go into `xfrc_applied`, and mj_step2 integrates. This needs
+MuJoCo's Euler or implicit integrator (RK4 has no split step).
+"""
+
+from __future__ import annotations
+
+import mujoco
+
+from softproxy.geometry import Shape, shapes_of
+
+
+class World:
+    """A MuJoCo model and data plus the shapes the fingers touch. SI units, world frame."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData | None = None, mesh_shape=None) -> None:
+        if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
+            raise ValueError("the servo loop steps MuJoCo in two halves; RK4 cannot: use Euler or implicitfast")
+        self.model = model
+        self.data = data if data is not None else mujoco.MjData(model)
+        mujoco.mj_forward(self.model, self.data)
+        self.shapes: list[Shape] = shapes_of(model, self.data, mesh_shape)
+        self.moving = [s for s in self.shapes if not s.static]
+        self._xfrc = self.data.xfrc_applied
+        self._pushed: list[int] = []  # bodies with a wrench from last tick
+        self._wrench: dict[int, list[float]] = {}
+        # bodies welded to the world never move: a finger pushing on them moves nothing
+        self._fixed = [int(w) == 0 for w in model.body_weldid]
+
+    @property
+    def timestep(self) -> float:
+        return float(self.model.opt.timestep)
+
+    @timestep.setter
+    def timestep(self, dt: float) -> None:
+        if not dt > 0.0:
+            raise ValueError(f"timestep must be > 0 s, got {dt!r}")
+        self.model.opt.timestep = dt
+
+    def begin_step(self) -> None:
+        """First half of mj_step: kinematics and velocities of the current state; refresh shapes."""
+        mujoco.mj_step1(self.model, self.data)
+        data = self.data
+        for s in self.moving:
+            s.refresh(data)
+
+    def angular_velocity(self, body: int) -> tuple[float, float, float]:
+        """Angular velocity of a body, world frame (rad/s), valid after begin_step."""
+        wx, wy, wz, _, _, _ = self.data.cvel[body].tolist()
+        return wx, wy, wz
+
+    def push(self, body: int, fx, fy, fz, px, py, pz, tx, ty, tz) -> None:
+        """Add force (N) at world point p (m) plus a pure torque (N·m) on `body` for this tick."""
+        if self._fixed[body]:
+            return
+        cx, cy, cz = self.data.xipos[body].tolist()
+        rx, ry, rz = px - cx, py - cy, pz - cz
+        w = self._wrench.get(body)
+        if w is None:
+            w = self._wrench[body] = [0.0] * 6
+        w[0] += fx
+        w[1] += fy
+        w[2] += fz
+        w[3] += ry * fz - rz * fy + tx
+        w[4] += rz * fx - rx * fz + ty
+        w[5] += rx * fy - ry * fx + tz
+
+    def end_step(self) -> None:
+        """Write this tick's wrenches (and clear last tick's) and run the second half of mj_step."""
+        xfrc = self._xfrc
+        for body in self._pushed:
+            if body not in self._wrench:
+                xfrc[body] = 0.0
+        self._pushed = list(self._wrench)
+        for body, w in self._wrench.items():
+            xfrc[body] = w
+        self._wrench.clear()
+        mujoco.mj_step2(self.model, self.data)
+
+    def clear_wrenches(self) -> None:
+        """Remove every wrench the fingers put on the bodies (the safe state)."""
+        self._wrench.clear()
+        for body in self._pushed:
+            self._xfrc[body] = 0.0
+        self._pushed = []
+
+    def body_id(self, name: str) -> int:
+        """Body id by name; ValueError naming the body if the model has none."""
+        i = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if i < 0:
+            raise ValueError(f"the model has no body named {name!r}")
+        return i
