@@ -40,6 +40,42 @@ def cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_run(args: argparse.Namespace) -> int:
+    """Run a scene on a device and print the result."""
+    from softproxy.run import open_device, run_scene
+    from softproxy.scene import SceneError, load_scene
+
+    try:
+        scene = load_scene(args.scene)
+        device = open_device(args.device, scene)
+    except (SceneError, ValueError) as exc:
+        print(f"softproxy run: {exc}", file=sys.stderr)
+        return 2
+    if not args.headless:
+        print("softproxy run: the viewer is not built yet; running headless", file=sys.stderr)
+    try:
+        result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
+                           finger_model=args.finger_model, realtime=args.realtime)
+    finally:
+        device.close()
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    print(f"scene {result['scene']}: {result['ticks']} ticks at {result['rate_hz']:g} Hz "
+          f"({'real time' if result['realtime'] else 'lockstep'})")
+    if "object_rotation_deg" in result:
+        print(f"  {result['object']} turned {result['object_rotation_deg']:+.3f} deg about the grasp axis "
+              f"after the squeeze (max {result['object_rotation_max_deg']:.3f} deg), "
+              f"height {result['object_height_m'] * 1000:.1f} mm")
+    _print_table(result["fingers"], [
+        ("name", "finger", "s"), ("model", "model", "s"), ("max_force_N", "max F (N)", ".3f"),
+        ("proxy_penetration_max_m", "max penetration (m)", ".2e"), ("slip_events", "slips", "d"),
+    ])
+    t = result["tick_us"]
+    print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="softproxy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -47,6 +83,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("models", help="list the fingertip models and their constants")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=cmd_models)
+
+    p = sub.add_parser("run", help="run a scene (e.g. two_finger_grasp) on a device")
+    p.add_argument("scene", help="scene name or path to its .toml")
+    p.add_argument("--device", default="sim", help="device type (default: sim, the scene's scripted device)")
+    p.add_argument("--headless", action="store_true", help="no window")
+    p.add_argument("--duration", type=float, default=None, help="seconds to run (default: the scene's)")
+    p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")
+    p.add_argument("--finger-model", choices=list(MODELS), default=None, help="override every finger's model")
+    p.add_argument("--realtime", action="store_true", help="pace ticks in real time (default: lockstep)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_run)
     return parser
 
 

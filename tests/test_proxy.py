@@ -1,0 +1,188 @@
+"""The 3-DOF god-object against MuJoCo primitives: never inside, reaches free targets, friction."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from softproxy.geometry import shapes_of
+from softproxy.proxy import GodObject
+
+TOL = 1e-6  # the promise: never more than 1 µm inside anything
+
+
+def world(body_xml: str):
+    xml = f"<mujoco><worldbody>{body_xml}</worldbody></mujoco>"
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    return m, d, shapes_of(m, d)
+
+
+def deepest(god):
+    return max(god.radius - s.distance(god.x, god.y, god.z)[0] for s in god.shapes)
+
+
+GEOMS = {
+    "box": 'type="box" size=".04 .03 .02"',
+    "sphere": 'type="sphere" size=".03"',
+    "capsule": 'type="capsule" size=".02 .03"',
+    "cylinder": 'type="cylinder" size=".03 .02"',
+    "ellipsoid": 'type="ellipsoid" size=".04 .025 .015"',
+}
+
+coord = st.floats(-0.08, 0.08)
+point = st.tuples(coord, coord, coord)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.sampled_from(sorted(GEOMS)),
+    st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(lambda q: sum(v * v for v in q) > 0.1),
+    st.floats(0.0, 0.01),
+    st.lists(point, min_size=2, max_size=25),
+    st.floats(0.0, 1.0),
+)
+def test_never_inside_any_primitive(kind, quat, radius, path, mu):
+    """Random shape, pose, proxy radius, friction and device path: the proxy stays outside (< 1e-6 m)."""
+    q = np.array(quat) / np.linalg.norm(quat)
+    m, d, shapes = world(f'<geom {GEOMS[kind]} quat="{q[0]} {q[1]} {q[2]} {q[3]}"/>')
+    god = GodObject(shapes, radius, mu, 0.8 * mu, (0.0, 0.0, 0.2))
+    for p in path:
+        god.update(*p)
+        assert deepest(god) <= TOL
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(sorted(GEOMS)), point, st.floats(0.0, 0.01))
+def test_reaches_device_outside_objects(kind, target, radius):
+    """With the device outside every object (by the proxy radius) the proxy goes to it."""
+    m, d, shapes = world(f'<geom {GEOMS[kind]}/>')
+    if shapes[0].distance(*target)[0] < radius + 1e-4:
+        return
+    # approach along the ray from the shape's centre: for a convex shape it never crosses it
+    n = math.sqrt(sum(v * v for v in target))
+    god = GodObject(shapes, radius, 0.0, 0.0, tuple(0.3 * v / n for v in target))
+    god.update(*target)
+    assert not god.contact
+    assert math.dist((god.x, god.y, god.z), target) < 1e-9
+
+
+@pytest.mark.parametrize("speed", [1.0, 10.0, 100.0])
+def test_thin_plate_never_popped_through(speed):
+    """A 1 mm plate crossed at up to 100 m/s at 1 kHz (10 cm per tick): the proxy stays on the near side."""
+    m, d, shapes = world('<geom type="box" size=".05 .05 .0005"/>')
+    for radius in (0.0, 0.005):
+        god = GodObject(shapes, radius, 0.5, 0.4, (0.0, 0.0, 0.01))
+        step = speed * 1e-3
+        z = 0.01
+        for _ in range(40):
+            z -= step
+            god.update(0.001, 0.0, z)
+            assert god.z >= 0.0005 + radius - TOL
+            assert deepest(god) <= TOL
+        assert god.contact
+
+
+def test_convex_corner_holds_on_the_rounded_corner():
+    """Pushing diagonally into a box corner: a sphere proxy rests on the corner, force along the diagonal."""
+    m, d, shapes = world('<geom type="box" size=".05 .05 .05"/>')
+    r = 0.005
+    god = GodObject(shapes, r, 0.0, 0.0, (0.1, 0.1, 0.1))
+    for depth in (0.01, 0.02):
+        god.update(*(0.05 - depth,) * 3)
+        expected = 0.05 + r / math.sqrt(3)
+        assert (god.x, god.y, god.z) == pytest.approx((expected,) * 3, abs=1e-8)
+        assert (god.nx, god.ny, god.nz) == pytest.approx((1 / math.sqrt(3),) * 3, abs=1e-9)
+
+
+def test_concave_corner_is_three_planes():
+    """Into the corner of a room (floor and two walls): three constraint planes solved in one tick."""
+    walls = ('<geom type="plane" size="1 1 .1"/>'
+             '<geom type="box" pos="0.1 0 0.1" size=".1 .3 .1"/>'
+             '<geom type="box" pos="0 0.1 0.1" size=".3 .1 .1"/>')
+    m, d, shapes = world(walls)
+    r = 0.005
+    god = GodObject(shapes, r, 0.0, 0.0, (-0.05, -0.05, 0.05))
+    god.update(0.02, 0.03, -0.01)  # one tick, from free space deep into the corner
+    assert (god.x, god.y, god.z) == pytest.approx((-r, -r, r), abs=1e-8)
+    assert len(god.planes) == 3
+    # the force k(x_p - x_d) points out of all three surfaces
+    assert god.x - 0.02 < 0 and god.y - 0.03 < 0 and god.z + 0.01 > 0
+    assert deepest(god) <= TOL
+
+
+def test_concave_crease_two_boxes():
+    """Device pushed into the crease between a floor and a wall: proxy sits in the crease, on both."""
+    m, d, shapes = world('<geom type="plane" size="1 1 .1"/><geom type="box" pos="0.1 0 0" size=".1 .1 .1"/>')
+    r = 0.005
+    god = GodObject(shapes, r, 0.0, 0.0, (-0.05, 0.0, 0.05))
+    god.update(0.01, 0.0, -0.01)
+    assert god.x == pytest.approx(-r, abs=1e-8) and god.z == pytest.approx(r, abs=1e-8)
+    assert god.contact and len(god.planes) == 2
+
+
+@pytest.mark.parametrize("mu_s", [0.0, 0.3, 1.0])
+def test_static_friction_holds_below_cone_and_releases_above(mu_s):
+    """Tangential push below μ_s·depth keeps the proxy put; above it the proxy slides (μ = 0 slides freely)."""
+    m, d, shapes = world('<geom type="plane" size="1 1 .1"/>')
+    god = GodObject(shapes, 0.0, mu_s, 0.5 * mu_s, (0.0, 0.0, 0.01))
+    god.update(0.0, 0.0, -0.01)  # press 1 cm in
+    assert god.contact and god.x == 0.0
+    depth = 0.01
+    god.update(0.9 * mu_s * depth, 0.0, -0.01)
+    if mu_s > 0:
+        assert god.sticking and god.x == pytest.approx(0.0, abs=1e-12)
+    god.update(1.2 * mu_s * depth + 1e-4, 0.0, -0.01)
+    assert not god.sticking
+    # sliding: the proxy trails the device by μ_d·depth (dynamic cone edge)
+    assert god.x == pytest.approx(1.2 * mu_s * depth + 1e-4 - 0.5 * mu_s * depth, abs=1e-9)
+    assert god.z == pytest.approx(0.0, abs=1e-8)
+
+
+def test_nan_device_leaves_proxy_in_place():
+    m, d, shapes = world('<geom type="plane" size="1 1 .1"/>')
+    god = GodObject(shapes, 0.0, 0.0, 0.0, (0.0, 0.0, 0.01))
+    god.update(0.0, 0.0, -0.01)
+    before = (god.x, god.y, god.z)
+    for bad in (math.nan, math.inf, -math.inf):
+        assert god.update(bad, 0.0, 0.0) is False
+        assert (god.x, god.y, god.z) == before
+
+
+def test_moving_object_carries_and_pushes_out():
+    """The proxy is held in the touched body's frame; a body moving into a free proxy pushes it out."""
+    m, d, _ = world('<body name="b" mocap="true"><geom type="box" size=".05 .05 .05"/></body>')
+    shapes = shapes_of(m, d)
+    god = GodObject(shapes, 0.0, 1.0, 0.8, (0.0, 0.0, 0.1))
+    god.update(0.0, 0.0, 0.04)
+    assert god.z == pytest.approx(0.05)
+    d.mocap_pos[0] = (0.01, 0.0, 0.0)  # slide the box sideways: the stuck proxy goes along
+    mujoco.mj_forward(m, d)
+    shapes[0].refresh(d)
+    god.update(0.0, 0.0, 0.04)
+    assert god.x == pytest.approx(0.01, abs=1e-9) or not god.sticking
+    god.reset(0.0, 0.0, 0.06)  # free proxy just above the box top
+    d.mocap_pos[0] = (0.0, 0.0, 0.02)  # box rises 2 cm into it
+    mujoco.mj_forward(m, d)
+    shapes[0].refresh(d)
+    god.update(0.0, 0.0, 0.2)
+    assert deepest(god) <= TOL
+
+
+def test_bad_parameters():
+    m, d, shapes = world('<geom type="plane" size="1 1 .1"/>')
+    with pytest.raises(ValueError, match="radius"):
+        GodObject(shapes, -0.01)
+    with pytest.raises(ValueError, match="mu_d"):
+        GodObject(shapes, 0.01, 0.2, 0.5)
+
+
+def test_unsupported_geom_is_named():
+    xml = '<mujoco><asset><hfield name="h" nrow="3" ncol="3" size="1 1 .1 .1"/></asset><worldbody><geom name="terrain" type="hfield" hfield="h"/></worldbody></mujoco>'
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    with pytest.raises(ValueError, match="terrain.*hfield"):
+        shapes_of(m, d)
