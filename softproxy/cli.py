@@ -64,8 +64,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"scene {result['scene']}: {result['ticks']} ticks at {result['rate_hz']:g} Hz "
           f"({'real time' if result['realtime'] else 'lockstep'})")
     if "object_rotation_deg" in result:
-        print(f"  {result['object']} turned {result['object_rotation_deg']:+.3f} deg about the grasp axis "
-              f"after the squeeze (max {result['object_rotation_max_deg']:.3f} deg), "
+        print(f"  {result['object']} turned {result['object_rotation_deg']:+.3f} deg about the measured axis "
+              f"since start_s (max {result['object_rotation_max_deg']:.3f} deg), "
               f"height {result['object_height_m'] * 1000:.1f} mm")
     _print_table(result["fingers"], [
         ("name", "finger", "s"), ("model", "model", "s"), ("max_force_N", "max F (N)", ".3f"),

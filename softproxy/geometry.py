@@ -35,7 +35,7 @@ class Shape:
     """True when every face is planar (the solver then needs no curvature refinement)."""
 
     __slots__ = ("geom", "body", "name", "static", "rbound", "px", "py", "pz",
-                 "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
+                 "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22", "_xpos", "_xmat")
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool) -> None:
         self.geom = geom
@@ -43,13 +43,16 @@ class Shape:
         self.name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or f"geom{geom}"
         self.static = static
         self.rbound = math.inf if int(model.geom_type[geom]) == int(mujoco.mjtGeom.mjGEOM_PLANE) else float(model.geom_rbound[geom])
-        self.refresh(data)
+        # views into mjData, kept: each `data.geom_xpos` access builds a new array object
+        self._xpos = data.geom_xpos[geom]
+        self._xmat = data.geom_xmat[geom]
+        self.refresh()
 
-    def refresh(self, data: mujoco.MjData) -> None:
-        """Copy the geom's world pose from `data` (after mj_kinematics / mj_step)."""
-        self.px, self.py, self.pz = data.geom_xpos[self.geom].tolist()
+    def refresh(self) -> None:
+        """Copy the geom's world pose from mjData (after mj_kinematics / mj_step1)."""
+        self.px, self.py, self.pz = self._xpos.tolist()
         (self.r00, self.r01, self.r02, self.r10, self.r11, self.r12,
-         self.r20, self.r21, self.r22) = data.geom_xmat[self.geom].tolist()
+         self.r20, self.r21, self.r22) = self._xmat.tolist()
 
     def to_local(self, x: float, y: float, z: float) -> tuple[float, float, float]:
         dx, dy, dz = x - self.px, y - self.py, z - self.pz

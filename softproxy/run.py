@@ -62,19 +62,19 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     if not (math.isfinite(duration) and duration > 0.0):
         raise ValueError(f"duration must be > 0 s, got {duration!r}")
     ticks = int(round(duration * loop.rate_hz))
-    grasp = scene.grasp
+    measure = scene.measure
     track: dict = {}
-    if grasp is not None:
-        body = loop.world.body_id(grasp.object)
+    if measure is not None:
+        body = loop.world.body_id(measure.object)
         xquat = loop.world.data.xquat
-        squeeze_tick = int(round(grasp.squeeze_end_s * loop.rate_hz))
+        start_tick = int(round(measure.start_s * loop.rate_hz))
         track.update(q0=None, max_deg=0.0)
 
         def on_tick(lp: ServoLoop) -> None:
-            if lp.ticks == squeeze_tick or (track["q0"] is None and lp.ticks > squeeze_tick):
+            if lp.ticks == start_tick or (track["q0"] is None and lp.ticks > start_tick):
                 track["q0"] = xquat[body].copy()
             elif track["q0"] is not None and lp.ticks % 10 == 0:
-                track["max_deg"] = max(track["max_deg"], abs(_rotation_about(track["q0"], xquat[body], grasp.axis)))
+                track["max_deg"] = max(track["max_deg"], abs(_rotation_about(track["q0"], xquat[body], measure.axis)))
     else:
         on_tick = None
     loop.run(ticks, realtime=realtime, on_tick=on_tick)
@@ -86,11 +86,11 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         "duration_s": loop.ticks * loop.period,
         "realtime": realtime,
     }
-    if grasp is not None:
+    if measure is not None:
         mujoco_data = loop.world.data
         q0 = track["q0"] if track["q0"] is not None else mujoco_data.xquat[body].copy()
-        rotation = _rotation_about(q0, mujoco_data.xquat[body], grasp.axis)
-        result["object"] = grasp.object
+        rotation = _rotation_about(q0, mujoco_data.xquat[body], measure.axis)
+        result["object"] = measure.object
         result["object_rotation_deg"] = round(rotation, 4)
         result["object_rotation_max_deg"] = round(max(track["max_deg"], abs(rotation)), 4)
         result["object_height_m"] = round(float(mujoco_data.xpos[body][2]), 5)

@@ -4,8 +4,9 @@ A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked
 
     [scene]            mjcf (required, path relative to the TOML), description, rate_hz (1000),
                        duration_s (5.0), audit (true: track proxy penetration every tick)
-    [grasp]            object (body name), axis ([x, y, z]), squeeze_end_s: the run reports how
-                       far the object turned about the axis from squeeze_end_s to the end
+    [measure]          object (body name), axis ([x, y, z]), start_s: the run reports how far
+                       the object turned about the axis from start_s (e.g. the end of a
+                       grasp's squeeze) to the end of the run
     [finger_defaults]  any `FingerParams` field, for every finger
     [[finger]]         one per finger: any `FingerParams` field (name, device_finger, offset, ...)
     [device]           handed as is to the device named by its `type` (e.g. "sim")
@@ -30,7 +31,7 @@ from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
 
 _SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit"}
-_GRASP_KEYS = {"object", "axis", "squeeze_end_s"}
+_MEASURE_KEYS = {"object", "axis", "start_s"}
 _FINGER_KEYS = {f.name for f in dataclasses.fields(FingerParams)}
 
 
@@ -39,10 +40,12 @@ class SceneError(ValueError):
 
 
 @dataclass
-class GraspSpec:
+class MeasureSpec:
+    """Which body's rotation the run reports, about which world axis, from when (s)."""
+
     object: str
     axis: tuple[float, float, float]
-    squeeze_end_s: float
+    start_s: float
 
 
 @dataclass
@@ -56,7 +59,7 @@ class Scene:
     audit: bool = True
     fingers: list[FingerParams] = field(default_factory=list)
     device: dict = field(default_factory=dict)
-    grasp: GraspSpec | None = None
+    measure: MeasureSpec | None = None
 
     def load_model(self) -> mujoco.MjModel:
         """Compile the scene's MJCF; SceneError naming the file on failure."""
@@ -155,7 +158,7 @@ def load_scene(name_or_path: str) -> Scene:
         doc = tomllib.loads(path.read_text())
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise SceneError(f"{where}: not valid TOML: {exc}") from None
-    unknown = set(doc) - {"scene", "grasp", "finger_defaults", "finger", "device"}
+    unknown = set(doc) - {"scene", "measure", "finger_defaults", "finger", "device"}
     if unknown:
         raise SceneError(f"{where}: unknown table(s) {sorted(unknown)}")
     s = _table(where, doc, "scene", _SCENE_KEYS)
@@ -176,17 +179,17 @@ def load_scene(name_or_path: str) -> Scene:
         raise SceneError(f"{where}: at least one [[finger]] table is required")
     scene.fingers = [_finger(where, defaults, f, i) for i, f in enumerate(fingers)]
     scene.device = _table(where, doc, "device", None)
-    if "grasp" in doc:
-        g = _table(where, doc, "grasp", _GRASP_KEYS)
+    if "measure" in doc:
+        g = _table(where, doc, "measure", _MEASURE_KEYS)
         axis = g.get("axis", [1.0, 0.0, 0.0])
         if not isinstance(axis, list) or len(axis) != 3:
-            raise SceneError(f"{where}: grasp.axis must be [x, y, z], got {axis!r}")
-        axis = [_number(where, "grasp.axis", v) for v in axis]
+            raise SceneError(f"{where}: measure.axis must be [x, y, z], got {axis!r}")
+        axis = [_number(where, "measure.axis", v) for v in axis]
         norm = math.sqrt(sum(v * v for v in axis))
         if norm == 0.0:
-            raise SceneError(f"{where}: grasp.axis must not be zero")
+            raise SceneError(f"{where}: measure.axis must not be zero")
         if not isinstance(g.get("object"), str):
-            raise SceneError(f"{where}: grasp.object must be the name of a body")
-        scene.grasp = GraspSpec(g["object"], tuple(v / norm for v in axis),
-                                _number(where, "grasp.squeeze_end_s", g.get("squeeze_end_s", 0.0), non_negative=True))
+            raise SceneError(f"{where}: measure.object must be the name of a body")
+        scene.measure = MeasureSpec(g["object"], tuple(v / norm for v in axis),
+                                    _number(where, "measure.start_s", g.get("start_s", 0.0), non_negative=True))
     return scene

@@ -25,7 +25,10 @@ class World:
         mujoco.mj_forward(self.model, self.data)
         self.shapes: list[Shape] = shapes_of(model, self.data, mesh_shape)
         self.moving = [s for s in self.shapes if not s.static]
+        # views into mjData, kept: each attribute access of mjData builds a new array object
         self._xfrc = self.data.xfrc_applied
+        self._cvel = self.data.cvel
+        self._xipos = self.data.xipos
         self._pushed: list[int] = []  # bodies with a wrench from last tick
         self._wrench: dict[int, list[float]] = {}
         # bodies welded to the world never move: a finger pushing on them moves nothing
@@ -44,20 +47,19 @@ class World:
     def begin_step(self) -> None:
         """First half of mj_step: kinematics and velocities of the current state; refresh shapes."""
         mujoco.mj_step1(self.model, self.data)
-        data = self.data
         for s in self.moving:
-            s.refresh(data)
+            s.refresh()
 
     def angular_velocity(self, body: int) -> tuple[float, float, float]:
         """Angular velocity of a body, world frame (rad/s), valid after begin_step."""
-        wx, wy, wz, _, _, _ = self.data.cvel[body].tolist()
+        wx, wy, wz, _, _, _ = self._cvel[body].tolist()
         return wx, wy, wz
 
     def push(self, body: int, fx, fy, fz, px, py, pz, tx, ty, tz) -> None:
         """Add force (N) at world point p (m) plus a pure torque (N·m) on `body` for this tick."""
         if self._fixed[body]:
             return
-        cx, cy, cz = self.data.xipos[body].tolist()
+        cx, cy, cz = self._xipos[body].tolist()
         rx, ry, rz = px - cx, py - cy, pz - cz
         w = self._wrench.get(body)
         if w is None:

@@ -161,13 +161,13 @@ def test_moving_object_carries_and_pushes_out():
     assert god.z == pytest.approx(0.05)
     d.mocap_pos[0] = (0.01, 0.0, 0.0)  # slide the box sideways: the stuck proxy goes along
     mujoco.mj_forward(m, d)
-    shapes[0].refresh(d)
+    shapes[0].refresh()
     god.update(0.0, 0.0, 0.04)
     assert god.x == pytest.approx(0.01, abs=1e-9) or not god.sticking
     god.reset(0.0, 0.0, 0.06)  # free proxy just above the box top
     d.mocap_pos[0] = (0.0, 0.0, 0.02)  # box rises 2 cm into it
     mujoco.mj_forward(m, d)
-    shapes[0].refresh(d)
+    shapes[0].refresh()
     god.update(0.0, 0.0, 0.2)
     assert deepest(god) <= TOL
 
