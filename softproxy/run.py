@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from importlib.metadata import entry_points
 
+import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from softproxy.device import Device
 from softproxy.finger import SoftFingerProxy
@@ -49,9 +49,13 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
 
 def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
     """Signed rotation (deg) about a world axis taking orientation q_from to q_to (w, x, y, z)."""
-    a = Rotation.from_quat(q_from, scalar_first=True)
-    b = Rotation.from_quat(q_to, scalar_first=True)
-    return float(np.degrees(np.dot((b * a.inv()).as_rotvec(), axis)))
+    inverse = np.zeros(4)
+    relative = np.zeros(4)
+    rotvec = np.zeros(3)
+    mujoco.mju_negQuat(inverse, q_from)
+    mujoco.mju_mulQuat(relative, q_to, inverse)  # world-frame rotation from q_from to q_to
+    mujoco.mju_quat2Vel(rotvec, relative, 1.0)
+    return float(np.degrees(np.dot(rotvec, axis)))
 
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,

@@ -1,0 +1,72 @@
+"""Scene files: every shipped scene loads; malformed ones fail naming the file and the field."""
+
+import pytest
+
+from softproxy.scene import SceneError, list_scenes, load_scene
+
+GOOD_XML = '<mujoco><worldbody><geom type="plane" size="1 1 .1"/></worldbody></mujoco>'
+GOOD = """
+[scene]
+mjcf = "w.xml"
+[[finger]]
+name = "a"
+[device]
+type = "sim"
+"""
+
+
+def write(tmp_path, toml, xml=GOOD_XML):
+    (tmp_path / "w.xml").write_text(xml)
+    p = tmp_path / "s.toml"
+    p.write_text(toml)
+    return str(p)
+
+
+def test_every_shipped_scene_loads_and_compiles():
+    names = {p.stem for p in list_scenes()}
+    assert {"two_finger_grasp", "knob", "thin_plate", "corner", "friction_ramp", "shapes_tour"} <= names
+    for p in list_scenes():
+        scene = load_scene(str(p))
+        scene.load_model()
+        assert scene.fingers
+
+
+def test_good_minimal_scene(tmp_path):
+    s = load_scene(write(tmp_path, GOOD))
+    assert s.rate_hz == 1000.0 and s.fingers[0].name == "a" and s.fingers[0].model == "CH"
+
+
+@pytest.mark.parametrize(
+    "toml, words",
+    [
+        (GOOD.replace('mjcf = "w.xml"', ""), ["mjcf is required"]),
+        (GOOD.replace('"w.xml"', '"nope.xml"'), ["nope.xml", "does not exist"]),
+        (GOOD.replace('name = "a"', 'name = "a"\nmodel = "HUMAN"'), ["finger[0].model", "HUMAN", "CH"]),
+        (GOOD.replace('name = "a"', 'name = "a"\nstiffness = -5.0'), ["finger[0]", "stiffness", "> 0"]),
+        (GOOD.replace('name = "a"', 'name = "a"\nstifness = 5.0'), ["finger[0]", "stifness"]),
+        (GOOD.replace('name = "a"', 'name = "a"\nradius = "big"'), ["finger[0].radius", "number"]),
+        (GOOD.replace("[[finger]]\nname = \"a\"", ""), ["[[finger]]"]),
+        (GOOD.replace("[scene]", "[scene]\nrate_hz = 0"), ["scene.rate_hz", "> 0"]),
+        (GOOD + "\n[measure]\nobject = \"box\"\naxis = [0, 0]\n", ["measure.axis"]),
+        (GOOD + "\n[extras]\n", ["unknown table", "extras"]),
+        ("[scene\nmjcf=", ["not valid TOML"]),
+    ],
+)
+def test_malformed_scene_names_file_and_field(tmp_path, toml, words):
+    with pytest.raises(SceneError) as err:
+        load_scene(write(tmp_path, toml))
+    message = str(err.value)
+    assert "s.toml" in message
+    for w in words:
+        assert w in message
+
+
+def test_bad_mjcf_names_the_file(tmp_path):
+    s = load_scene(write(tmp_path, GOOD, xml="<mujoco><worldbody><geom type='box'/></worldbody>"))
+    with pytest.raises(SceneError, match="w.xml.*does not compile"):
+        s.load_model()
+
+
+def test_unknown_scene_lists_the_known_ones():
+    with pytest.raises(SceneError, match="two_finger_grasp"):
+        load_scene("no_such_scene")
