@@ -76,6 +76,27 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _benchmarks() -> dict:
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep for ep in entry_points(group="softproxy.benchmarks")}
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Run a benchmark (or all of them) by name."""
+    benches = _benchmarks()
+    names = sorted(benches) if args.name == "all" else [args.name]
+    for name in names:
+        if name not in benches:
+            print(f"softproxy bench: no benchmark {name!r}; have: {', '.join(sorted(benches))}, all", file=sys.stderr)
+            return 2
+    for name in names:
+        code = benches[name].load()(args)
+        if code:
+            return code
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="softproxy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -94,6 +115,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--realtime", action="store_true", help="pace ticks in real time (default: lockstep)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("bench", help="run a benchmark: latency, or all")
+    p.add_argument("name", help="benchmark name, or all")
+    p.add_argument("--duration", type=float, default=5.0, help="seconds of servo time to time (default 5)")
+    p.add_argument("--paced", type=float, default=None, help="seconds of the paced (real-time) run (default: --duration)")
+    p.add_argument("--out", default="bench-out", help="folder for JSON and charts (default bench-out)")
+    p.add_argument("--json", action="store_true", help="print the JSON result")
+    p.set_defaults(func=cmd_bench)
     return parser
 
 

@@ -36,15 +36,18 @@ def open_device(kind: str, scene: Scene) -> Device:
 
 
 def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_model: str | None = None,
-          audit: bool | None = None) -> ServoLoop:
-    """World + fingers + servo loop for `scene`, driven by `device`."""
+          audit: bool | None = None, realtime: bool = True) -> ServoLoop:
+    """World + fingers + servo loop for `scene`, driven by `device`.
+
+    `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog.
+    """
     world = World(scene.load_model())
     fingers = []
     for params in scene.fingers:
         name = finger_model or params.model
         fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
     return ServoLoop(world, fingers, device, rate_hz or scene.rate_hz,
-                     audit=scene.audit if audit is None else audit)
+                     audit=scene.audit if audit is None else audit, overrun_watchdog=realtime)
 
 
 def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
@@ -61,7 +64,7 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints."""
-    loop = build(scene, device, rate_hz, finger_model)
+    loop = build(scene, device, rate_hz, finger_model, realtime=realtime)
     duration = duration_s if duration_s is not None else scene.duration_s
     if not (math.isfinite(duration) and duration > 0.0):
         raise ValueError(f"duration must be > 0 s, got {duration!r}")

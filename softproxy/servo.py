@@ -7,8 +7,11 @@ half-step. `tick()` can be called from another application's loop (lockstep, no 
 `run(..., realtime=True)` paces the ticks itself, sleeping then spinning to hold the period.
 
 The watchdog answers every fault with zero force for that tick and a count in `faults`:
-a device that raises, a NaN/invalid sample, a tick that overran its period badly. `stop()`
-(and leaving `run`) sends zero force to every finger.
+a device that raises, a NaN/invalid sample, a tick that overran its period badly (then the
+next tick renders zero). `stop()` (and leaving `run`) sends zero force to every finger.
+The overrun watchdog guards real time; a lockstep run in simulated time (tests,
+benchmarks, `softproxy run` without `--realtime`) turns it off so that wall-clock noise
+cannot change the result.
 """
 
 from __future__ import annotations
@@ -62,7 +65,8 @@ class ServoLoop:
     """Couples fingers to a world through one device at a fixed rate (Hz)."""
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
-                 overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False) -> None:
+                 overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
+                 overrun_watchdog: bool = True) -> None:
         if not (math.isfinite(rate_hz) and 10.0 <= rate_hz <= 100_000.0):
             raise ValueError(f"rate_hz must be between 10 and 100000, got {rate_hz!r}")
         for f in fingers:
@@ -79,6 +83,7 @@ class ServoLoop:
         self.stats = TickStats(stats_capacity)
         self.faults = dict.fromkeys(FAULTS, 0)
         self.overrun_limit = overrun_factor * self.period
+        self.overrun_watchdog = overrun_watchdog
         self.audit = audit
         self.t = 0.0
         self.ticks = 0
@@ -137,7 +142,7 @@ class ServoLoop:
         self.t += dt
         self.ticks += 1
         duration = time.perf_counter() - start
-        if duration > self.overrun_limit:
+        if duration > self.overrun_limit and self.overrun_watchdog:
             self.faults["overrun"] += 1
             self._safe_next = True
         self.stats.record(duration, dt)

@@ -1,0 +1,179 @@
+"""`softproxy bench latency`: the full servo tick against a bare mj_step of the same scene.
+
+Two soft fingers hold the box of `two_finger_grasp` (device read + two god-objects +
+torsion + coupling + MuJoCo). Each tick is timed, and in the same run a bare `mj_step` is
+timed on a copy of the very same MuJoCo state, so the ratio compares like with like on a
+shared, noisy machine. Stage times come from timing subclasses swapped in for the god-object
+and torsion (one extra call each). A paced run at the scene's rate gives the deadline-miss
+rate. Prints a table, writes latency.json and latency.png to the output folder.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from softproxy.proxy import GodObject
+from softproxy.run import build, open_device
+from softproxy.scene import load_scene
+from softproxy.torsion import TorsionalFriction
+
+_clock = time.perf_counter
+
+
+class _TimedGodObject(GodObject):
+    __slots__ = ()
+    spent = [0.0]
+
+    def update(self, xd, yd, zd):
+        t = _clock()
+        ok = GodObject.update(self, xd, yd, zd)
+        _TimedGodObject.spent[0] += _clock() - t
+        return ok
+
+
+class _TimedTorsion(TorsionalFriction):
+    __slots__ = ()
+    spent = [0.0]
+
+    def step(self, alpha_s, P):
+        t = _clock()
+        M = TorsionalFriction.step(self, alpha_s, P)
+        _TimedTorsion.spent[0] += _clock() - t
+        return M
+
+
+def _percentiles(us: np.ndarray) -> dict:
+    return {"p50": round(float(np.percentile(us, 50)), 2), "p99": round(float(np.percentile(us, 99)), 2),
+            "max": round(float(us.max()), 2)}
+
+
+def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "two_finger_grasp",
+            progress=None) -> dict:
+    """Run the benchmark and return the result dict (times in µs)."""
+    scene = load_scene(scene_name)
+    loop = build(scene, open_device("sim", scene), audit=False, realtime=False)
+    ticks = int(duration_s * loop.rate_hz)
+    m, d = loop.world.model, loop.world.data
+    scratch = mujoco.MjData(m)
+    warm = min(int(1.0 * loop.rate_hz), ticks // 4)  # squeeze and lift first: time the hold
+    loop.run(warm)
+    loop._started = True
+    for f in loop.fingers:
+        f.god.__class__ = _TimedGodObject
+        if f.torsion is not None:
+            f.torsion.__class__ = _TimedTorsion
+    tick_us = np.empty(ticks)
+    step_us = np.empty(ticks)
+    god_us = np.empty(ticks)
+    torsion_us = np.empty(ticks)
+    for i in range(ticks):
+        _TimedGodObject.spent[0] = _TimedTorsion.spent[0] = 0.0
+        t0 = _clock()
+        loop.tick()
+        tick_us[i] = (_clock() - t0) * 1e6
+        god_us[i] = _TimedGodObject.spent[0] * 1e6
+        torsion_us[i] = _TimedTorsion.spent[0] * 1e6
+        mujoco.mj_copyData(scratch, m, d)
+        t0 = _clock()
+        mujoco.mj_step(m, scratch)
+        step_us[i] = (_clock() - t0) * 1e6
+        if progress is not None and i % 500 == 0:
+            progress(i / ticks)
+    # stage costs of the device and MuJoCo's two halves, timed alone on the same state
+    device, samples = loop.device, loop.samples
+    t_dev = np.empty(2000)
+    for i in range(t_dev.size):
+        t0 = _clock()
+        device.read(loop.t, samples)
+        t_dev[i] = (_clock() - t0) * 1e6
+    loop.stop()
+
+    paced = build(scene, open_device("sim", scene), audit=False)
+    paced_ticks = int(paced_s * paced.rate_hz)
+    paced.run(paced_ticks, realtime=True)
+    tick = _percentiles(tick_us)
+    step = _percentiles(step_us)
+    stages = {
+        "device": round(float(np.median(t_dev)), 2),
+        "god_object": round(float(np.median(god_us)), 2),
+        "torsion": round(float(np.median(torsion_us)), 2),
+        "mj_step": step["p50"],
+    }
+    stages["coupling_and_loop"] = round(tick["p50"] - sum(stages.values()), 2)
+    return {
+        "scene": scene_name,
+        "fingers": len(loop.fingers),
+        "rate_hz": loop.rate_hz,
+        "ticks_timed": ticks,
+        "tick_us": tick,
+        "mj_step_us": step,
+        "ratio_p50": round(tick["p50"] / step["p50"], 2),
+        "stages_us_p50": stages,
+        "paced_ticks": paced.ticks,
+        "deadline_misses": paced.stats.misses,
+        "deadline_miss_rate": paced.stats.misses / max(paced.ticks, 1),
+        "paced_tick_us": paced.stats.summary_us(),
+        "targets": {"ratio_p50": 3.0, "tick_p99_us": 50.0, "deadline_miss_rate": 1e-4},
+        "_samples": {"tick_us": tick_us, "mj_step_us": step_us},
+    }
+
+
+def chart(result: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+    s = result["_samples"]
+    hi = float(np.percentile(s["tick_us"], 99.5)) * 1.2
+    bins = np.linspace(0, hi, 80)
+    a.hist(s["mj_step_us"], bins=bins, alpha=0.7, label="bare mj_step")
+    a.hist(s["tick_us"], bins=bins, alpha=0.7, label="softproxy tick (2 fingers)")
+    a.axvline(result["mj_step_us"]["p50"] * 3, color="k", ls="--", lw=1, label="target: 3 x mj_step p50")
+    a.set_xlabel("µs per tick")
+    a.set_ylabel("ticks")
+    a.legend()
+    a.set_title(f"tick p50 {result['tick_us']['p50']} µs = {result['ratio_p50']} x mj_step")
+    st = result["stages_us_p50"]
+    b.barh(list(st), list(st.values()))
+    b.set_xlabel("µs (median per tick)")
+    b.set_title("where a tick goes")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main(args) -> int:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    def progress(frac):
+        print(f"\r  latency: {frac * 100:5.1f} %", end="", file=sys.stderr, flush=True)
+
+    result = measure(args.duration, args.paced if args.paced is not None else args.duration, progress=progress)
+    print("\r", end="", file=sys.stderr)
+    chart(result, out / "latency.png")
+    samples = result.pop("_samples")
+    (out / "latency.json").write_text(json.dumps(result, indent=2))
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    t, s = result["tick_us"], result["mj_step_us"]
+    print(f"latency on {result['scene']} ({result['fingers']} fingers, {result['ticks_timed']} ticks timed)")
+    print(f"  {'':22s}{'p50':>9s}{'p99':>9s}{'max':>9s}   (µs)")
+    print(f"  {'softproxy tick':22s}{t['p50']:9.2f}{t['p99']:9.2f}{t['max']:9.2f}")
+    print(f"  {'bare mj_step':22s}{s['p50']:9.2f}{s['p99']:9.2f}{s['max']:9.2f}")
+    print(f"  ratio p50 {result['ratio_p50']} (target <= 3, floor <= 5); tick p99 {t['p99']} µs (target < 50)")
+    print(f"  deadline misses paced at {result['rate_hz']:g} Hz: {result['deadline_misses']} of "
+          f"{result['paced_ticks']} ({result['deadline_miss_rate']:.2e}; target < 1e-4)")
+    print("  stages (µs, median): " + ", ".join(f"{k} {v}" for k, v in result["stages_us_p50"].items()))
+    print(f"  wrote {out / 'latency.json'} and {out / 'latency.png'}")
+    del samples
+    return 0
