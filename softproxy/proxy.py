@@ -144,6 +144,8 @@ class GodObject:
             if s is not carrier and (carrier is not None or not s.static):
                 self._push_out()
                 break
+        if self.sticking and self.x == x and self.y == y and self.z == z and self._still_stuck(xd, yd, zd):
+            return True
         x, y, z = self.x, self.y, self.z
         fx, fy, fz, first = self._move(x, y, z, xd, yd, zd)
         planes = self.planes
@@ -193,6 +195,35 @@ class GodObject:
         return True
 
     # -- pieces -----------------------------------------------------------------------
+    def _still_stuck(self, xd: float, yd: float, zd: float) -> bool:
+        """Fast path of the hold: a proxy stuck on one flat face that stays inside the static cone.
+
+        Exactly what the full solve would find: the proxy does not move, the frictionless
+        proxy is the device projected onto the face (checked to lie on the same face), and
+        the cone test passes. Costs two distance queries instead of a constrained sweep.
+        """
+        shape = self.shape
+        if len(self.planes) != 1 or not shape.flat:
+            return False
+        x, y, z, r = self.x, self.y, self.z, self.radius
+        d, nx, ny, nz = shape.distance(x, y, z)
+        if abs(d - r) > 1e-7:
+            return False
+        depth = nx * (x - xd) + ny * (y - yd) + nz * (z - zd)
+        if depth <= 0.0:
+            return False
+        fx, fy, fz = xd + depth * nx, yd + depth * ny, zd + depth * nz
+        df, mx, my, mz = shape.distance(fx, fy, fz)
+        if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
+            return False
+        sx, sy, sz = x - fx, y - fy, z - fz
+        if sx * sx + sy * sy + sz * sz > (self.mu_s * depth) ** 2:
+            return False
+        self.planes = [(nx, ny, nz, nx * x + ny * y + nz * z, shape)]
+        self.nx, self.ny, self.nz = nx, ny, nz
+        self.depth = depth
+        return True
+
     def _gather(self, x, y, z, xd, yd, zd) -> None:
         """Broad phase, once per tick: the shapes whose bounding sphere meets the ball that
         holds both the proxy and the device (every sub-move of this tick stays inside it)."""
