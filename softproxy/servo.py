@@ -16,6 +16,7 @@ cannot change the result.
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 
@@ -168,12 +169,17 @@ class ServoLoop:
         except Exception:
             self.faults["send_error"] += 1
 
-    def run(self, ticks: int, realtime: bool = False, on_tick=None) -> None:
+    def run(self, ticks: int, realtime: bool = False, on_tick=None, spin_s: float = 1.5e-3) -> None:
         """Run `ticks` ticks: lockstep (as fast as possible, deterministic) or paced in real time.
 
+        Paced: the loop sleeps only when more than `spin_s` remains before the next tick and
+        spins for the rest (a sleep can overshoot by a millisecond on a busy machine), and
+        Python's cyclic garbage collector is paused for the run (a collection is a pause of
+        its own). At 1 kHz that means one core spinning, as a haptic servo thread does.
         `on_tick(loop)` is called after every tick, outside the timed region. Zero force is
         sent to every finger when the run ends, however it ends.
         """
+        gc_was_enabled = gc.isenabled()
         try:
             if not realtime:
                 for _ in range(ticks):
@@ -182,12 +188,12 @@ class ServoLoop:
                         on_tick(self)
                 return
             period = self.period
+            gc.disable()
             next_start = time.perf_counter()
             for _ in range(ticks):
                 now = time.perf_counter()
-                # sleep most of the wait, then spin: time.sleep alone overshoots by up to ms
-                if next_start - now > 3e-4:
-                    time.sleep(next_start - now - 2e-4)
+                if next_start - now > spin_s:
+                    time.sleep(next_start - now - spin_s)
                 while time.perf_counter() < next_start:
                     pass
                 self.tick()
@@ -197,6 +203,8 @@ class ServoLoop:
                 if on_tick is not None:
                     on_tick(self)
         finally:
+            if gc_was_enabled:
+                gc.enable()
             self.stop()
 
     def stop(self) -> None:
