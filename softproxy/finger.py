@@ -68,6 +68,7 @@ class SoftFingerProxy:
                  start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         self.params = params
         self.god = GodObject(shapes, params.radius, params.mu_s, params.mu_d, start)
+        self.placed = True
         self.model = model
         self.torsion = TorsionalFriction(model, params.torsion_stiffness, params.torsion_mu_s,
                                          params.torsion_mu_d, params.saturate) if model.has_torsion else None
@@ -85,11 +86,21 @@ class SoftFingerProxy:
         self.slide_events = 0  # translational stick -> slide transitions
         self._was_sticking = False
 
-    def place(self, x: float, y: float, z: float) -> None:
-        """Put the proxy at a device position (device frame, m), out of contact."""
-        self.god.reset(self.ox + self.scale * x, self.oy + self.scale * y, self.oz + self.scale * z)
+    def place(self, x: float, y: float, z: float) -> bool:
+        """Put the proxy at a device position (device frame, m), out of contact.
+
+        Returns False, and leaves the finger unplaced, for a position outside the workspace.
+        An unplaced finger places itself at its first good sample and renders nothing then.
+        """
+        try:
+            self.god.reset(self.ox + self.scale * x, self.oy + self.scale * y, self.oz + self.scale * z)
+        except ValueError:
+            self.placed = False
+            return False
+        self.placed = True
         if self.torsion is not None:
             self.torsion.release()
+        return True
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
@@ -102,6 +113,10 @@ class SoftFingerProxy:
 
     def update(self, x: float, y: float, z: float, twist: float, dt: float) -> None:
         """One tick from a device sample (device frame, m and rad) over period dt (s)."""
+        if not self.placed:
+            self.place(x, y, z)
+            self.clear_output()
+            return
         xd = self.ox + self.scale * x
         yd = self.oy + self.scale * y
         zd = self.oz + self.scale * z

@@ -24,6 +24,8 @@ LIFT_TOL = 1e-7
 """After sliding on a curved shape's tangent plane, re-follow the surface when the proxy has
 lifted more than this (m)."""
 PARALLEL = 1.0 - 1e-9
+WORKSPACE_LIMIT = 1e3
+"""A device position farther than this from the origin on any axis (m) is garbage, like NaN."""
 
 
 def _project(px: float, py: float, pz: float, planes: list) -> tuple[float, float, float] | None:
@@ -112,6 +114,8 @@ class GodObject:
 
     def reset(self, x: float, y: float, z: float) -> None:
         """Put the proxy at (x, y, z) with no contact (pushed out of any shape it overlaps)."""
+        if not all(-WORKSPACE_LIMIT < v < WORKSPACE_LIMIT for v in (x, y, z)):
+            raise ValueError(f"proxy position must lie within ±{WORKSPACE_LIMIT} m, got {(x, y, z)!r}")
         self.x, self.y, self.z = float(x), float(y), float(z)
         self.contact = False
         self.nx, self.ny, self.nz = 0.0, 0.0, 0.0
@@ -124,8 +128,9 @@ class GodObject:
 
     # -- the tick -------------------------------------------------------------------
     def update(self, xd: float, yd: float, zd: float) -> bool:
-        """Move the proxy toward the device position. Returns False (proxy held) on NaN/Inf."""
-        if not math.isfinite(xd + yd + zd):
+        """Move the proxy toward the device position. Returns False (proxy held) on NaN/Inf/garbage."""
+        if not (-WORKSPACE_LIMIT < xd < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < yd < WORKSPACE_LIMIT
+                and -WORKSPACE_LIMIT < zd < WORKSPACE_LIMIT):
             return False
         shape = self.shape
         carrier = None

@@ -98,10 +98,14 @@ class ServoLoop:
             self.device.read(self.t, self.samples)
         except Exception:
             self.faults["device_error"] += 1
+            for f in self.fingers:
+                f.placed = False
             return
         for f in self.fingers:
             s = self.samples[f.params.device_finger]
-            if s.valid and s.is_finite():
+            if not (s.valid and s.is_finite()):
+                f.placed = False  # placed at its first good sample instead
+            else:
                 f.place(s.x, s.y, s.z)
 
     def tick(self) -> None:

@@ -147,7 +147,7 @@ def test_nan_device_leaves_proxy_in_place():
     god = GodObject(shapes, 0.0, 0.0, 0.0, (0.0, 0.0, 0.01))
     god.update(0.0, 0.0, -0.01)
     before = (god.x, god.y, god.z)
-    for bad in (math.nan, math.inf, -math.inf):
+    for bad in (math.nan, math.inf, -math.inf, 1e300):
         assert god.update(bad, 0.0, 0.0) is False
         assert (god.x, god.y, god.z) == before
 
