@@ -116,11 +116,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("bench", help="run a benchmark: latency, or all")
+    p = sub.add_parser("bench", help="run a benchmark: latency, peer, or all")
     p.add_argument("name", help="benchmark name, or all")
     p.add_argument("--duration", type=float, default=5.0, help="seconds of servo time to time (default 5)")
     p.add_argument("--paced", type=float, default=None, help="seconds of the paced (real-time) run (default: --duration)")
     p.add_argument("--out", default="bench-out", help="folder for JSON and charts (default bench-out)")
+    p.add_argument("--full", action="store_true", help="the long versions (e.g. a 20 s grasp hold)")
     p.add_argument("--json", action="store_true", help="print the JSON result")
     p.set_defaults(func=cmd_bench)
     return parser

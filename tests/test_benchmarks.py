@@ -1,0 +1,35 @@
+"""Each benchmark runs briefly and writes well-formed JSON and a PNG (no timing assertions)."""
+
+import json
+import subprocess
+import sys
+
+
+def bench(tmp_path, name, *extra):
+    out = subprocess.run([sys.executable, "-m", "softproxy.cli", "bench", name, "--out", str(tmp_path), *extra],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    data = json.loads((tmp_path / f"{name}.json").read_text())
+    png = (tmp_path / f"{name}.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+    return data, out.stdout
+
+
+def test_latency_bench(tmp_path):
+    data, text = bench(tmp_path, "latency", "--duration", "0.5", "--paced", "0.3")
+    for key in ("tick_us", "mj_step_us"):
+        assert set(data[key]) == {"p50", "p99", "max"} and data[key]["p50"] > 0
+    assert data["ratio_p50"] > 0 and 0 <= data["deadline_miss_rate"] <= 1
+    assert {"device", "god_object", "torsion", "mj_step"} <= set(data["stages_us_p50"])
+    assert "ratio p50" in text
+
+
+def test_peer_bench(tmp_path):
+    """The peer comparison's physics is checked too: softproxy holds, MuJoCo's limit is linear, ours |P|^γ."""
+    data, text = bench(tmp_path, "peer", "--duration", "1.5")
+    hold = data["hold"]
+    assert abs(hold["softproxy CH"]["rotation_end_deg"]) < 2.0
+    assert abs(hold["softproxy point"]["rotation_max_deg"]) > 20.0
+    exps = data["slip_torque_exponent"]
+    assert abs(exps["softproxy CH"] - 4 / 3) < 0.05  # seed 002 eq 29: M ∝ P^(4/3) for CH
+    assert abs(exps["mujoco elliptic impratio 100"] - 1.0) < 0.1
