@@ -62,9 +62,16 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
-              finger_model: str | None = None, realtime: bool = False) -> dict:
-    """Run the scene and return the result dict that `softproxy run --json` prints."""
+              finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None) -> dict:
+    """Run the scene and return the result dict that `softproxy run --json` prints.
+
+    `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
+    `on_tick(loop)` after every tick, outside the timed region.
+    """
     loop = build(scene, device, rate_hz, finger_model, realtime=realtime)
+    if on_built is not None:
+        on_built(loop)
+    user_on_tick = on_tick
     duration = duration_s if duration_s is not None else scene.duration_s
     if not (math.isfinite(duration) and duration > 0.0):
         raise ValueError(f"duration must be > 0 s, got {duration!r}")
@@ -82,8 +89,10 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
                 track["q0"] = xquat[body].copy()
             elif track["q0"] is not None and lp.ticks % 10 == 0:
                 track["max_deg"] = max(track["max_deg"], abs(_rotation_about(track["q0"], xquat[body], measure.axis)))
+            if user_on_tick is not None:
+                user_on_tick(lp)
     else:
-        on_tick = None
+        on_tick = user_on_tick
     loop.run(ticks, realtime=realtime, on_tick=on_tick)
 
     result = {
