@@ -111,19 +111,23 @@ class SoftFingerProxy:
         self.normal_force = 0.0
         self.valid = False
 
-    def update(self, x: float, y: float, z: float, twist: float, dt: float) -> None:
-        """One tick from a device sample (device frame, m and rad) over period dt (s)."""
+    def update(self, x: float, y: float, z: float, twist: float, dt: float) -> bool:
+        """One tick from a device sample (device frame, m and rad) over period dt (s).
+
+        Returns False when the sample was unusable (out of the workspace, non-finite twist):
+        the finger then renders zero force and its proxy stays where it was.
+        """
         if not self.placed:
-            self.place(x, y, z)
+            ok = self.place(x, y, z) and twist == twist and twist not in (math.inf, -math.inf)
             self.clear_output()
-            return
+            return ok
         xd = self.ox + self.scale * x
         yd = self.oy + self.scale * y
         zd = self.oz + self.scale * z
         god = self.god
         if not god.update(xd, yd, zd) or twist != twist or twist in (math.inf, -math.inf):
             self.clear_output()
-            return
+            return False
         self.xd, self.yd, self.zd = xd, yd, zd
         self.valid = True
         if not god.contact:
@@ -136,7 +140,7 @@ class SoftFingerProxy:
             self.torque = self.tx = self.ty = self.tz = 0.0
             self.body = -1
             self.normal_force = 0.0
-            return
+            return True
 
         if self._was_sticking and not god.sticking:
             self.slide_events += 1
@@ -169,7 +173,7 @@ class SoftFingerProxy:
         # torsional DOF (eqs 38–40)
         tors = self.torsion
         if tors is None:
-            return
+            return True
         if not tors.in_contact:
             tors.touch(twist)
             self._stwist = 0.0
@@ -183,6 +187,7 @@ class SoftFingerProxy:
         M = bound if M > bound else -bound if M < -bound else M
         self.torque = M
         self.tx, self.ty, self.tz = M * nx, M * ny, M * nz
+        return True
 
     def follow_object(self, omega_x: float, omega_y: float, omega_z: float, dt: float) -> None:
         """Eqs 41–42: the touched object's spin about n (rad/s, world) drags α_p, signed."""
@@ -197,7 +202,12 @@ class SoftFingerProxy:
         return self.slide_events + (self.torsion.slip_events if self.torsion is not None else 0)
 
     def audit(self) -> float:
-        """Deepest the proxy sits inside any shape now (m, >= 0); updates penetration_max."""
+        """Deepest the proxy sits inside any shape now (m, >= 0); updates penetration_max.
+
+        An unplaced finger has no proxy in the world yet: nothing to audit.
+        """
+        if not self.placed:
+            return 0.0
         god = self.god
         worst = 0.0
         for s in god.shapes:

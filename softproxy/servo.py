@@ -137,7 +137,8 @@ class ServoLoop:
                     self.faults["invalid_sample"] += 1
                 f.clear_output()
             else:
-                f.update(s.x, s.y, s.z, s.twist, dt)
+                if not f.update(s.x, s.y, s.z, s.twist, dt):
+                    self.faults["invalid_sample"] += 1
                 if f.body >= 0 and not safe:
                     world.push(f.body, -f.fx, -f.fy, -f.fz, f.px, f.py, f.pz, -f.tx, -f.ty, -f.tz)
             if self.audit:

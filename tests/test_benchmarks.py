@@ -33,3 +33,12 @@ def test_peer_bench(tmp_path):
     exps = data["slip_torque_exponent"]
     assert abs(exps["softproxy CH"] - 4 / 3) < 0.05  # seed 002 eq 29: M ∝ P^(4/3) for CH
     assert abs(exps["mujoco elliptic impratio 100"] - 1.0) < 0.1
+
+
+def test_stability_bench(tmp_path):
+    data, text = bench(tmp_path, "stability")
+    classes = {c["class"] for c in data["wall"]}
+    assert classes <= {"stable", "buzzing", "unstable"} and "stable" in classes
+    # Colgate's passivity bound is sufficient: no passive cell may be found unstable
+    assert not [c for c in data["wall"] if c["passive_by_colgate"] and c["class"] != "stable"]
+    assert all(c["ok"] for c in data["extremes"]), data["extremes"]
