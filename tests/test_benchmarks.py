@@ -42,3 +42,12 @@ def test_stability_bench(tmp_path):
     # Colgate's passivity bound is sufficient: no passive cell may be found unstable
     assert not [c for c in data["wall"] if c["passive_by_colgate"] and c["class"] != "stable"]
     assert all(c["ok"] for c in data["extremes"]), data["extremes"]
+
+
+def test_tradeoff_bench(tmp_path):
+    data, text = bench(tmp_path, "tradeoff", "--duration", "0.4")
+    rows = data["rows"]
+    assert {r["model"] for r in rows} == {"point", "CH", "MH", "VS", "LFM"}
+    ref = [r for r in rows if r["model"] == "LFM" and r["rate_hz"] == data["reference"]["rate_hz"]]
+    assert all(r["force_rms_error_N"] == 0.0 for r in ref)  # the reference against itself
+    assert any(r["pareto"] for r in rows)
