@@ -51,6 +51,7 @@ def run_config(scene_name: str, model: str, rate: float, duration: float) -> dic
     data = loop.world.data
     every = max(int(round(SAMPLE_S * rate)), 1)
     forces, q0 = [], None
+    q_start = data.xquat[body].copy()  # used if the run ends before the measure's start
     finger = loop.fingers[0]
     for i in range(int(round(duration * rate))):
         loop.tick()
@@ -62,7 +63,8 @@ def run_config(scene_name: str, model: str, rate: float, duration: float) -> dic
     return {
         "scene": scene_name, "model": model, "rate_hz": rate, "tick_us_p50": loop.stats.summary_us()["p50"],
         "forces": np.array(forces), "position": data.xpos[body].copy(), "quat": data.xquat[body].copy(),
-        "turned_deg": _rotation_about(q0, data.xquat[body], measure.axis), "axis": measure.axis,
+        "turned_deg": _rotation_about(q_start if q0 is None else q0, data.xquat[body], measure.axis),
+        "axis": measure.axis,
     }
 
 

@@ -45,7 +45,7 @@ def test_stability_bench(tmp_path):
 
 
 def test_tradeoff_bench(tmp_path):
-    data, text = bench(tmp_path, "tradeoff", "--duration", "0.4")
+    data, text = bench(tmp_path, "tradeoff", "--duration", "0.9")
     rows = data["rows"]
     assert {r["model"] for r in rows} == {"point", "CH", "MH", "VS", "LFM"}
     ref = [r for r in rows if r["model"] == "LFM" and r["rate_hz"] == data["reference"]["rate_hz"]]
