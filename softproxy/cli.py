@@ -55,7 +55,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("softproxy run: the viewer is not built yet; running headless", file=sys.stderr)
     try:
         result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
-                           finger_model=args.finger_model, realtime=args.realtime)
+                           finger_model=args.finger_model, realtime=args.realtime, record=args.record)
     finally:
         device.close()
     if args.json:
@@ -107,7 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="run a scene (e.g. two_finger_grasp) on a device")
     p.add_argument("scene", help="scene name or path to its .toml")
-    p.add_argument("--device", default="sim", help="device type (default: sim, the scene's scripted device)")
+    p.add_argument("--device", default="sim",
+                   help="device: sim (the scene's scripted device, default) or replay:FILE (a recording)")
+    p.add_argument("--record", metavar="FILE", default=None, help="save every device sample to FILE")
     p.add_argument("--headless", action="store_true", help="no window")
     p.add_argument("--duration", type=float, default=None, help="seconds to run (default: the scene's)")
     p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")

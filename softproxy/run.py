@@ -16,6 +16,7 @@ import numpy as np
 from softproxy.device import Device
 from softproxy.finger import SoftFingerProxy
 from softproxy.fingertip import model as fingertip_model
+from softproxy.recording import RecordingDevice
 from softproxy.scene import Scene, SceneError
 from softproxy.servo import ServoLoop
 from softproxy.world import World
@@ -27,12 +28,18 @@ def device_types() -> list[str]:
 
 
 def open_device(kind: str, scene: Scene) -> Device:
-    """Open the device `kind` (e.g. "sim") configured by the scene's [device] table."""
+    """Open a device: "sim" (configured by the scene's [device] table) or "NAME:ARGUMENT"
+    (e.g. "replay:run.rec"), whose argument replaces the scene's configuration."""
+    name, _, argument = kind.partition(":")
     for ep in entry_points(group="softproxy.devices"):
-        if ep.name == kind:
+        if ep.name == name:
             cls = ep.load()
+            if argument:
+                if not hasattr(cls, "from_argument"):
+                    raise SceneError(f"device type {name!r} takes no argument (got {argument!r})")
+                return cls.from_argument(argument, scene)
             return cls.from_config(scene.device, source=str(scene.path))
-    raise SceneError(f"no device type {kind!r}; installed: {', '.join(device_types()) or 'none'}")
+    raise SceneError(f"no device type {name!r}; installed: {', '.join(device_types()) or 'none'}")
 
 
 def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_model: str | None = None,
@@ -62,12 +69,19 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
-              finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None) -> dict:
+              finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
+              record: str | None = None) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
-    `on_tick(loop)` after every tick, outside the timed region.
+    `on_tick(loop)` after every tick, outside the timed region. `record` saves every device
+    sample to that file (see `softproxy.recording`) once the run is over.
     """
+    recorder = None
+    if record is not None:
+        rate = rate_hz or scene.rate_hz
+        planned = duration_s if duration_s is not None else scene.duration_s
+        device = recorder = RecordingDevice(device, int(planned * rate) + 2)
     loop = build(scene, device, rate_hz, finger_model, realtime=realtime)
     if on_built is not None:
         on_built(loop)
@@ -94,6 +108,8 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     else:
         on_tick = user_on_tick
     loop.run(ticks, realtime=realtime, on_tick=on_tick)
+    if recorder is not None:
+        recorder.save(record, scene=scene.name, rate_hz=loop.rate_hz)
 
     result = {
         "scene": scene.name,
