@@ -4,6 +4,13 @@ Each finger follows keyframes (t, x, y, z, twist) in s, m and rad, with minimum-
 between them (zero velocity and acceleration at every keyframe, like a hand moving from pose
 to pose). Optional sensor effects: Gaussian noise, latency, encoder quantisation; and the
 motor's force saturation on what is sent back. Deterministic for a given seed.
+
+Fault injection (`faults`, probabilities per read, drawn from their own seeded stream):
+`nan` a NaN coordinate in one finger's sample; `drop` a missing sample (valid = False);
+`spike` a 0.5 m jump of one finger's position for one read; `stall` the device stops
+answering: the read blocks for `stall_s` (5 ms) and then fails with DeviceError. The device
+counts what it injected (`injected`) and watches what it is sent: `max_force_sent` (N, before
+its own saturation) and `nan_sends`, so a run can show that no fault reached the motor.
 """
 
 from __future__ import annotations
@@ -11,11 +18,15 @@ from __future__ import annotations
 import bisect
 import math
 import random
+import time
 
 from softproxy.device import DeviceError, DeviceSample
 
 _CONFIG_KEYS = {"type", "noise_m", "noise_rad", "latency_s", "quantum_m", "quantum_rad",
-                "max_force_N", "max_torque_Nm", "seed", "finger"}
+                "max_force_N", "max_torque_Nm", "seed", "finger", "faults"}
+FAULT_KINDS = ("nan", "drop", "spike", "stall")
+SPIKE_M = 0.5
+STALL_S = 0.005
 
 
 def _fail(source: str, field: str, expected: str, got) -> ValueError:
@@ -27,7 +38,7 @@ class SimulatedDevice:
 
     def __init__(self, keyframes, *, noise_m: float = 0.0, noise_rad: float = 0.0, latency_s: float = 0.0,
                  quantum_m: float = 0.0, quantum_rad: float = 0.0, max_force: float = 20.0,
-                 max_torque: float = 0.5, seed: int = 0) -> None:
+                 max_torque: float = 0.5, seed: int = 0, faults: dict | None = None) -> None:
         for name, value in (("noise_m", noise_m), ("noise_rad", noise_rad), ("latency_s", latency_s),
                             ("quantum_m", quantum_m), ("quantum_rad", quantum_rad),
                             ("max_force", max_force), ("max_torque", max_torque)):
@@ -62,7 +73,18 @@ class SimulatedDevice:
         self.last_torque = [(0.0, 0.0, 0.0)] * self.fingers
         self.sends = 0
         self.nan_sends = 0
+        self.max_force_sent = 0.0
         self.closed = False
+        self.faults = {}
+        for kind, rate in (faults or {}).items():
+            if kind not in FAULT_KINDS:
+                raise ValueError(f"faults: unknown fault {kind!r}; expected some of {', '.join(FAULT_KINDS)}")
+            if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0.0 <= rate <= 1.0:
+                raise ValueError(f"faults.{kind} must be a probability per read in [0, 1], got {rate!r}")
+            if rate > 0.0:
+                self.faults[kind] = float(rate)
+        self.injected = dict.fromkeys(FAULT_KINDS, 0)
+        self._fault_rng = random.Random(seed + 7919)
 
     @property
     def duration(self) -> float:
@@ -111,6 +133,25 @@ class SimulatedDevice:
             s.qw, s.qx, s.qy, s.qz = 1.0, 0.0, 0.0, 0.0
             s.buttons = 0
             s.valid = True
+        if self.faults:
+            self._inject(samples)
+
+    def _inject(self, samples: list[DeviceSample]) -> None:
+        rnd = self._fault_rng.random
+        for kind, rate in self.faults.items():
+            if rnd() >= rate:
+                continue
+            self.injected[kind] += 1
+            s = samples[int(rnd() * self.fingers)]
+            if kind == "nan":
+                s.x = math.nan
+            elif kind == "drop":
+                s.valid = False
+            elif kind == "spike":
+                s.z += SPIKE_M
+            else:  # stall: no answer within the timeout
+                time.sleep(STALL_S)
+                raise DeviceError(f"simulated device: no answer within {STALL_S * 1e3:g} ms")
 
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
         """Render a force (N) and torque (N·m); the motor saturates at max_force / max_torque."""
@@ -121,6 +162,8 @@ class SimulatedDevice:
             self.last_torque[finger] = (0.0, 0.0, 0.0)
             return
         f = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if f > self.max_force_sent:
+            self.max_force_sent = f
         if f > self.max_force:
             k = self.max_force / f
             fx, fy, fz = fx * k, fy * k, fz * k
@@ -151,6 +194,16 @@ class SimulatedDevice:
                 if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                     raise _fail(source, f"device.{key}", "a finite number >= 0", v)
                 kwargs[arg] = float(v)
+        if "faults" in cfg:
+            faults = cfg["faults"]
+            if not isinstance(faults, dict):
+                raise _fail(source, "device.faults", "a table of fault = probability per read", faults)
+            for kind, rate in faults.items():
+                if kind not in FAULT_KINDS:
+                    raise _fail(source, f"device.faults.{kind}", f"one of {', '.join(FAULT_KINDS)}", kind)
+                if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0.0 <= rate <= 1.0:
+                    raise _fail(source, f"device.faults.{kind}", "a probability per read in [0, 1]", rate)
+            kwargs["faults"] = dict(faults)
         if "seed" in cfg:
             if isinstance(cfg["seed"], bool) or not isinstance(cfg["seed"], int):
                 raise _fail(source, "device.seed", "an integer", cfg["seed"])

@@ -40,6 +40,20 @@ def cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def _parse_faults(text: str) -> dict:
+    """`nan=0.01,drop=0.001` -> {"nan": 0.01, "drop": 0.001}; ValueError naming the bad item."""
+    faults = {}
+    for item in text.split(","):
+        name, sep, value = item.partition("=")
+        try:
+            faults[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--faults: {item!r} is not NAME=PROBABILITY") from None
+        if not sep:
+            raise ValueError(f"--faults: {item!r} is not NAME=PROBABILITY")
+    return faults
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scene on a device and print the result."""
     from softproxy.run import open_device, run_scene
@@ -47,6 +61,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     try:
         scene = load_scene(args.scene)
+        if args.faults:
+            scene.device["faults"] = _parse_faults(args.faults)
         device = open_device(args.device, scene)
     except (SceneError, ValueError) as exc:
         print(f"softproxy run: {exc}", file=sys.stderr)
@@ -73,6 +89,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     ])
     t = result["tick_us"]
     print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
+    if "device" in result:
+        d = result["device"]
+        print(f"  device: injected {d['faults_injected']}; largest force sent {d['max_force_sent_N']} N "
+              f"(clamp {d['force_clamp_N']} N), NaN sends {d['nan_sends']}")
     return 0
 
 
@@ -110,6 +130,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="sim",
                    help="device: sim (the scene's scripted device, default) or replay:FILE (a recording)")
     p.add_argument("--record", metavar="FILE", default=None, help="save every device sample to FILE")
+    p.add_argument("--faults", metavar="SPEC", default=None,
+                   help="inject device faults (sim): e.g. nan=0.01,drop=0.001,spike=0.001,stall=0.0005 (per read)")
     p.add_argument("--headless", action="store_true", help="no window")
     p.add_argument("--duration", type=float, default=None, help="seconds to run (default: the scene's)")
     p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")

@@ -19,6 +19,9 @@ from softproxy.geometry import Shape
 from softproxy.proxy import GodObject
 from softproxy.torsion import TorsionalFriction
 
+SPIKE_PATIENCE = 3
+"""Consecutive ticks a position jump is held back as a spike before it is believed."""
+
 
 @dataclass
 class FingerParams:
@@ -38,6 +41,7 @@ class FingerParams:
     saturate: bool = False          # torsion limit follows eq 26 above P*
     max_force: float = 40.0         # clamp on |F|, N
     max_torque: float = 1.0         # clamp on |M|, N·m
+    max_speed: float = 20.0         # a device sample farther than max_speed·dt from the last is a spike, m/s
     device_finger: int = 0          # which finger of the device drives this one
     offset: tuple = (0.0, 0.0, 0.0)  # device-to-world offset, m
     scale: float = 1.0              # device-to-world workspace scale
@@ -45,7 +49,7 @@ class FingerParams:
     def __post_init__(self) -> None:
         for name in ("radius", "damping", "torsion_damping", "mu_s", "mu_d"):
             _check_finite(name, getattr(self, name), non_negative=True)
-        for name in ("stiffness", "torsion_stiffness", "max_force", "max_torque", "scale"):
+        for name in ("stiffness", "torsion_stiffness", "max_force", "max_torque", "scale", "max_speed"):
             _check_finite(name, getattr(self, name), positive=True)
         if self.mu_d > self.mu_s:
             raise ValueError(f"mu_d ({self.mu_d}) must be <= mu_s ({self.mu_s})")
@@ -77,6 +81,7 @@ class SoftFingerProxy:
         self.max_force, self.max_torque = params.max_force, params.max_torque
         self.ox, self.oy, self.oz = params.offset
         self.scale = params.scale
+        self.max_speed = params.max_speed
         self.xd = self.yd = self.zd = 0.0
         self._sx = self._sy = self._sz = 0.0    # last spring stretch, for damping
         self._stwist = 0.0
@@ -84,6 +89,8 @@ class SoftFingerProxy:
         self.max_force_seen = 0.0
         self.penetration_max = 0.0
         self.slide_events = 0  # translational stick -> slide transitions
+        self.spikes_rejected = 0
+        self._spike_run = 0
         self._was_sticking = False
 
     def place(self, x: float, y: float, z: float) -> bool:
@@ -92,15 +99,23 @@ class SoftFingerProxy:
         Returns False, and leaves the finger unplaced, for a position outside the workspace.
         An unplaced finger places itself at its first good sample and renders nothing then.
         """
+        xd, yd, zd = self.ox + self.scale * x, self.oy + self.scale * y, self.oz + self.scale * z
         try:
-            self.god.reset(self.ox + self.scale * x, self.oy + self.scale * y, self.oz + self.scale * z)
+            self.god.reset(xd, yd, zd)
         except ValueError:
             self.placed = False
             return False
         self.placed = True
+        self.xd, self.yd, self.zd = xd, yd, zd
         if self.torsion is not None:
             self.torsion.release()
         return True
+
+    def hold(self) -> None:
+        """No usable device sample this tick: zero force, the proxy only follows its body."""
+        if self.placed:
+            self.god.follow()
+        self.clear_output()
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
@@ -124,6 +139,16 @@ class SoftFingerProxy:
         xd = self.ox + self.scale * x
         yd = self.oy + self.scale * y
         zd = self.oz + self.scale * z
+        # velocity-spike filter: a jump no hand makes in one period is held back for up to
+        # SPIKE_PATIENCE ticks; a device that really moved that far is followed after that.
+        ex, ey, ez = xd - self.xd, yd - self.yd, zd - self.zd
+        reach = self.max_speed * dt
+        if ex * ex + ey * ey + ez * ez > reach * reach and self._spike_run < SPIKE_PATIENCE:
+            self._spike_run += 1
+            self.spikes_rejected += 1
+            self.hold()
+            return False
+        self._spike_run = 0
         god = self.god
         if not god.update(xd, yd, zd) or twist != twist or twist in (math.inf, -math.inf):
             self.clear_output()

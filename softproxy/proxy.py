@@ -128,27 +128,15 @@ class GodObject:
 
     # -- the tick -------------------------------------------------------------------
     def update(self, xd: float, yd: float, zd: float) -> bool:
-        """Move the proxy toward the device position. Returns False (proxy held) on NaN/Inf/garbage."""
+        """Move the proxy toward the device position (m, world).
+
+        Returns False on NaN/Inf/garbage: the proxy then only follows its body (`follow`).
+        """
         if not (-WORKSPACE_LIMIT < xd < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < yd < WORKSPACE_LIMIT
                 and -WORKSPACE_LIMIT < zd < WORKSPACE_LIMIT):
+            self.follow()
             return False
-        shape = self.shape
-        carrier = None
-        if shape is not None and not shape.static:
-            # carried by the touched object (stored in its frame at the end of last tick)
-            carrier = shape
-            lx, ly, lz = self.lx, self.ly, self.lz
-            self.x = shape.r00 * lx + shape.r01 * ly + shape.r02 * lz + shape.px
-            self.y = shape.r10 * lx + shape.r11 * ly + shape.r12 * lz + shape.py
-            self.z = shape.r20 * lx + shape.r21 * ly + shape.r22 * lz + shape.pz
-        x, y, z = self.x, self.y, self.z
-        self._gather(x, y, z, xd, yd, zd)
-        # Only a moving shape can have come into the proxy, or a static one if the
-        # proxy itself was carried; the carrier holds the proxy where it was, outside.
-        for s in self.near:
-            if s is not carrier and (carrier is not None or not s.static):
-                self._push_out()
-                break
+        x, y, z = self._settle(xd, yd, zd)
         if self.sticking and self.x == x and self.y == y and self.z == z and self._still_stuck(xd, yd, zd):
             return True
         x, y, z = self.x, self.y, self.z
@@ -199,7 +187,36 @@ class GodObject:
         self.lx, self.ly, self.lz = best.to_local(fx, fy, fz)
         return True
 
+    def follow(self) -> None:
+        """Without a device sample: the proxy stays on the body it touches and out of anything
+        that moved into it, so a skipped tick never leaves it inside a moving object."""
+        self._settle(self.x, self.y, self.z, around_proxy=True)
+
     # -- pieces -----------------------------------------------------------------------
+    def _settle(self, xd: float, yd: float, zd: float, around_proxy: bool = False) -> tuple[float, float, float]:
+        """Carry the proxy with the touched body, gather the shapes near it and the device,
+        push it out of any that moved into it. Returns the proxy position before the push."""
+        shape = self.shape
+        carrier = None
+        if shape is not None and not shape.static:
+            # carried by the touched object (stored in its frame at the end of last tick)
+            carrier = shape
+            lx, ly, lz = self.lx, self.ly, self.lz
+            self.x = shape.r00 * lx + shape.r01 * ly + shape.r02 * lz + shape.px
+            self.y = shape.r10 * lx + shape.r11 * ly + shape.r12 * lz + shape.py
+            self.z = shape.r20 * lx + shape.r21 * ly + shape.r22 * lz + shape.pz
+        x, y, z = self.x, self.y, self.z
+        if around_proxy:
+            xd, yd, zd = x, y, z
+        self._gather(x, y, z, xd, yd, zd)
+        # Only a moving shape can have come into the proxy, or a static one if the
+        # proxy itself was carried; the carrier holds the proxy where it was, outside.
+        for s in self.near:
+            if s is not carrier and (carrier is not None or not s.static):
+                self._push_out()
+                break
+        return x, y, z
+
     def _still_stuck(self, xd: float, yd: float, zd: float) -> bool:
         """Fast path of the hold: a proxy stuck on one flat face that stays inside the static cone.
 

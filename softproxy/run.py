@@ -77,6 +77,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     `on_tick(loop)` after every tick, outside the timed region. `record` saves every device
     sample to that file (see `softproxy.recording`) once the run is over.
     """
+    original = device
     recorder = None
     if record is not None:
         rate = rate_hz or scene.rate_hz
@@ -139,4 +140,11 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     result["tick_us"] = loop.stats.summary_us()
     result["deadline_misses"] = loop.stats.misses if realtime else None
     result["faults"] = dict(loop.faults)
+    if getattr(original, "faults", None):  # a device injecting faults reports what it did
+        result["device"] = {
+            "faults_injected": dict(original.injected),
+            "max_force_sent_N": round(getattr(original, "max_force_sent", 0.0), 4),
+            "nan_sends": getattr(original, "nan_sends", 0),
+            "force_clamp_N": original.max_force,
+        }
     return result

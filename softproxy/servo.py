@@ -135,7 +135,7 @@ class ServoLoop:
             if not ok or not s.valid or not s.is_finite():
                 if ok:
                     self.faults["invalid_sample"] += 1
-                f.clear_output()
+                f.hold()
             else:
                 if not f.update(s.x, s.y, s.z, s.twist, dt):
                     self.faults["invalid_sample"] += 1

@@ -193,3 +193,27 @@ def test_realtime_pacing_runs():
     loop.run(200, realtime=True)
     elapsed = time.perf_counter() - start
     assert 0.19 < elapsed < 2.0
+
+
+def test_injected_faults_never_reach_the_motor():
+    """Fault injection: NaN, dropped, spiking and stalling samples each give zero force that tick;
+    the force sent never is NaN nor above the clamp, the proxy never enters the box, and the grasp holds."""
+    scene = load_scene("two_finger_grasp")
+    scene.device["faults"] = {"nan": 0.01, "drop": 0.002, "spike": 0.002, "stall": 0.0005}
+    scene.device["seed"] = 3
+    r = run_scene(scene, open_device("sim", scene))
+    injected = r["device"]["faults_injected"]
+    assert all(injected[k] > 0 for k in ("nan", "drop", "spike"))
+    assert r["device"]["nan_sends"] == 0
+    assert r["device"]["max_force_sent_N"] < 5.0  # spikes rejected: no kick
+    assert r["faults"]["device_error"] == injected["stall"]
+    assert r["faults"]["invalid_sample"] >= injected["nan"] + injected["drop"] + injected["spike"]
+    assert all(f["proxy_penetration_max_m"] <= 1e-6 for f in r["fingers"])
+    assert abs(r["object_rotation_deg"]) < 2.0 and r["object_height_m"] > 0.07
+
+
+def test_bad_fault_spec_is_named():
+    scene = load_scene("two_finger_grasp")
+    scene.device["faults"] = {"gremlins": 0.1}
+    with pytest.raises(ValueError, match="device.faults.gremlins"):
+        open_device("sim", scene)

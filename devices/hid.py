@@ -1,0 +1,562 @@
+"""HID haptic and 6-DOF input devices, driven by declarative profiles (`devices.hid_profile`).
+
+`HidDevice` implements `softproxy.device.Device` for one finger over a transport with the
+subset of cython-hidapi's `hid.device` API it uses: `set_nonblocking`, `read(n)`,
+`write(bytes)`, `close` (and `open_path` in `HidDevice.open`). Tests drive it with a fake
+transport; `HidDevice.open(profile, path=None)` opens a real device through `hid`.
+
+Reading (`read(t, samples)`, once per servo tick, never blocks):
+* every pending report is drained (non-blocking reads, at most `max_reports_per_read`);
+  each is parsed by the profile; the newest value of every field is kept, so a device that
+  splits its axes over several reports (SpaceNavigator: translation id 1, rotation id 2)
+  still yields one complete sample;
+* rate mode integrates the axis velocities over the loop's dt into a position clamped to
+  the workspace box (and the twist to ±twist_limit);
+* the sample is `valid = False` (and counted in `invalid_samples`) when:
+  - no complete sample was ever received (a periodic device before its first report);
+  - stale: a periodic device sent no report carrying an axis for more than `stale_ms`
+    (wall clock; the profile's, overridable) - the last values are kept, marked invalid,
+    and rate mode stops integrating. `on_change` devices (the SpaceMouse reports only while
+    the cap moves) are never stale: silence means at rest;
+  - a sequence anomaly was seen this tick (dropped, duplicated or out-of-order reports,
+    counted in `dropped` / `duplicates` / `out_of_order`; the counter then resynchronises
+    on the report received);
+  - the status field fails the profile's [status] test (e.g. FAULT set, CALIBRATED clear):
+    counted in `status_faults`, the report's data is not used, and samples stay invalid
+    until a report with a good status arrives;
+  - a malformed report (ReportError) arrived this tick (`bad_reports`, `last_report_error`).
+  Report ids the profile does not use are counted in `ignored_reports` and skipped.
+* an OSError / IOError / ValueError from the transport means the device is gone: read
+  raises `DeviceError` with a message naming the device, now and on every later call
+  (the servo loop answers with zero force).
+
+Sending (`send(finger, fx, fy, fz, tx, ty, tz)`): the wrench is clamped to the device's
+max_force / max_torque, packed into the profile's output report (sequence +1 per report,
+enable = 1) and written. A non-finite component gives the zero-force report with enable = 0
+(counted in `nan_sends`). An input-only profile (no [output], max_force = max_torque = 0)
+renders nothing: send only counts. A failed write raises DeviceError. `close()` first
+writes the zero-force, enable = 0 report when the device renders force.
+
+`list_devices()` lists the connected HID devices with the profile that matches each;
+`devices_main(as_json)` prints that as a table or JSON (the `softproxy devices` command).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+from softproxy.device import DeviceError, DeviceSample
+
+from devices.hid_profile import (
+    Profile,
+    ProfileError,
+    ReportError,
+    build_output,
+    load_profile,
+    load_profiles,
+    parse_input,
+    zero_output,
+)
+
+_CONFIG_KEYS = {"type", "profile", "path", "mode", "workspace_scale", "workspace_offset", "workspace_half_m",
+                "twist_limit_rad", "stale_ms", "max_force_N", "max_torque_Nm"}
+MAX_DT = 0.1
+"""Longest step (s) integrated at once in rate mode: a stalled loop does not make the finger jump."""
+
+
+def _import_hid():
+    """The cython-hidapi module (`pip install hidapi`), or DeviceError saying how to get it."""
+    try:
+        mod = importlib.import_module("hid")
+    except ImportError as exc:
+        raise DeviceError(f"the `hid` module (pip package hidapi) is not available: {exc}") from None
+    if not (hasattr(mod, "enumerate") and hasattr(mod, "device")):
+        raise DeviceError(f"the `hid` module found at {getattr(mod, '__file__', '?')} is not cython-hidapi")
+    return mod
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _path_text(path) -> str:
+    if isinstance(path, (bytes, bytearray)):
+        return bytes(path).decode("utf-8", "replace")
+    return "" if path is None else str(path)
+
+
+class HidDevice:
+    """One finger read from (and, with an [output], rendered on) a HID device described by a profile."""
+
+    fingers = 1
+
+    def __init__(self, profile, transport, *, mode: str | None = None, workspace_scale: float = 1.0,
+                 workspace_offset=(0.0, 0.0, 0.0), workspace_half_m=(0.1, 0.1, 0.1),
+                 twist_limit_rad: float = math.pi, stale_ms: float | None = None,
+                 max_force: float | None = None, max_torque: float | None = None,
+                 clock=time.monotonic, max_reports_per_read: int = 256, label: str | None = None) -> None:
+        profile = load_profile(profile)
+        self.profile = profile
+        mode = profile.mode if mode is None else mode
+        if mode not in profile.modes:
+            raise ValueError(f"mode must be one of {list(profile.modes)} for profile {profile.name!r}, got {mode!r}")
+        if not (_finite(workspace_scale) and workspace_scale > 0):
+            raise ValueError(f"workspace_scale must be a finite number > 0, got {workspace_scale!r}")
+        offset = tuple(workspace_offset)
+        if len(offset) != 3 or not all(_finite(v) for v in offset):
+            raise ValueError(f"workspace_offset must be 3 finite numbers (m), got {workspace_offset!r}")
+        half = tuple(workspace_half_m)
+        if len(half) != 3 or not all(_finite(v) and v > 0 for v in half):
+            raise ValueError(f"workspace_half_m must be 3 finite numbers > 0 (m), got {workspace_half_m!r}")
+        if not (_finite(twist_limit_rad) and twist_limit_rad > 0):
+            raise ValueError(f"twist_limit_rad must be a finite number > 0, got {twist_limit_rad!r}")
+        stale_ms = profile.stale_ms if stale_ms is None else stale_ms
+        if not (_finite(stale_ms) and stale_ms >= 0):
+            raise ValueError(f"stale_ms must be a finite number >= 0, got {stale_ms!r}")
+        for name, value, cap in (("max_force", max_force, profile.max_force),
+                                 ("max_torque", max_torque, profile.max_torque)):
+            if value is not None and not (_finite(value) and 0 <= value <= cap):
+                raise ValueError(f"{name} must be a finite number in [0, {cap:g}] (the profile's limit), "
+                                 f"got {value!r}")
+        if not (isinstance(max_reports_per_read, int) and max_reports_per_read >= 1):
+            raise ValueError(f"max_reports_per_read must be an integer >= 1, got {max_reports_per_read!r}")
+        self.mode = mode
+        self.workspace_scale = float(workspace_scale)
+        self.workspace_offset = tuple(float(v) for v in offset)
+        self.workspace_half_m = tuple(float(v) for v in half)
+        self.twist_limit_rad = float(twist_limit_rad)
+        self.stale_ms = float(stale_ms)
+        self.max_force = float(profile.max_force if max_force is None else max_force)
+        self.max_torque = float(profile.max_torque if max_torque is None else max_torque)
+        self.max_reports_per_read = max_reports_per_read
+        self.label = label or profile.name
+        self._clock = clock
+        self._transport = transport
+        self._read_size = profile.max_bytes + 1  # one more than allowed: an oversized report shows as such
+
+        self._axis = []  # (sample attribute, field, sign) for x, y, z, twist
+        for attr in ("x", "y", "z", "twist"):
+            if attr in profile.axes:
+                fname, sign = profile.axes[attr]
+                self._axis.append((attr, fname, sign))
+        self._axis_fields = {fname for _, fname, _ in self._axis}
+        self._periodic = profile.reporting == "periodic"
+        # on_change devices start at rest (every axis 0); periodic ones wait for their first report
+        self._values: dict[str, float] = {} if self._periodic else dict.fromkeys(self._axis_fields, 0.0)
+        self._buttons = 0
+        self._seq: int | None = None
+        self._seq_mod = 1 << profile.sequence_bits if profile.sequence_bits else 0
+        self._faulted = False
+        self._last_report_time: float | None = None
+        self._last_t: float | None = None
+        self._pos = list(self.workspace_offset)  # rate mode: integrated position
+        self._twist = 0.0                        # rate mode: integrated twist
+        self._out_seq = 0
+        self._failed: str | None = None
+        self.closed = False
+
+        self.reports = 0
+        self.bad_reports = 0
+        self.ignored_reports = 0
+        self.status_faults = 0
+        self.sequence_errors = 0
+        self.dropped = 0
+        self.duplicates = 0
+        self.out_of_order = 0
+        self.backlogs = 0
+        self.invalid_samples = 0
+        self.stale_samples = 0
+        self.sends = 0
+        self.nan_sends = 0
+        self.status: int | None = None
+        self.last_report_error = ""
+        self.last_output: bytes | None = None
+
+        try:
+            transport.set_nonblocking(1)
+        except (OSError, ValueError) as exc:
+            raise DeviceError(f"{self.label}: cannot make the HID device non-blocking: {exc}") from None
+
+    # -- opening -----------------------------------------------------------------------------
+
+    @classmethod
+    def open(cls, profile, path=None, *, hid_module=None, **kwargs) -> "HidDevice":
+        """Open the device at `path` (bytes or str, as `hid.enumerate()` gives it), or else the
+        first connected device the profile matches, through cython-hidapi (`hid_module`, for tests)."""
+        profile = load_profile(profile)
+        hid = hid_module if hid_module is not None else _import_hid()
+        if path is None:
+            try:
+                infos = list(hid.enumerate())
+            except (OSError, ValueError) as exc:
+                raise DeviceError(f"cannot enumerate HID devices: {exc}") from None
+            found = [i for i in infos if any(m.matches(i) for m in profile.matches)]
+            if not found:
+                raise DeviceError(f"no connected HID device matches profile {profile.name!r} "
+                                  f"(ids {', '.join(profile.ids()) or 'none'}); `softproxy devices` lists the "
+                                  "connected ones; give the device's path or add a [[match]] to the profile")
+            path = found[0].get("path")
+        raw_path = path.encode() if isinstance(path, str) else path
+        transport = hid.device()
+        try:
+            transport.open_path(raw_path)
+        except (OSError, ValueError, TypeError) as exc:
+            raise DeviceError(f"cannot open HID device {_path_text(path)!r} for profile {profile.name!r}: {exc} "
+                              "(on Linux, /dev/hidraw* needs a udev rule giving your user access)") from None
+        kwargs.setdefault("label", f"{profile.name} at {_path_text(path)}")
+        try:
+            return cls(profile, transport, **kwargs)
+        except BaseException:
+            try:
+                transport.close()
+            except Exception:
+                pass
+            raise
+
+    @classmethod
+    def from_config(cls, cfg: dict, *, source: str = "<config>", transport=None, hid_module=None,
+                    clock=None) -> "HidDevice":
+        """Build from a scene's [device] table; errors name the field.
+
+            type = "hid"
+            profile = "spacemouse"          # a shipped profile's name, or a path (relative to the scene)
+            path = "/dev/hidraw3"           # optional: this device, else the first the profile matches
+            mode = "position"               # or "rate"; default: the profile's
+            workspace_scale = 1.0           # position mode: positions x this; rate mode: velocities x this
+            workspace_offset = [0, 0, 0.05] # m: added to positions; rate mode: start and box centre
+            workspace_half_m = [0.1, 0.1, 0.1]  # rate mode: half extents of the box (m)
+            twist_limit_rad = 3.14159       # rate mode: |twist| limit
+            stale_ms = 20                   # periodic devices: invalid after this long without a report
+            max_force_N = 2.0               # lower the profile's limits (never raise them)
+            max_torque_Nm = 0.02
+
+        `transport` (a fake `hid.device`, already open), `hid_module` and `clock` are for tests.
+        """
+        def fail(field, expected, got):
+            return ValueError(f"{source}: {field} must be {expected}, got {got!r}")
+
+        if not isinstance(cfg, dict):
+            raise fail("device", "a table", cfg)
+        unknown = set(cfg) - _CONFIG_KEYS
+        if unknown:
+            raise ValueError(f"{source}: device has unknown field(s) {sorted(unknown)}; "
+                             f"expected some of {sorted(_CONFIG_KEYS)}")
+        if cfg.get("type", "hid") != "hid":
+            raise fail("device.type", "\"hid\" for a HID device (this scene's [device] is for another device type)",
+                       cfg.get("type"))
+        name = cfg.get("profile")
+        if not isinstance(name, str) or not name.strip():
+            raise fail("device.profile", "the name of a HID profile (e.g. \"spacemouse\") or a path to one", name)
+        base = Path(source).resolve().parent if Path(source).is_file() else None
+        try:
+            profile = load_profile(name.strip(), base)
+        except ProfileError as exc:
+            raise ValueError(f"{source}: device.profile: {exc}") from None
+        kwargs = {}
+        if "path" in cfg:
+            if not isinstance(cfg["path"], str) or not cfg["path"]:
+                raise fail("device.path", "a HID device path (a string, see `softproxy devices`)", cfg["path"])
+        if "mode" in cfg:
+            if cfg["mode"] not in profile.modes:
+                raise fail("device.mode", f"one of {list(profile.modes)} (what profile {profile.name!r} supports)",
+                           cfg["mode"])
+            kwargs["mode"] = cfg["mode"]
+        if "workspace_scale" in cfg:
+            v = cfg["workspace_scale"]
+            if not (_finite(v) and v > 0):
+                raise fail("device.workspace_scale", "a finite number > 0", v)
+            kwargs["workspace_scale"] = float(v)
+        for key, positive in (("workspace_offset", False), ("workspace_half_m", True)):
+            if key in cfg:
+                v = cfg[key]
+                if not (isinstance(v, list) and len(v) == 3 and all(_finite(c) and (c > 0 or not positive) for c in v)):
+                    raise fail(f"device.{key}", f"3 finite numbers{' > 0' if positive else ''} [x, y, z] (m)", v)
+                kwargs[key] = tuple(float(c) for c in v)
+        for key, arg, lo_open in (("twist_limit_rad", "twist_limit_rad", True), ("stale_ms", "stale_ms", False)):
+            if key in cfg:
+                v = cfg[key]
+                if not (_finite(v) and (v > 0 if lo_open else v >= 0)):
+                    raise fail(f"device.{key}", f"a finite number {'> 0' if lo_open else '>= 0'}", v)
+                kwargs[arg] = float(v)
+        for key, arg, cap in (("max_force_N", "max_force", profile.max_force),
+                              ("max_torque_Nm", "max_torque", profile.max_torque)):
+            if key in cfg:
+                v = cfg[key]
+                if not (_finite(v) and 0 <= v <= cap):
+                    raise fail(f"device.{key}", f"a finite number in [0, {cap:g}] (profile {profile.name!r}'s limit)",
+                               v)
+                kwargs[arg] = float(v)
+        if clock is not None:
+            kwargs["clock"] = clock
+        if transport is not None:
+            return cls(profile, transport, **kwargs)
+        return cls.open(profile, cfg.get("path"), hid_module=hid_module, **kwargs)
+
+    # -- the Device protocol -------------------------------------------------------------------
+
+    def _fail(self, what: str, exc: BaseException | None = None) -> DeviceError:
+        detail = f" ({type(exc).__name__}: {exc})" if exc is not None else ""
+        self._failed = f"{self.label}: HID device disappeared or failed while {what}{detail}; rendering zero force"
+        return DeviceError(self._failed)
+
+    def _check_sequence(self, seq: int) -> bool:
+        """True on a sequence anomaly (counted); the counter resynchronises on `seq`."""
+        last, self._seq = self._seq, seq
+        if last is None:
+            return False
+        d = (seq - last) % self._seq_mod
+        if d == 1:
+            return False
+        self.sequence_errors += 1
+        if d == 0:
+            self.duplicates += 1
+        elif d < self._seq_mod // 2:
+            self.dropped += d - 1
+        else:
+            self.out_of_order += 1
+        return True
+
+    def read(self, t: float, samples: list[DeviceSample]) -> None:
+        if self.closed:
+            raise DeviceError(f"{self.label}: device is closed")
+        if self._failed:
+            raise DeviceError(self._failed)
+        profile = self.profile
+        transport = self._transport
+        mode = self.mode
+        values = self._values
+        axis_fields = self._axis_fields
+        bad = False
+        now = self._clock()
+        for _ in range(self.max_reports_per_read):
+            try:
+                data = transport.read(self._read_size)
+            except (OSError, ValueError) as exc:
+                raise self._fail("reading", exc) from None
+            if not data:
+                break
+            try:
+                report = parse_input(profile, data, mode)
+            except ReportError as exc:
+                self.bad_reports += 1
+                self.last_report_error = str(exc)
+                bad = True
+                continue
+            if report is None:
+                self.ignored_reports += 1
+                continue
+            self.reports += 1
+            vals = report.values
+            if self._seq_mod and "sequence" in vals and self._check_sequence(vals["sequence"]):
+                bad = True
+            if "status" in vals:
+                st = vals["status"]
+                self.status = st
+                if (st & profile.status_set) != profile.status_set or st & profile.status_clear:
+                    self.status_faults += 1
+                    self._faulted = True
+                    continue  # a faulted device's numbers are not used
+                self._faulted = False
+            if "buttons" in vals:
+                self._buttons = vals["buttons"]
+            carried = False
+            for name, v in vals.items():
+                if name in axis_fields:
+                    values[name] = v
+                    carried = True
+            if carried:
+                self._last_report_time = now
+        else:
+            self.backlogs += 1  # more pending than one tick drains: the rest waits for the next
+
+        complete = len(values) == len(axis_fields)
+        stale = False
+        if self._periodic and self.stale_ms > 0.0:
+            last = self._last_report_time
+            stale = last is None or (now - last) * 1000.0 > self.stale_ms
+        dt = 0.0 if self._last_t is None else t - self._last_t
+        dt = 0.0 if not (dt > 0.0) else MAX_DT if dt > MAX_DT else dt
+        self._last_t = t
+        ok = complete and not stale and not self._faulted
+
+        s = samples[0]
+        ox, oy, oz = self.workspace_offset
+        k = self.workspace_scale
+        if mode == "position":
+            pos = [ox, oy, oz]
+            twist = 0.0
+            if complete:
+                for attr, fname, sign in self._axis:
+                    v = sign * values[fname]
+                    if attr == "twist":
+                        twist = v
+                    else:
+                        i = "xyz".index(attr)
+                        pos[i] += k * v
+            s.x, s.y, s.z = pos
+            s.twist = twist
+        else:
+            if ok and not bad and dt > 0.0:
+                p = self._pos
+                for attr, fname, sign in self._axis:
+                    v = sign * values[fname] * dt
+                    if attr == "twist":
+                        tw = self._twist + v
+                        lim = self.twist_limit_rad
+                        self._twist = lim if tw > lim else -lim if tw < -lim else tw
+                    else:
+                        i = "xyz".index(attr)
+                        c, h = self.workspace_offset[i], self.workspace_half_m[i]
+                        q = p[i] + k * v
+                        p[i] = c + h if q > c + h else c - h if q < c - h else q
+            s.x, s.y, s.z = self._pos
+            s.twist = self._twist
+        s.t = t
+        s.qw, s.qx, s.qy, s.qz = 1.0, 0.0, 0.0, 0.0
+        s.buttons = self._buttons
+        valid = ok and not bad and s.is_finite()
+        s.valid = valid
+        if stale:
+            self.stale_samples += 1
+        if not valid:
+            self.invalid_samples += 1
+
+    def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
+        if finger != 0:
+            raise DeviceError(f"{self.label} drives one finger (0), not finger {finger!r}")
+        if self.closed:
+            raise DeviceError(f"{self.label}: device is closed")
+        if self._failed:
+            raise DeviceError(self._failed)
+        self.sends += 1
+        try:
+            finite = math.isfinite(fx + fy + fz + tx + ty + tz)
+        except TypeError:
+            finite = False
+        if not finite:
+            self.nan_sends += 1  # the engine promises never to send this; the motors get zero
+        if self.profile.output is None:
+            return  # input-only device: renders nothing
+        self._out_seq = (self._out_seq + 1) & 0xFFFFFFFF
+        report = build_output(self.profile, self._out_seq, fx, fy, fz, tx, ty, tz, enable=True,
+                              max_force=self.max_force, max_torque=self.max_torque)
+        self._write(report, "sending a force")
+
+    def _write(self, report: bytes, what: str) -> None:
+        try:
+            n = self._transport.write(report)
+        except (OSError, ValueError) as exc:
+            raise self._fail(what, exc) from None
+        if isinstance(n, int) and n < 0:
+            raise self._fail(what, OSError(f"write returned {n}"))
+        self.last_output = report
+
+    def close(self) -> None:
+        """Zero force (enable = 0) first when the device renders force, then release it. Never raises."""
+        if self.closed:
+            return
+        self.closed = True
+        if self.profile.output is not None and not self._failed:
+            self._out_seq = (self._out_seq + 1) & 0xFFFFFFFF
+            try:
+                self._write(zero_output(self.profile, self._out_seq), "sending zero force on close")
+            except DeviceError:
+                pass
+        try:
+            self._transport.close()
+        except Exception:  # closing a vanished device must not mask what the caller is doing
+            pass
+
+    def __enter__(self) -> "HidDevice":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def stats(self) -> dict:
+        """Counters of what the device did (reports, faults, sends)."""
+        return {name: getattr(self, name) for name in (
+            "reports", "bad_reports", "ignored_reports", "status_faults", "sequence_errors", "dropped",
+            "duplicates", "out_of_order", "backlogs", "invalid_samples", "stale_samples", "sends", "nan_sends")}
+
+    def __repr__(self) -> str:
+        return f"HidDevice({self.label!r}, mode={self.mode!r}, max_force={self.max_force:g})"
+
+
+# ---------------------------------------------------------------------------------------------
+# listing
+
+
+def list_devices(enumerate_fn=None, profiles: list[Profile] | None = None) -> list[dict]:
+    """The connected HID devices (`hid.enumerate()`, or `enumerate_fn` for tests), each with
+    the name of the profile that matches it (or None) and the model that profile gives it."""
+    if enumerate_fn is None:
+        enumerate_fn = _import_hid().enumerate
+    if profiles is None:
+        profiles, _ = load_profiles()
+    rows = []
+    for info in enumerate_fn():
+        profile_name, model = None, None
+        for p in profiles:
+            m = next((m for m in p.matches if m.matches(info)), None)
+            if m is not None:
+                profile_name, model = p.name, m.model or None
+                break
+        vid, pid = info.get("vendor_id"), info.get("product_id")
+        rows.append({
+            "id": f"{vid:04x}:{pid:04x}" if isinstance(vid, int) and isinstance(pid, int) else "?",
+            "vendor_id": vid,
+            "product_id": pid,
+            "manufacturer": info.get("manufacturer_string") or "",
+            "product": info.get("product_string") or "",
+            "serial": info.get("serial_number") or "",
+            "usage_page": info.get("usage_page"),
+            "usage": info.get("usage"),
+            "interface": info.get("interface_number"),
+            "path": _path_text(info.get("path")),
+            "profile": profile_name,
+            "model": model,
+        })
+    return rows
+
+
+def devices_main(as_json: bool = False, *, enumerate_fn=None, out=None, err=None) -> int:
+    """`softproxy devices [--json]`: print the connected HID devices and their profiles; 0, or 1
+    when HID devices cannot be enumerated."""
+    out = sys.stdout if out is None else out
+    err = sys.stderr if err is None else err
+    profiles, errors = load_profiles()
+    for e in errors:
+        print(f"softproxy devices: skipping a broken profile: {e}", file=err)
+    try:
+        rows = list_devices(enumerate_fn, profiles)
+    except (DeviceError, OSError, ValueError) as exc:
+        print(f"softproxy devices: cannot list HID devices: {exc}", file=err)
+        return 1
+    if as_json:
+        doc = {"devices": rows, "profiles": [{"name": p.name, "description": p.description, "ids": p.ids(),
+                                             "renders_force": p.renders_force, "modes": list(p.modes),
+                                             "source": p.source} for p in profiles]}
+        print(json.dumps(doc, indent=2), file=out)
+        return 0
+    if not rows:
+        print("no HID devices connected", file=out)
+    else:
+        header = ("id", "profile", "model / product", "usage", "if", "path")
+        cells = [header]
+        for r in rows:
+            usage = (f"{r['usage_page']:04x}:{r['usage']:04x}" if isinstance(r["usage_page"], int)
+                     and isinstance(r["usage"], int) else "-")
+            cells.append((r["id"], r["profile"] or "-", r["model"] or r["product"] or "-", usage,
+                          "-" if r["interface"] is None else str(r["interface"]), r["path"]))
+        widths = [max(len(c[i]) for c in cells) for i in range(len(header))]
+        for c in cells:
+            print("  ".join(v.ljust(w) for v, w in zip(c, widths)).rstrip(), file=out)
+    print(f"profiles: {', '.join(p.name for p in profiles) or 'none'} "
+          f"(a device without one needs a profile: see devices/profiles/README.md)", file=out)
+    return 0

@@ -1,0 +1,717 @@
+"""HID device profiles, and the pure functions that parse input reports and build output reports.
+
+A profile is a TOML file (shipped ones in `devices/profiles/`, format in
+`devices/profiles/README.md`) that says which USB ids it matches, where each number sits
+in the device's input reports, how it converts to SI units, which device axis is which
+axis of the finger, and, for a device that renders force, how a force and a torque are
+packed into its output report. A user adds a device by writing a profile, not code.
+
+Everything here is a pure function of its arguments, because HID reports are untrusted
+input (../shared/DESIGN.md, "Devices are untrusted input"):
+
+* `parse_input(profile, data, mode)` turns one input report (bytes as `hid.device.read`
+  returns them: report id first for a numbered report) into SI values. On a truncated,
+  oversized, empty or non-finite report it raises `ReportError` (a ValueError) and nothing
+  else; it never returns NaN or Inf. A report id the profile does not use gives None.
+* `build_output(profile, sequence, fx, fy, fz, tx, ty, tz, enable)` packs a force (N) and a
+  torque (N·m) into the output report's bytes (report id first, as `hid.device.write`
+  wants). Non-finite input gives a zero-force report with enable = 0; everything else is
+  clamped to the profile's max_force / max_torque and to each field's count limits.
+* `load_profile(name_or_path)` / `parse_profile(doc, source)` validate a profile; every
+  error is a `ProfileError` (a ValueError) naming the file, the field and what was expected.
+
+Report offsets count bytes of the report's payload, i.e. after the report id byte of a
+numbered report (the layout a firmware author writes in the HID report descriptor).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import struct
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
+"""The shipped profiles."""
+
+PROFILE_PATH_ENV = "SOFTPROXY_HID_PROFILES"
+"""Environment variable: extra folders of profiles (os.pathsep-separated), searched first."""
+
+# type name -> (struct code, bytes, kind) ; kind: "int" signed, "uint" unsigned, "float"
+TYPES = {
+    "int8": ("b", 1, "int"), "uint8": ("B", 1, "uint"),
+    "int16": ("h", 2, "int"), "uint16": ("H", 2, "uint"),
+    "int32": ("i", 4, "int"), "uint32": ("I", 4, "uint"),
+    "float32": ("f", 4, "float"),
+}
+ENDIAN = {"little": "<", "big": ">"}
+RAW_FIELDS = ("sequence", "status", "buttons")
+"""Input field names with a fixed meaning: unsigned integers, read raw (no scale)."""
+AXES = ("x", "y", "z", "twist")
+WRENCH = ("fx", "fy", "fz", "tx", "ty", "tz")
+OUTPUT_SOURCES = WRENCH + ("twist", "sequence", "enable")
+MODES = ("position", "rate")
+REPORTING = ("periodic", "on_change")
+MAX_SCALE = 1e12
+FLOAT32_MAX = 3.4028234663852886e38
+
+
+class ProfileError(ValueError):
+    """A profile that cannot be used; the message names the file, the field and what was expected."""
+
+
+class ReportError(ValueError):
+    """A malformed input report: empty, truncated, oversized, or carrying a non-finite float."""
+
+
+class InputReport(NamedTuple):
+    """One parsed input report: its id, its payload length, and its field values.
+
+    `values` maps field name to value: SI units (m, rad; m/s, rad/s in rate mode) for
+    scaled fields, raw unsigned integers for sequence / status / buttons.
+    """
+
+    report_id: int
+    size: int
+    values: dict
+
+
+@dataclass(frozen=True)
+class InputField:
+    name: str
+    offset: int
+    type: str
+    endian: str
+    scale: float               # SI per count in position mode (1.0 for raw fields)
+    rate_scale: float | None   # SI per count in rate mode (m/s, rad/s); None: no rate mode
+    deadband: float            # |counts| <= deadband read as 0
+
+    @property
+    def raw(self) -> bool:
+        return self.name in RAW_FIELDS
+
+
+@dataclass(frozen=True)
+class InputLayout:
+    """One input report layout. Several may share an id with different sizes (variants)."""
+
+    id: int
+    size: int
+    fields: tuple[InputField, ...]
+
+
+@dataclass(frozen=True)
+class OutputField:
+    name: str
+    offset: int
+    type: str
+    endian: str
+    source: str      # fx fy fz tx ty tz twist sequence enable
+    sign: float      # +1 or -1 (a leading '-' on the source)
+    scale: float     # counts per N (force) or per N·m (torque); 1 for sequence / enable
+    lo: float        # saturation limits in counts
+    hi: float
+
+
+@dataclass(frozen=True)
+class OutputLayout:
+    id: int
+    size: int
+    fields: tuple[OutputField, ...]
+
+
+@dataclass(frozen=True)
+class Match:
+    """USB ids a profile claims; usage_page / usage / interface narrow a multi-interface device."""
+
+    vendor_id: int
+    product_id: int
+    model: str = ""
+    usage_page: int | None = None
+    usage: int | None = None
+    interface: int | None = None
+
+    def matches(self, info: dict) -> bool:
+        """True when an `hid.enumerate()` entry is this device."""
+        if info.get("vendor_id") != self.vendor_id or info.get("product_id") != self.product_id:
+            return False
+        for key, want in (("usage_page", self.usage_page), ("usage", self.usage),
+                          ("interface_number", self.interface)):
+            if want is not None and info.get(key) != want:
+                return False
+        return True
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A validated device profile (see the module docstring and devices/profiles/README.md)."""
+
+    name: str
+    description: str
+    source: str                              # file it came from
+    mode: str                                # default motion mode
+    modes: tuple[str, ...]                   # modes the axis fields support
+    max_force: float                         # N; 0 = renders no force
+    max_torque: float                        # N·m; 0 = renders no torque
+    finger_axis: tuple[float, float, float]  # unit axis in the sample frame: what `twist` is about
+    matches: tuple[Match, ...]
+    numbered: bool                           # input reports start with a report id byte
+    max_bytes: int                           # longest input report accepted, id byte included
+    reporting: str                           # "periodic" or "on_change"
+    stale_ms: float                          # periodic: sample stale after this long without a report
+    reports: dict                            # id -> tuple[InputLayout, ...], longest first
+    axes: dict                               # "x"/"y"/"z"/"twist" -> (field name, sign)
+    status_set: int                          # status bits that must be 1 (e.g. calibrated)
+    status_clear: int                        # status bits that must be 0 (e.g. fault)
+    has_status: bool
+    sequence_bits: int                       # width of the sequence field (0: none)
+    output: OutputLayout | None
+    plans: dict = field(default_factory=dict, repr=False, compare=False)  # parse plans per mode (cache)
+
+    @property
+    def renders_force(self) -> bool:
+        return self.output is not None
+
+    def field_names(self) -> set[str]:
+        return {f.name for layouts in self.reports.values() for layout in layouts for f in layout.fields}
+
+    def ids(self) -> list[str]:
+        """The USB ids this profile matches, as 'vvvv:pppp'."""
+        return [f"{m.vendor_id:04x}:{m.product_id:04x}" for m in self.matches]
+
+
+# ---------------------------------------------------------------------------------------
+# loading and validation
+
+
+def _fail(source: str, field: str, expected: str, got) -> ProfileError:
+    return ProfileError(f"{source}: {field} must be {expected}, got {got!r}")
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_keys(source: str, where: str, table: dict, allowed: set, required: set = frozenset()) -> None:
+    unknown = set(table) - allowed
+    if unknown:
+        raise ProfileError(f"{source}: {where} has unknown field(s) {sorted(unknown)}; "
+                           f"expected some of {sorted(allowed)}")
+    for key in sorted(required):
+        if key not in table:
+            raise ProfileError(f"{source}: {where}.{key} is required" if where else f"{source}: {key} is required")
+
+
+def _get(source, table, where, key, check, expected, default=None):
+    if key not in table:
+        return default
+    v = table[key]
+    if not check(v):
+        raise _fail(source, f"{where}.{key}" if where else key, expected, v)
+    return v
+
+
+def _type_range(type_name: str) -> tuple[float, float]:
+    code, size, kind = TYPES[type_name]
+    if kind == "float":
+        return -FLOAT32_MAX, FLOAT32_MAX
+    bits = 8 * size
+    if kind == "uint":
+        return 0, (1 << bits) - 1
+    return -(1 << (bits - 1)), (1 << (bits - 1)) - 1
+
+
+def _parse_signed_name(text: str) -> tuple[str, float]:
+    text = text.strip()
+    if text.startswith("-"):
+        return text[1:].strip(), -1.0
+    if text.startswith("+"):
+        return text[1:].strip(), 1.0
+    return text, 1.0
+
+
+def _field_common(source: str, where: str, spec: dict, limit: int) -> tuple[int, str, str]:
+    offset = _get(source, spec, where, "offset", lambda v: _is_int(v) and v >= 0, "an integer >= 0")
+    if offset is None:
+        raise ProfileError(f"{source}: {where}.offset is required")
+    type_name = _get(source, spec, where, "type", lambda v: v in TYPES, f"one of {list(TYPES)}")
+    if type_name is None:
+        raise ProfileError(f"{source}: {where}.type is required")
+    endian = _get(source, spec, where, "endian", lambda v: v in ENDIAN, "\"little\" or \"big\"", "little")
+    if offset + TYPES[type_name][1] > limit:
+        raise _fail(source, f"{where}.offset", f"such that the {type_name} ends within the report's "
+                    f"{limit} payload bytes", offset)
+    return offset, type_name, endian
+
+
+def _parse_input_field(source: str, where: str, name: str, spec, size: int) -> InputField:
+    if not isinstance(spec, dict):
+        raise _fail(source, where, "a table {offset, type, ...}", spec)
+    if not name.isidentifier():
+        raise _fail(source, where, "named by an identifier (letters, digits, _)", name)
+    raw = name in RAW_FIELDS
+    allowed = {"offset", "type", "endian"} | (set() if raw else {"scale", "rate_scale", "deadband"})
+    _check_keys(source, where, spec, allowed)
+    offset, type_name, endian = _field_common(source, where, spec, size)
+    if raw:
+        if TYPES[type_name][2] != "uint":
+            raise _fail(source, f"{where}.type", f"an unsigned integer type (uint8/uint16/uint32) for `{name}`",
+                        type_name)
+        return InputField(name, offset, type_name, endian, 1.0, 1.0, 0.0)
+    scale_ok = lambda v: _is_num(v) and v != 0 and abs(v) <= MAX_SCALE  # noqa: E731
+    scale = _get(source, spec, where, "scale", scale_ok, f"a finite non-zero number, |scale| <= {MAX_SCALE:g}", 1.0)
+    rate_scale = _get(source, spec, where, "rate_scale", scale_ok,
+                      f"a finite non-zero number, |rate_scale| <= {MAX_SCALE:g}")
+    deadband = _get(source, spec, where, "deadband", lambda v: _is_num(v) and v >= 0, "a finite number >= 0", 0.0)
+    return InputField(name, offset, type_name, endian, float(scale),
+                      None if rate_scale is None else float(rate_scale), float(deadband))
+
+
+def _parse_output_field(source: str, where: str, name: str, spec, size: int) -> OutputField:
+    if not isinstance(spec, dict):
+        raise _fail(source, where, "a table {offset, type, source, ...}", spec)
+    _check_keys(source, where, spec, {"offset", "type", "endian", "source", "scale", "min", "max"})
+    offset, type_name, endian = _field_common(source, where, spec, size)
+    src_text = spec.get("source", name)
+    if not isinstance(src_text, str):
+        raise _fail(source, f"{where}.source", f"one of {list(OUTPUT_SOURCES)} (optionally with a '-')", src_text)
+    src, sign = _parse_signed_name(src_text)
+    if src not in OUTPUT_SOURCES or (sign < 0 and src in ("sequence", "enable")):
+        raise _fail(source, f"{where}.source", f"one of {list(OUTPUT_SOURCES)} (a wrench source may carry a '-')",
+                    src_text)
+    tlo, thi = _type_range(type_name)
+    kind = TYPES[type_name][2]
+    if src in ("sequence", "enable"):
+        if kind != "uint":
+            raise _fail(source, f"{where}.type", f"an unsigned integer type for a `{src}` field", type_name)
+        if "scale" in spec or "min" in spec or "max" in spec:
+            raise ProfileError(f"{source}: {where}: a `{src}` field takes no scale, min or max")
+        return OutputField(name, offset, type_name, endian, src, 1.0, 1.0, tlo, thi)
+    scale = _get(source, spec, where, "scale", lambda v: _is_num(v) and 0 < v <= MAX_SCALE,
+                 f"a finite number > 0 (counts per N or per N·m), <= {MAX_SCALE:g}")
+    if scale is None:
+        raise ProfileError(f"{source}: {where}.scale is required (counts per N, or per N·m for a torque)")
+    if kind == "int":  # symmetric by default: -32767..32767, so that -x is representable whenever x is
+        tlo = -thi
+    in_type = lambda v: _is_num(v) and tlo <= v <= thi  # noqa: E731
+    lo = _get(source, spec, where, "min", in_type, f"a number within the {type_name} range [{tlo:g}, {thi:g}]", tlo)
+    hi = _get(source, spec, where, "max", in_type, f"a number within the {type_name} range [{tlo:g}, {thi:g}]", thi)
+    if not lo <= 0 <= hi:
+        raise ProfileError(f"{source}: {where}: min must be <= 0 <= max (zero force must be representable), "
+                           f"got min = {lo!r}, max = {hi!r}")
+    if kind != "float":
+        lo, hi = math.ceil(lo), math.floor(hi)
+    return OutputField(name, offset, type_name, endian, src, sign, float(scale), lo, hi)
+
+
+def _axis_vector(source: str, field: str, text) -> tuple[float, float, float]:
+    if not isinstance(text, str):
+        raise _fail(source, field, "\"x\", \"y\" or \"z\", optionally with a '-'", text)
+    name, sign = _parse_signed_name(text)
+    if name not in ("x", "y", "z"):
+        raise _fail(source, field, "\"x\", \"y\" or \"z\", optionally with a '-'", text)
+    return tuple(sign if a == name else 0.0 for a in ("x", "y", "z"))
+
+
+_TOP_KEYS = {"name", "description", "mode", "max_force", "max_torque", "finger_axis", "match", "input",
+             "axes", "status", "output"}
+
+
+def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
+    """Validate a profile given as a dict (a parsed TOML document); errors name source and field."""
+    if not isinstance(doc, dict):
+        raise _fail(source, "profile", "a table", doc)
+    _check_keys(source, "", doc, _TOP_KEYS, {"input", "axes"})
+    stem = Path(source).stem if source.endswith(".toml") else "profile"
+    name = _get(source, doc, "", "name", lambda v: isinstance(v, str) and v.strip() != "", "a non-empty string", stem)
+    description = _get(source, doc, "", "description", lambda v: isinstance(v, str), "a string", "")
+    mode = _get(source, doc, "", "mode", lambda v: v in MODES, f"one of {list(MODES)}", "position")
+    nonneg = lambda v: _is_num(v) and v >= 0  # noqa: E731
+    max_force = float(_get(source, doc, "", "max_force", nonneg, "a finite number >= 0 (N)", 0.0))
+    max_torque = float(_get(source, doc, "", "max_torque", nonneg, "a finite number >= 0 (N·m)", 0.0))
+    finger_axis = _axis_vector(source, "finger_axis", doc.get("finger_axis", "z"))
+
+    # [[match]]
+    raw_matches = doc.get("match", [])
+    if not isinstance(raw_matches, list) or not all(isinstance(m, dict) for m in raw_matches):
+        raise _fail(source, "match", "a list of [[match]] tables", raw_matches)
+    matches = []
+    u16 = lambda v: _is_int(v) and 0 <= v <= 0xFFFF  # noqa: E731
+    for i, m in enumerate(raw_matches):
+        where = f"match[{i}]"
+        _check_keys(source, where, m, {"vendor_id", "product_id", "model", "usage_page", "usage", "interface"},
+                    {"vendor_id", "product_id"})
+        matches.append(Match(
+            _get(source, m, where, "vendor_id", u16, "an integer 0..0xFFFF"),
+            _get(source, m, where, "product_id", u16, "an integer 0..0xFFFF"),
+            _get(source, m, where, "model", lambda v: isinstance(v, str), "a string", ""),
+            _get(source, m, where, "usage_page", u16, "an integer 0..0xFFFF"),
+            _get(source, m, where, "usage", u16, "an integer 0..0xFFFF"),
+            _get(source, m, where, "interface", lambda v: _is_int(v) and v >= -1, "an integer >= -1"),
+        ))
+
+    # [input]
+    inp = doc["input"]
+    if not isinstance(inp, dict):
+        raise _fail(source, "input", "a table", inp)
+    _check_keys(source, "input", inp, {"max_bytes", "reporting", "stale_ms", "report"}, {"report"})
+    max_bytes = _get(source, inp, "input", "max_bytes", lambda v: _is_int(v) and 1 <= v <= 4096,
+                     "an integer 1..4096 (bytes, report id included)", 64)
+    reporting = _get(source, inp, "input", "reporting", lambda v: v in REPORTING, f"one of {list(REPORTING)}",
+                     "periodic")
+    stale_ms = float(_get(source, inp, "input", "stale_ms", nonneg, "a finite number >= 0 (ms; 0 = never stale)",
+                          50.0 if reporting == "periodic" else 0.0))
+    raw_reports = inp["report"]
+    if not isinstance(raw_reports, list) or not raw_reports or not all(isinstance(r, dict) for r in raw_reports):
+        raise _fail(source, "input.report", "a non-empty list of [[input.report]] tables", raw_reports)
+    reports: dict[int, list[InputLayout]] = {}
+    field_types: dict[str, str] = {}
+    for i, r in enumerate(raw_reports):
+        where = f"input.report[{i}]"
+        _check_keys(source, where, r, {"id", "size", "fields"}, {"id", "size", "fields"})
+        rid = _get(source, r, where, "id", lambda v: _is_int(v) and 0 <= v <= 255,
+                   "an integer 0..255 (0: the device does not number its reports)")
+        size = _get(source, r, where, "size", lambda v: _is_int(v) and v >= 1, "an integer >= 1 (payload bytes)")
+        if size + (1 if rid else 0) > max_bytes:
+            raise _fail(source, f"{where}.size", f"at most input.max_bytes = {max_bytes} bytes with the report id",
+                        size)
+        fields = r["fields"]
+        if not isinstance(fields, dict) or not fields:
+            raise _fail(source, f"{where}.fields", "a non-empty table of name = {offset, type, ...}", fields)
+        parsed = []
+        for fname, spec in fields.items():
+            f = _parse_input_field(source, f"{where}.fields.{fname}", fname, spec, size)
+            if fname == "sequence" and field_types.setdefault(fname, f.type) != f.type:
+                raise _fail(source, f"{where}.fields.{fname}.type", f"{field_types[fname]}, as in the other "
+                            "reports (the counter's width decides where it wraps)", f.type)
+            parsed.append(f)
+        variants = reports.setdefault(rid, [])
+        if any(v.size == size for v in variants):
+            raise _fail(source, f"{where}.size", f"different from the other reports with id {rid} (variants are "
+                        "told apart by their size)", size)
+        variants.append(InputLayout(rid, size, tuple(parsed)))
+    if 0 in reports and len(reports) > 1:
+        raise _fail(source, "input.report[].id", "all 0 (unnumbered) or all 1..255 (numbered), not a mix",
+                    sorted(reports))
+    numbered = 0 not in reports
+    reports_sorted = {rid: tuple(sorted(v, key=lambda layout: -layout.size)) for rid, v in reports.items()}
+
+    # [axes]
+    axes_doc = doc["axes"]
+    if not isinstance(axes_doc, dict):
+        raise _fail(source, "axes", "a table x/y/z/twist = \"[-]field\"", axes_doc)
+    _check_keys(source, "axes", axes_doc, set(AXES), {"x", "y", "z"})
+    axes = {}
+    by_name = {}
+    for layouts in reports_sorted.values():
+        for layout in layouts:
+            for f in layout.fields:
+                by_name.setdefault(f.name, f)
+    for axis in AXES:
+        if axis not in axes_doc:
+            continue
+        text = axes_doc[axis]
+        expected = "\"field\" or \"-field\" naming a scaled input field"
+        if not isinstance(text, str):
+            raise _fail(source, f"axes.{axis}", expected, text)
+        fname, sign = _parse_signed_name(text)
+        if fname not in by_name or by_name[fname].raw:
+            raise _fail(source, f"axes.{axis}", f"{expected} (have: {sorted(n for n in by_name if n not in RAW_FIELDS)})",
+                        text)
+        axes[axis] = (fname, sign)
+    modes = ["position"]
+    rate_ok = True
+    for fname, _ in axes.values():
+        for layouts in reports_sorted.values():
+            for layout in layouts:
+                for f in layout.fields:
+                    if f.name == fname and f.rate_scale is None:
+                        rate_ok = False
+    if rate_ok:
+        modes.append("rate")
+    if mode not in modes:
+        raise ProfileError(f"{source}: mode = \"rate\" needs a rate_scale on every field named in [axes]")
+
+    # [status]
+    has_status = "status" in by_name
+    status_doc = doc.get("status", {})
+    if not isinstance(status_doc, dict):
+        raise _fail(source, "status", "a table {require_set, require_clear}", status_doc)
+    _check_keys(source, "status", status_doc, {"require_set", "require_clear"})
+    if status_doc and not has_status:
+        raise ProfileError(f"{source}: [status] needs an input field named `status`")
+    mask_ok = lambda v: _is_int(v) and 0 <= v <= 0xFFFFFFFF  # noqa: E731
+    status_set = _get(source, status_doc, "status", "require_set", mask_ok, "a bit mask 0..0xFFFFFFFF", 0)
+    status_clear = _get(source, status_doc, "status", "require_clear", mask_ok, "a bit mask 0..0xFFFFFFFF", 0)
+    if status_set & status_clear:
+        raise _fail(source, "status.require_clear", "disjoint from require_set", status_clear)
+    sequence_bits = 8 * TYPES[by_name["sequence"].type][1] if "sequence" in by_name else 0
+
+    # [output]
+    output = None
+    if "output" in doc:
+        out = doc["output"]
+        if not isinstance(out, dict):
+            raise _fail(source, "output", "a table", out)
+        _check_keys(source, "output", out, {"id", "size", "fields"}, {"id", "size", "fields"})
+        oid = _get(source, out, "output", "id", lambda v: _is_int(v) and 0 <= v <= 255,
+                   "an integer 0..255 (0: unnumbered)")
+        osize = _get(source, out, "output", "size", lambda v: _is_int(v) and 1 <= v <= 4095,
+                     "an integer 1..4095 (payload bytes)")
+        ofields = out["fields"]
+        if not isinstance(ofields, dict) or not ofields:
+            raise _fail(source, "output.fields", "a non-empty table of name = {offset, type, source, ...}", ofields)
+        parsed = tuple(_parse_output_field(source, f"output.fields.{n}", n, s, osize) for n, s in ofields.items())
+        spans = sorted((f.offset, f.offset + TYPES[f.type][1], f.name) for f in parsed)
+        for (a0, a1, an), (b0, b1, bn) in zip(spans, spans[1:]):
+            if b0 < a1:
+                raise ProfileError(f"{source}: output.fields.{bn} overlaps output.fields.{an}")
+        output = OutputLayout(oid, osize, parsed)
+    sources = {f.source for f in output.fields} if output else set()
+    if max_force > 0 and not sources & {"fx", "fy", "fz"}:
+        raise _fail(source, "max_force", "0 for a profile whose [output] carries no force (fx/fy/fz)", max_force)
+    if max_torque > 0 and not sources & {"tx", "ty", "tz", "twist"}:
+        raise _fail(source, "max_torque", "0 for a profile whose [output] carries no torque (tx/ty/tz/twist)",
+                    max_torque)
+
+    return Profile(name=name.strip(), description=description, source=source, mode=mode, modes=tuple(modes),
+                   max_force=max_force, max_torque=max_torque, finger_axis=finger_axis, matches=tuple(matches),
+                   numbered=numbered, max_bytes=max_bytes, reporting=reporting, stale_ms=stale_ms,
+                   reports=reports_sorted, axes=axes, status_set=status_set, status_clear=status_clear,
+                   has_status=has_status, sequence_bits=sequence_bits, output=output)
+
+
+def profile_dirs() -> list[Path]:
+    """Folders searched for profiles by name: $SOFTPROXY_HID_PROFILES first, then the shipped ones."""
+    dirs = [Path(p) for p in os.environ.get(PROFILE_PATH_ENV, "").split(os.pathsep) if p.strip()]
+    dirs.append(PROFILE_DIR)
+    return dirs
+
+
+def find_profile(name_or_path: str, base: Path | None = None) -> Path:
+    """The file of a profile given by name (searched in `profile_dirs()`) or by path.
+
+    A value containing a path separator or ending in .toml is a path, relative to `base`
+    (e.g. the scene's folder) when given.
+    """
+    text = str(name_or_path)
+    if text.endswith(".toml") or "/" in text or os.sep in text:
+        p = Path(text).expanduser()
+        if not p.is_absolute() and base is not None:
+            p = base / p
+        if not p.is_file():
+            raise ProfileError(f"{p}: profile file not found")
+        return p
+    for d in profile_dirs():
+        p = d / f"{text}.toml"
+        if p.is_file():
+            return p
+    raise ProfileError(f"no HID profile named {text!r}; have: {', '.join(available_profiles()) or 'none'} "
+                       f"(searched {', '.join(str(d) for d in profile_dirs())})")
+
+
+def load_profile(name_or_path, base: Path | None = None) -> Profile:
+    """Load and validate a profile by name or path (`find_profile`); a Profile passes through."""
+    if isinstance(name_or_path, Profile):
+        return name_or_path
+    path = find_profile(name_or_path, base)
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProfileError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read: {exc}") from None
+    return parse_profile(doc, str(path))
+
+
+def available_profiles() -> list[str]:
+    """Names (file stems) of the profiles found in `profile_dirs()`."""
+    names = set()
+    for d in profile_dirs():
+        if d.is_dir():
+            names.update(p.stem for p in d.glob("*.toml"))
+    return sorted(names)
+
+
+def load_profiles() -> tuple[list[Profile], list[str]]:
+    """Every profile found by name; a broken one is reported (second list), not fatal."""
+    profiles, errors = [], []
+    seen = set()
+    for d in profile_dirs():
+        if not d.is_dir():
+            continue
+        for p in sorted(d.glob("*.toml")):
+            if p.stem in seen:
+                continue  # an earlier folder shadows a later one
+            seen.add(p.stem)
+            try:
+                profiles.append(load_profile(str(p)))
+            except ProfileError as exc:
+                errors.append(str(exc))
+    return profiles, errors
+
+
+# ---------------------------------------------------------------------------------------
+# input reports
+
+_UNPACKERS: dict[tuple[str, str], struct.Struct] = {
+    (t, e): struct.Struct(ENDIAN[e] + TYPES[t][0]) for t in TYPES for e in ENDIAN
+}
+
+
+def _plan(profile: Profile, mode: str) -> dict:
+    """Per report id: [(size, [(name, unpack_from, offset, factor, deadband, is_float, raw)])], longest first."""
+    plan = profile.plans.get(mode)
+    if plan is None:
+        plan = {}
+        for rid, layouts in profile.reports.items():
+            plan[rid] = [(layout.size, [(f.name, _UNPACKERS[(f.type, f.endian)].unpack_from, f.offset,
+                                         f.rate_scale if (mode == "rate" and f.rate_scale is not None) else f.scale,
+                                         f.deadband, TYPES[f.type][2] == "float", f.raw)
+                                        for f in layout.fields])
+                         for layout in layouts]
+        profile.plans[mode] = plan
+    return plan
+
+
+def parse_input(profile: Profile, data, mode: str = "position") -> InputReport | None:
+    """Parse one input report into SI values (see `InputReport`); None for an id the profile does not use.
+
+    `data` is the report as `hid.device.read` returns it (bytes or a list of ints), report
+    id first when the profile's reports are numbered. A report may be longer than its
+    layout (hidapi on Windows pads every report to the device's longest): the longest
+    layout of that id that fits is used and the rest ignored, up to `max_bytes`.
+    Raises ReportError, and only ReportError, on anything malformed; never returns NaN/Inf.
+    """
+    try:
+        buf = data if isinstance(data, bytes) else bytes(data)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ReportError(f"not a byte string: {exc}") from None
+    n = len(buf)
+    if n == 0:
+        raise ReportError("empty report")
+    if n > profile.max_bytes:
+        raise ReportError(f"oversized report: {n} bytes, {profile.name} sends at most {profile.max_bytes}")
+    plan = _plan(profile, mode)
+    if profile.numbered:
+        rid, start = buf[0], 1
+    else:
+        rid, start = 0, 0
+    variants = plan.get(rid)
+    if variants is None:
+        return None
+    payload = n - start
+    for size, fields in variants:
+        if size <= payload:
+            break
+    else:
+        raise ReportError(f"truncated report id {rid}: {payload} payload bytes, needs at least {variants[-1][0]}")
+    values = {}
+    for name, unpack, offset, factor, deadband, is_float, raw in fields:
+        v = unpack(buf, start + offset)[0]
+        if raw:
+            values[name] = v
+            continue
+        if is_float and not math.isfinite(v):
+            raise ReportError(f"report id {rid}: field {name} is {v!r} (non-finite float32)")
+        if -deadband <= v <= deadband:
+            values[name] = 0.0
+            continue
+        v = v * factor
+        if not math.isfinite(v):  # a float32 near its max times a large scale
+            raise ReportError(f"report id {rid}: field {name} overflows once scaled")
+        values[name] = v
+    return InputReport(rid, payload, values)
+
+
+# ---------------------------------------------------------------------------------------
+# output reports
+
+
+def zero_output(profile: Profile, sequence: int = 0) -> bytes:
+    """The zero-force, motors-disabled output report (enable = 0)."""
+    return build_output(profile, sequence, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, enable=False)
+
+
+def build_output(profile: Profile, sequence: int, fx: float, fy: float, fz: float,
+                 tx: float, ty: float, tz: float, enable: bool = True,
+                 max_force: float | None = None, max_torque: float | None = None) -> bytes:
+    """The output report (report id byte first, as `hid.device.write` wants it) for a wrench.
+
+    Force (N) and torque (N·m) are in the sample frame. Non-finite input of any component
+    gives the zero-force report with enable = 0. Otherwise |F| is clamped to max_force and
+    |T| to max_torque (the profile's, or lower ones given here; 0 = nothing rendered), then
+    each field to its count limits. `twist` fields carry the torque about the profile's
+    finger axis.
+    """
+    out = profile.output
+    if out is None:
+        raise ValueError(f"profile {profile.name!r} has no output report (input-only device)")
+    fmax, tmax = profile.max_force, profile.max_torque
+    if max_force is not None and max_force < fmax:
+        fmax = max(0.0, max_force)
+    if max_torque is not None and max_torque < tmax:
+        tmax = max(0.0, max_torque)
+    vals = [fx, fy, fz, tx, ty, tz]
+    try:
+        finite = all(math.isfinite(v) for v in vals)
+    except TypeError:
+        finite = False
+    if not finite:
+        vals = [0.0] * 6
+        enable = False
+    else:
+        vals = [float(v) for v in vals]
+        for i0, limit in ((0, fmax), (3, tmax)):
+            a, b, c = vals[i0:i0 + 3]
+            m2 = a * a + b * b + c * c
+            if m2 > limit * limit:
+                k = limit / math.sqrt(m2) if limit > 0.0 and math.isfinite(m2) else 0.0
+                vals[i0:i0 + 3] = [a * k, b * k, c * k]
+            if not all(math.isfinite(v) for v in vals[i0:i0 + 3]):  # |F|² overflowed: direction unknown
+                vals[i0:i0 + 3] = [0.0, 0.0, 0.0]
+    ax, ay, az = profile.finger_axis
+    comp = dict(zip(WRENCH, vals))
+    comp["twist"] = vals[3] * ax + vals[4] * ay + vals[5] * az
+    buf = bytearray(1 + out.size)
+    buf[0] = out.id
+    for f in out.fields:
+        pack = _UNPACKERS[(f.type, f.endian)].pack_into
+        if f.source == "sequence":
+            v = int(sequence) & ((1 << (8 * TYPES[f.type][1])) - 1)
+        elif f.source == "enable":
+            v = 1 if enable else 0
+        else:
+            v = f.sign * comp[f.source] * f.scale
+            v = f.lo if v < f.lo else f.hi if v > f.hi else v
+            if TYPES[f.type][2] != "float":
+                v = int(round(v))
+                v = int(f.lo) if v < f.lo else int(f.hi) if v > f.hi else v
+        pack(buf, 1 + f.offset, v)
+    return bytes(buf)
+
+
+def parse_output(profile: Profile, data) -> dict:
+    """Decode an output report back to SI (N, N·m) and raw sequence / enable: for tests and firmware authors.
+
+    Raises ReportError on a report of the wrong id or length.
+    """
+    out = profile.output
+    if out is None:
+        raise ReportError(f"profile {profile.name!r} has no output report")
+    buf = bytes(data)
+    if len(buf) != 1 + out.size or buf[0] != out.id:
+        raise ReportError(f"not an output report of {profile.name}: {len(buf)} bytes, id {buf[:1].hex() or '-'}")
+    result = {}
+    for f in out.fields:
+        v = _UNPACKERS[(f.type, f.endian)].unpack_from(buf, 1 + f.offset)[0]
+        result[f.name] = v if f.source in ("sequence", "enable") else f.sign * v / f.scale
+    return result
