@@ -42,12 +42,13 @@ class FingerParams:
     max_force: float = 40.0         # clamp on |F|, N
     max_torque: float = 1.0         # clamp on |M|, N·m
     max_speed: float = 20.0         # a device sample farther than max_speed·dt from the last is a spike, m/s
+    soft_start: float = 0.1         # after placement the force clamp ramps from 0 to max_force over this, s
     device_finger: int = 0          # which finger of the device drives this one
     offset: tuple = (0.0, 0.0, 0.0)  # device-to-world offset, m
     scale: float = 1.0              # device-to-world workspace scale
 
     def __post_init__(self) -> None:
-        for name in ("radius", "damping", "torsion_damping", "mu_s", "mu_d"):
+        for name in ("radius", "damping", "torsion_damping", "mu_s", "mu_d", "soft_start"):
             _check_finite(name, getattr(self, name), non_negative=True)
         for name in ("stiffness", "torsion_stiffness", "max_force", "max_torque", "scale", "max_speed"):
             _check_finite(name, getattr(self, name), positive=True)
@@ -82,6 +83,8 @@ class SoftFingerProxy:
         self.ox, self.oy, self.oz = params.offset
         self.scale = params.scale
         self.max_speed = params.max_speed
+        self.soft_start = params.soft_start
+        self._ramp = 1.0  # soft start: fraction of the clamps in force; 0 right after placement
         self.xd = self.yd = self.zd = 0.0
         self._sx = self._sy = self._sz = 0.0    # last spring stretch, for damping
         self._stwist = 0.0
@@ -106,6 +109,7 @@ class SoftFingerProxy:
             self.placed = False
             return False
         self.placed = True
+        self._ramp = 0.0 if self.soft_start > 0.0 else 1.0
         self.xd, self.yd, self.zd = xd, yd, zd
         if self.torsion is not None:
             self.torsion.release()
@@ -177,9 +181,13 @@ class SoftFingerProxy:
         fy = self.k * sy + c * (sy - self._sy)
         fz = self.k * sz + c * (sz - self._sz)
         self._sx, self._sy, self._sz = sx, sy, sz
+        ramp = self._ramp
+        if ramp < 1.0:  # soft start: no kick when a finger starts inside an object
+            ramp = self._ramp = min(1.0, ramp + dt / self.soft_start)
+        fmax = self.max_force * ramp
         f2 = fx * fx + fy * fy + fz * fz
-        if f2 > self.max_force * self.max_force:
-            s = self.max_force / math.sqrt(f2)
+        if f2 > fmax * fmax:
+            s = fmax / math.sqrt(f2) if f2 > 0.0 else 0.0
             fx, fy, fz = fx * s, fy * s, fz * s
         nx, ny, nz = god.nx, god.ny, god.nz
         P = fx * nx + fy * ny + fz * nz
@@ -207,8 +215,8 @@ class SoftFingerProxy:
         M += self.b_tau / dt * (stretch - self._stwist)
         self._stwist = stretch
         bound = tors.limit if tors.limit > abs(tors.torque) else abs(tors.torque)
-        if bound > self.max_torque:
-            bound = self.max_torque
+        if bound > self.max_torque * ramp:
+            bound = self.max_torque * ramp
         M = bound if M > bound else -bound if M < -bound else M
         self.torque = M
         self.tx, self.ty, self.tz = M * nx, M * ny, M * nz

@@ -75,7 +75,8 @@ Readings chosen where the seed is ambiguous (see ../shared/DESIGN.md):
   nearly Gauss–Newton start is safe). Start: α = β = 0, i.e. n̂ = -F̂, the frictionless
   contact — for μ ≤ 1 the root lies within ‖(α, β)‖ ≤ 1 of it (Algorithm 1's two fixed
   starting points A/B are not needed). `ContactSensor(warm_start=True)` starts from the last
-  explained normal instead. Stop: ‖g‖ ≤ `tol` (1e-12 m, i.e. ~1e-10 of the fingertip), or a
+  explained normal instead, and retries from n̂ = -F̂ if that run is refused (from a far
+  start LM can wander towards grazing before it comes back, and be cut off by the rule below). Stop: ‖g‖ ≤ `tol` (1e-12 m, i.e. ~1e-10 of the fingertip), or a
   step shorter than 1e-15(1+‖y‖), or `max_iter` (60) trial steps (accepted or not: the
   `iterations` reported), or an accepted iterate with friction ratio ‖(α, β)‖ > 10 `mu_max`
   (the contact it heads for would be refused anyway; this is how a force line that misses
@@ -536,55 +537,63 @@ class ContactSensor:
             if cosn > 0.2:
                 al = (n1 * ux + n2 * uy + n3 * uz) / cosn
                 be = (n1 * vx + n2 * vy + n3 * vz) / cosn
-        cur = evaluate(al, be)
-        lam = self.lambda0
+        # a warm start that fails (LM wandering off from a stale normal) is retried cold
+        starts = ((al, be), (0.0, 0.0)) if (al or be) else ((0.0, 0.0),)
         eps1 = self.eps1
+        max_iter = self.max_iter
         it = 0
-        reason = None
-        while True:
-            r1, r2, J11, J12, J21, J22 = cur[:6]
-            rr = r1 * r1 + r2 * r2
-            if rr <= tol2:
-                break
-            if it >= self.max_iter:
-                reason = "did not converge within max_iter"
-                break
-            it += 1
-            # eq 12: (JᵀJ + λ diag JᵀJ) h = -Jᵀ g
-            A11 = J11 * J11 + J21 * J21
-            A12 = J11 * J12 + J21 * J22
-            A22 = J12 * J12 + J22 * J22
-            g1 = J11 * r1 + J21 * r2
-            g2 = J12 * r1 + J22 * r2
-            D11, D22 = A11 * (1.0 + lam), A22 * (1.0 + lam)
-            det = D11 * D22 - A12 * A12
-            if not det > 0.0:
-                lam = lam * 10.0 if lam > 0.0 else 1e-3
-                if lam > 1e16:
-                    reason = "singular step"
+        for al, be in starts:
+            cur = evaluate(al, be)
+            lam = self.lambda0
+            reason = None
+            k = 0
+            while True:
+                r1, r2, J11, J12, J21, J22 = cur[:6]
+                rr = r1 * r1 + r2 * r2
+                if rr <= tol2:
                     break
-                continue
-            h1 = (-g1 * D22 + g2 * A12) / det
-            h2 = (-g2 * D11 + g1 * A12) / det
-            na, nb = al + h1, be + h2
-            if na * na + nb * nb > _CHART_LIMIT * _CHART_LIMIT:  # off the chart: reject the step
-                lam = lam * 10.0 if lam > 0.0 else 1e-6
-                continue
-            new = evaluate(na, nb)
-            # consistent predicted decrease of ½gᵀg for the diagonal-scaled step
-            pred = 0.5 * (lam * (A11 * h1 * h1 + A22 * h2 * h2) - (h1 * g1 + h2 * g2))
-            actual = 0.5 * (rr - new[0] * new[0] - new[1] * new[1])
-            small = h1 * h1 + h2 * h2 <= 1e-30 * (1.0 + na * na + nb * nb)
-            if actual > eps1 * pred:
-                al, be, cur = na, nb, new
-                lam = lam * 0.1 if lam > 1e-12 else 0.0
-                if na * na + nb * nb > y_abort * y_abort:
-                    reason = (f"no pushing contact with friction ratio <= mu_max {mu_max:g}: the normal heads "
-                              "for grazing (the force line misses the skin)")
+                if k >= max_iter:
+                    reason = "did not converge within max_iter"
                     break
-            else:
-                lam = lam * 10.0 if lam > 0.0 else 1e-6
-            if small:
+                it += 1
+                k += 1
+                # eq 12: (JᵀJ + λ diag JᵀJ) h = -Jᵀ g
+                A11 = J11 * J11 + J21 * J21
+                A12 = J11 * J12 + J21 * J22
+                A22 = J12 * J12 + J22 * J22
+                g1 = J11 * r1 + J21 * r2
+                g2 = J12 * r1 + J22 * r2
+                D11, D22 = A11 * (1.0 + lam), A22 * (1.0 + lam)
+                det = D11 * D22 - A12 * A12
+                if not det > 0.0:
+                    lam = lam * 10.0 if lam > 0.0 else 1e-3
+                    if lam > 1e16:
+                        reason = "singular step"
+                        break
+                    continue
+                h1 = (-g1 * D22 + g2 * A12) / det
+                h2 = (-g2 * D11 + g1 * A12) / det
+                na, nb = al + h1, be + h2
+                if na * na + nb * nb > _CHART_LIMIT * _CHART_LIMIT:  # off the chart: reject the step
+                    lam = lam * 10.0 if lam > 0.0 else 1e-6
+                    continue
+                new = evaluate(na, nb)
+                # consistent predicted decrease of ½gᵀg for the diagonal-scaled step
+                pred = 0.5 * (lam * (A11 * h1 * h1 + A22 * h2 * h2) - (h1 * g1 + h2 * g2))
+                actual = 0.5 * (rr - new[0] * new[0] - new[1] * new[1])
+                small = h1 * h1 + h2 * h2 <= 1e-30 * (1.0 + na * na + nb * nb)
+                if actual > eps1 * pred:
+                    al, be, cur = na, nb, new
+                    lam = lam * 0.1 if lam > 1e-12 else 0.0
+                    if na * na + nb * nb > y_abort * y_abort:
+                        reason = (f"no pushing contact with friction ratio <= mu_max {mu_max:g}: the normal heads "
+                                  "for grazing (the force line misses the skin)")
+                        break
+                else:
+                    lam = lam * 10.0 if lam > 0.0 else 1e-6
+                if small:
+                    break
+            if reason is None and cur[0] * cur[0] + cur[1] * cur[1] <= (1e3 * tol) ** 2:
                 break
         r1, r2, _, _, _, _, m1, m2, m3, mm2, p1, p2, p3, dd = cur
         nm = sqrt(mm2)

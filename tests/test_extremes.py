@@ -78,10 +78,21 @@ def test_extreme_gains_stay_finite(k, b, k_tau):
 def test_one_metre_jump_in_one_tick():
     """The device jumps 1 m through the box and the table in one tick: the proxy stays on top, force clamped."""
     dev = Replay([(0.0, 0.0, 0.2, 0.0, True)] * 5 + [(0.0, 0.0, -0.8, 0.0, True)] * 20)
-    loop = make_loop(dev)
+    loop = make_loop(dev, soft_start=0.0)
     loop.run(25)
     f = loop.fingers[0]
     box_top = loop.world.data.body("box").xpos[2] + 0.03
     assert f.god.z >= box_top + 0.008 - 1e-6  # on the box top (pressed a little into the table), not through it
     assert_safe(dev)
     assert dev.sent[-2][2] == pytest.approx(15.0)  # clamped to the device's 15 N
+
+
+def test_soft_start_no_kick_when_starting_inside():
+    """A finger whose device starts 2 cm inside the box: the force ramps in over soft_start, no kick."""
+    dev = Replay([(0.0, 0.0, 0.04, 0.0, True)] * 300)  # box top at 0.06: 2 cm deep
+    loop = make_loop(dev, soft_start=0.1, max_force=30.0)
+    loop.run(300)
+    fz = [w[2] for w in dev.sent[:-1]]
+    assert fz[0] <= 30.0 * 0.011  # first tick: about 1 % of the clamp
+    assert all(b - a <= 30.0 * 0.011 + 1e-9 for a, b in zip(fz, fz[1:]))  # never more than 1 %/ms up
+    assert fz[-1] == pytest.approx(15.0)  # then the full force (device clamp 15 N)
