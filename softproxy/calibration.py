@@ -220,7 +220,8 @@ def fit_e1(depth_m, force_N, source: str = "data") -> dict:
     if best is None:
         raise ValueError(f"{source}: cannot fit E1: every depth is 0")
     (b, m), (sb, sm) = _curve_fit(e1_law, d, P, [best[1], best[2]], "E1 (force vs depth)", source)
-    return {"b": b / units.MM, "m": m / units.MM, "b_stderr": sb / units.MM, "m_stderr": sm / units.MM}
+    return {"b": float(b) / units.MM, "m": float(m) / units.MM, "b_stderr": float(sb) / units.MM,
+            "m_stderr": float(sm) / units.MM}
 
 
 def fit_e2(force_N, radius_m, source: str = "data") -> dict:
@@ -247,7 +248,8 @@ def fit_e2(force_N, radius_m, source: str = "data") -> dict:
     (a_max, p0), (sa, sp) = _curve_fit(e2_radius, P, a, [best[1], best[2]], "E2 (contact radius vs force)", source)
     if p0 <= 0.0 or a_max <= 0.0:
         raise ValueError(f"{source}: cannot fit E2: a_max = {a_max:g} mm, P'_0 = {p0:g} N (must be > 0)")
-    return {"a_max": units.mm(a_max), "p0": p0, "a_max_stderr": units.mm(sa), "p0_stderr": sp}
+    return {"a_max": units.mm(float(a_max)), "p0": float(p0), "a_max_stderr": units.mm(float(sa)),
+            "p0_stderr": float(sp)}
 
 
 # ---------------------------------------------------------------------------
@@ -394,7 +396,7 @@ def calibrate(path: str | Path | None = None) -> dict:
                 "b_N_per_m": e1["b"], "m_per_m": e1["m"], "b_N_per_mm": b_mm, "m_per_mm": m_mm,
                 "b_stderr_N_per_mm": _none(e1["b_stderr"] * units.MM),
                 "m_stderr_per_mm": _none(e1["m_stderr"] * units.MM),
-                "stiffening": e1["m"] > 0.0,
+                "stiffening": bool(e1["m"] > 0.0),
             },
             "e2": {
                 "law": "a/a_max = 1 - e^(-P/P'_0), a = sqrt(A/pi)  (seed 002 eq 23)",

@@ -106,25 +106,32 @@ def video_support() -> str | None:
     return None
 
 
-def write_video(path, frames: list[Frame], model, size: tuple[int, int], fps: float,
-                finger_names: list[str] | None = None) -> int:
-    """Render `frames` with one camera framing them all and encode them to MP4 (H.264). Returns
-    the number of frames written."""
+def fixed_camera(renderer: OffscreenRenderer, frames: list[Frame]) -> OrbitCamera:
+    """One camera that frames the first, middle and last of `frames` (a video does not jump)."""
+    cams = [renderer.camera(f) for f in (frames[0], frames[len(frames) // 2], frames[-1])]
+    far = max(cams, key=lambda c: c.distance)
+    centre = np.mean([c.lookat for c in cams], axis=0)
+    spread = max(float(np.linalg.norm(c.lookat - centre)) for c in cams)
+    return OrbitCamera(centre, far.distance + 2.0 * spread, far.azimuth, far.elevation, far.fovy)
+
+
+def write_video(path, frames: list[Frame], renderer: OffscreenRenderer, fps: float) -> int:
+    """Render `frames` with one fixed camera and encode them to MP4 (H.264, yuv420p: even sizes)
+    through imageio-ffmpeg's bundled ffmpeg. Returns the number of frames written."""
     import imageio_ffmpeg
 
     if not frames:
         return 0
-    with OffscreenRenderer(model, size, finger_names) as r:
-        cams = [r.camera(f) for f in (frames[0], frames[len(frames) // 2], frames[-1])]
-        cam = max(cams, key=lambda c: c.distance)
-        centres = np.mean([c.lookat for c in cams], axis=0)
-        cam = OrbitCamera(centres, cam.distance * 1.1, cam.azimuth, cam.elevation, cam.fovy)
-        writer = imageio_ffmpeg.write_frames(str(path), (r.width, r.height), fps=fps, codec="libx264",
-                                             pix_fmt_out="yuv420p", macro_block_size=1, quality=7)
-        writer.send(None)
-        try:
-            for f in frames:
-                writer.send(r.render(f, cam).tobytes())
-        finally:
-            writer.close()
+    if renderer.width % 2 or renderer.height % 2:
+        raise ValueError(f"video size must be even, got {renderer.width}x{renderer.height}")
+    cam = fixed_camera(renderer, frames)
+    writer = imageio_ffmpeg.write_frames(str(path), (renderer.width, renderer.height), fps=fps, codec="libx264",
+                                         pix_fmt_out="yuv420p", macro_block_size=1, quality=7,
+                                         ffmpeg_log_level="error")
+    writer.send(None)
+    try:
+        for f in frames:
+            writer.send(renderer.render(f, cam).tobytes())
+    finally:
+        writer.close()
     return len(frames)
