@@ -11,13 +11,12 @@ rate. Prints a table, writes latency.json and latency.png to the output folder.
 from __future__ import annotations
 
 import json
-import sys
 import time
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from benchmarks.report import Progress, figure, save
 from softproxy.proxy import GodObject
 from softproxy.run import build, open_device
 from softproxy.scene import load_scene
@@ -124,13 +123,9 @@ def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "tw
     }
 
 
-def chart(result: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+def chart(result: dict):
+    """Histogram of tick and mj_step times, and where a tick goes."""
+    fig, (a, b) = figure(1, 2, (11, 4))
     s = result["_samples"]
     hi = float(np.percentile(s["tick_us"], 99.5)) * 1.2
     bins = np.linspace(0, hi, 80)
@@ -145,23 +140,17 @@ def chart(result: dict, path: Path) -> None:
     b.barh(list(st), list(st.values()))
     b.set_xlabel("µs (median per tick)")
     b.set_title("where a tick goes")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
 
 
 def main(args) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-
-    def progress(frac):
-        print(f"\r  latency: {frac * 100:5.1f} %", end="", file=sys.stderr, flush=True)
-
-    result = measure(args.duration, args.paced if args.paced is not None else args.duration, progress=progress)
-    print("\r", end="", file=sys.stderr)
-    chart(result, out / "latency.png")
-    samples = result.pop("_samples")
-    (out / "latency.json").write_text(json.dumps(result, indent=2))
+    progress = Progress("latency")
+    result = measure(args.duration, args.paced if args.paced is not None else args.duration,
+                     progress=lambda frac: progress(f"{frac * 100:5.1f} %"))
+    progress.done()
+    fig = chart(result)
+    del result["_samples"]
+    json_path, png_path = save(args.out, "latency", result, fig)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -174,6 +163,5 @@ def main(args) -> int:
     print(f"  deadline misses paced at {result['rate_hz']:g} Hz: {result['deadline_misses']} of "
           f"{result['paced_ticks']} ({result['deadline_miss_rate']:.2e}; target < 1e-4)")
     print("  stages (µs, median): " + ", ".join(f"{k} {v}" for k, v in result["stages_us_p50"].items()))
-    print(f"  wrote {out / 'latency.json'} and {out / 'latency.png'}")
-    del samples
+    print(f"  wrote {json_path} and {png_path}")
     return 0

@@ -19,13 +19,12 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import time
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from benchmarks.report import Progress, figure, save
 from softproxy.device import DeviceSample
 from softproxy.run import _rotation_about, build, open_device
 from softproxy.scene import load_scene
@@ -223,13 +222,9 @@ def measure(duration: float = 8.0, grips=(0.5, 1.0, 2.0, 4.0, 8.0), progress=Non
     return out
 
 
-def chart(result: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5))
+def chart(result: dict):
+    """Box rotation over the hold for every configuration, and torsion limit against grip."""
+    fig, (a, b) = figure(1, 2, (12, 4.5))
     for name, trace in result["traces"].items():
         a.plot([p[0] for p in trace], [p[1] for p in trace], label=name)
     a.set_xlabel("time (s)")
@@ -244,23 +239,15 @@ def chart(result: dict, path: Path) -> None:
     b.set_ylabel("largest torque transmitted (N·m)")
     b.set_title("torsion limit vs grip")
     b.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
 
 
 def main(args) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     duration = 20.0 if getattr(args, "full", False) else min(args.duration * 2, 20.0)
-
-    def progress(msg):
-        print(f"\r  peer: {msg:60s}", end="", file=sys.stderr, flush=True)
-
+    progress = Progress("peer")
     result = measure(duration, progress=progress)
-    print("\r" + " " * 70 + "\r", end="", file=sys.stderr)
-    chart(result, out / "peer.png")
-    (out / "peer.json").write_text(json.dumps(result, indent=1))
+    progress.done()
+    json_path, png_path = save(args.out, "peer", result, chart(result))
     if args.json:
         print(json.dumps({k: v for k, v in result.items() if k != "traces"}, indent=2))
         return 0
@@ -275,5 +262,5 @@ def main(args) -> int:
     for name in ("softproxy CH", "mujoco elliptic impratio 100"):
         print("  " + f"{name:32s}" + "".join(f"{v:10.4f}" for v in st[name])
               + f"   {result['slip_torque_exponent'].get(name)}")
-    print(f"  wrote {out / 'peer.json'} and {out / 'peer.png'}")
+    print(f"  wrote {json_path} and {png_path}")
     return 0

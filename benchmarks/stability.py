@@ -26,12 +26,11 @@ from __future__ import annotations
 
 import json
 import math
-import sys
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from benchmarks.report import Progress, figure, save
 from softproxy.device import DeviceSample
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
@@ -243,14 +242,10 @@ def measure(full: bool = False, progress=None) -> dict:
 COLOURS = {"stable": "#2ca02c", "buzzing": "#ff7f0e", "unstable": "#d62728", "dropped": "#7f7f7f"}
 
 
-def chart(result: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def chart(result: dict):
+    """Wall classes per rate on K × B with Colgate's bound, and the grasp classes on K × k_τ."""
     rates = sorted({c["rate_hz"] for c in result["wall"]})
-    fig, axes = plt.subplots(1, len(rates) + 1, figsize=(4.2 * (len(rates) + 1), 4))
+    fig, axes = figure(1, len(rates) + 1, (4.2 * (len(rates) + 1), 4))
     for ax, rate in zip(axes, rates):
         cells = [c for c in result["wall"] if c["rate_hz"] == rate]
         for c in cells:
@@ -272,22 +267,14 @@ def chart(result: dict, path: Path) -> None:
     ax.set_xlabel("K (N/m)")
     ax.set_ylabel("k_tau (N·m/rad)")
     ax.set_title("grasp (green stable, orange buzzing, red unstable, grey dropped)", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
 
 
 def main(args) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-
-    def progress(msg):
-        print(f"\r  stability: {msg:30s}", end="", file=sys.stderr, flush=True)
-
+    progress = Progress("stability")
     result = measure(getattr(args, "full", False), progress)
-    print("\r" + " " * 50 + "\r", end="", file=sys.stderr)
-    chart(result, out / "stability.png")
-    (out / "stability.json").write_text(json.dumps(result, indent=1))
+    progress.done()
+    json_path, png_path = save(args.out, "stability", result, chart(result))
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -313,5 +300,5 @@ def main(args) -> int:
     print("  extremes (finite and clamped forces, proxy never > 1 µm inside):")
     for c in result["extremes"]:
         print(f"    {'ok  ' if c['ok'] else 'FAIL'} {c['case']}")
-    print(f"  wrote {out / 'stability.json'} and {out / 'stability.png'}")
+    print(f"  wrote {json_path} and {png_path}")
     return 0 if all(c["ok"] for c in result["extremes"]) else 1

@@ -18,13 +18,12 @@ tick can run them. Writes tradeoff.json and tradeoff.png.
 from __future__ import annotations
 
 import json
-import sys
 import time
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from benchmarks.report import Progress, figure, save
 from softproxy.run import _rotation_about, build, open_device
 from softproxy.scene import load_scene
 
@@ -129,14 +128,10 @@ def measure(full: bool = False, progress=None, duration: float | None = None) ->
             "mj_step_us_p50": round(step_us, 2), "duration_s": duration, "rows": rows}
 
 
-def chart(result: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def chart(result: dict):
+    """Per scene: cost against error with the Pareto front, and outcome error against rate."""
     scenes = result["scenes"]
-    fig, axes = plt.subplots(2, len(scenes), figsize=(6 * len(scenes), 8.5), squeeze=False)
+    fig, axes = figure(2, len(scenes), (6 * len(scenes), 8.5), squeeze=False)
     for col, scene in enumerate(scenes):
         a, b = axes[0][col], axes[1][col]
         rows = [r for r in result["rows"] if r["scene"] == scene]
@@ -158,22 +153,14 @@ def chart(result: dict, path: Path) -> None:
         b.set_xlabel("servo rate (Hz)")
         b.set_ylabel("outcome error: object turn (deg)")
         b.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
 
 
 def main(args) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-
-    def progress(msg):
-        print(f"\r  tradeoff: {msg:40s}", end="", file=sys.stderr, flush=True)
-
+    progress = Progress("tradeoff")
     result = measure(getattr(args, "full", False), progress, min(args.duration, 2.2))
-    print("\r" + " " * 60 + "\r", end="", file=sys.stderr)
-    chart(result, out / "tradeoff.png")
-    (out / "tradeoff.json").write_text(json.dumps(result, indent=1))
+    progress.done()
+    json_path, png_path = save(args.out, "tradeoff", result, chart(result))
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
@@ -185,5 +172,5 @@ def main(args) -> int:
         print(f"  {r['scene']:17s}{r['model']:6s}{r['rate_hz']:10g}{r['tick_us_p50']:15.1f}{r['cost_x_mj_step']:11.2f}"
               f"{r['force_rms_error_N']:15.4f}{r['torque_rms_error_Nmm']:19.4f}{r['position_error_m']:13.2e}"
               f"{r['turned_deg']:12.3f}  {'*' if r['pareto'] else ''}")
-    print(f"  wrote {out / 'tradeoff.json'} and {out / 'tradeoff.png'}")
+    print(f"  wrote {json_path} and {png_path}")
     return 0

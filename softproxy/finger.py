@@ -12,7 +12,7 @@ fingertip back toward the hand, which is +n when the finger presses straight on 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from softproxy.fingertip import FingertipModel, _check_finite
 from softproxy.geometry import Shape

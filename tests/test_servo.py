@@ -1,16 +1,15 @@
 """World coupling and servo loop: the grasp, the knob, wrench balance, determinism, watchdog."""
 
-import copy
 import math
 import time
 
 import mujoco
 import pytest
 
-from softproxy.device import DeviceError, DeviceSample
+from softproxy.device import DeviceError
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
-from softproxy.run import build, open_device, run_scene
+from softproxy.run import open_device, run_scene
 from softproxy.scene import load_scene
 from softproxy.servo import ServoLoop
 from softproxy.world import World
@@ -89,7 +88,6 @@ def test_equal_and_opposite_wrench():
     finger = SoftFingerProxy(params, world.shapes, model("CH"))
     loop = ServoLoop(world, [finger], Push(), 1000.0)
     impulse = [0.0, 0.0, 0.0]
-    angular = [0.0, 0.0, 0.0]
 
     def on_tick(lp):
         impulse[0] -= finger.fx * lp.period
