@@ -139,7 +139,9 @@ class ServoLoop:
             else:
                 if not f.update(s.x, s.y, s.z, s.twist, dt):
                     self.faults["invalid_sample"] += 1
-                if f.body >= 0 and not safe:
+                if safe:  # the watchdog's zero-force tick: the proxy moved, nothing is rendered
+                    f.clear_output()
+                if f.body >= 0:
                     world.push(f.body, -f.fx, -f.fy, -f.fz, f.px, f.py, f.pz, -f.tx, -f.ty, -f.tz)
             if self.audit:
                 f.audit()

@@ -86,7 +86,7 @@ def test_equal_and_opposite_wrench():
             pass
 
     finger = SoftFingerProxy(params, world.shapes, model("CH"))
-    loop = ServoLoop(world, [finger], Push(), 1000.0)
+    loop = ServoLoop(world, [finger], Push(), 1000.0, overrun_watchdog=False)
     impulse = [0.0, 0.0, 0.0]
 
     def on_tick(lp):
@@ -137,11 +137,12 @@ class Scripted:
         pass
 
 
-def plane_loop(device):
+def plane_loop(device, watchdog=False):
     xml = '<mujoco><worldbody><geom type="plane" size="1 1 .1"/></worldbody></mujoco>'
     world = World(mujoco.MjModel.from_xml_string(xml))
     finger = SoftFingerProxy(FingerParams(radius=0.005, stiffness=1000.0), world.shapes, model("CH"))
-    return ServoLoop(world, [finger], device, 1000.0, overrun_factor=10.0)  # 10 ms: only the planted stall
+    # the overrun watchdog only where a test plants a stall (10 ms: only that one trips it)
+    return ServoLoop(world, [finger], device, 1000.0, overrun_factor=10.0, overrun_watchdog=watchdog)
 
 
 @pytest.mark.parametrize("fault, counter", [("raise", "device_error"), ("nan", "invalid_sample")])
@@ -160,7 +161,7 @@ def test_watchdog_zero_force_on_bad_device(fault, counter):
 def test_watchdog_zero_force_after_stalled_tick():
     """A tick that overruns its period badly (a 20 ms stall at 1 kHz) is followed by a zero-force tick."""
     dev = Scripted("stall", at=(40,))
-    loop = plane_loop(dev)
+    loop = plane_loop(dev, watchdog=True)
     loop.run(60)  # lockstep, but the loop was built with the real-time watchdog on (the default)
     assert loop.faults["overrun"] >= 1
     assert dev.sent[38][2] > 1.0  # the stalled tick itself still sent its force
