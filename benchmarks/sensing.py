@@ -328,7 +328,7 @@ def chart(result: dict, path: Path) -> None:
             ours.append(r[key]["mean"])
             paper.append(t1[key][0])
     x = np.arange(len(labels))
-    b.bar(x - 0.2, np.asarray(ours) / np.asarray(paper), 0.4, label="ours (quantised wrench) / Table 1 mean")
+    b.bar(x, np.asarray(ours) / np.asarray(paper), 0.6, label="ours (quantised wrench) / Table 1 mean")
     b.axhline(1.0, color="k", lw=1)
     b.set_yscale("log")
     b.set_xticks(x)

@@ -67,8 +67,8 @@ Readings chosen where the seed is ambiguous (see ../shared/DESIGN.md):
 - eq 7's three rows are ∂S/∂x, ∂S/∂y, ∂S/∂z; Algorithm 1 line 11's F - F_r is F - F_n.
 - eq 8's norm admits the pulling root; the chart above excludes it (see DESIGN "003").
 - Levenberg–Marquardt (eqs 12–13) on (α, β): step h = -(JᵀJ + λ diag JᵀJ)⁻¹ Jᵀg as eq 12.
-  Eq 13's test ε1 hᵀ(λh - Jᵀg) is Madsen's predicted decrease for the *undamped-identity*
-  step; for eq 12's diagonal scaling the consistent predicted decrease of χ² = ½gᵀg is
+  Eq 13's test ε1 hᵀ(λh - Jᵀg) is (twice) Madsen's predicted decrease for an *identity*-damped
+  step (JᵀJ + λI); for eq 12's diagonal scaling the consistent predicted decrease of χ² = ½gᵀg is
   L(0) - L(h) = ½ hᵀ(λ diag(JᵀJ) h - Jᵀg), and a step is accepted when the actual decrease
   exceeds ε1 = 1e-2 (as printed) times it; λ is then divided by 10, else multiplied by 10
   (as printed). Initial λ0 = 1e-3 (Marquardt's; the Jacobian is never singular here, so a
@@ -76,9 +76,10 @@ Readings chosen where the seed is ambiguous (see ../shared/DESIGN.md):
   contact — for μ ≤ 1 the root lies within ‖(α, β)‖ ≤ 1 of it (Algorithm 1's two fixed
   starting points A/B are not needed). `ContactSensor(warm_start=True)` starts from the last
   explained normal instead, and retries from n̂ = -F̂ if that run is refused (from a far
-  start LM can wander towards grazing before it comes back, and be cut off by the rule below). Stop: ‖g‖ ≤ `tol` (1e-12 m, i.e. ~1e-10 of the fingertip), or a
-  step shorter than 1e-15(1+‖y‖), or `max_iter` (60) trial steps (accepted or not: the
-  `iterations` reported), or an accepted iterate with friction ratio ‖(α, β)‖ > 10 `mu_max`
+  start LM can wander towards grazing before it comes back, and be cut off by the rule below).
+  Stop: ‖g‖ ≤ `tol` (1e-12 m, i.e. ~1e-10 of the fingertip), or a step shorter than
+  1e-15(1+‖y‖), or `max_iter` (60) trial steps per start (accepted or not: the `iterations`
+  reported), or an accepted iterate with friction ratio ‖(α, β)‖ > 10 `mu_max`
   (the contact it heads for would be refused anyway; this is how a force line that misses
   the ellipsoid ends, in a few steps). Trial steps that leave the chart (‖(α, β)‖ > 1e4,
   within 0.1 mrad of grazing) are rejected like any failed step. Δd is frozen at 0.9 × the
@@ -97,7 +98,7 @@ Readings chosen where the seed is ambiguous (see ../shared/DESIGN.md):
   (α, β) and it converges like E1. `law="rigid"` (Δd = 0) is Bicchi's rigid fingertip.
 
 `solve_algorithm1` is the paper's own five-unknown system (eq 10) with Algorithm 1's starting
-points, solved in the paper's units, kept as a reference for the benchmark: it takes ~100×
+points, solved in the paper's units, kept as a reference for the benchmark: it takes ~50×
 longer in Python and returns the pulling root for about a third of random upper-half contacts.
 """
 
@@ -133,8 +134,6 @@ SENSOR_ALPHA = math.radians(60.0)
 """α of §2.1 / Algorithm 1, rad."""
 SENSOR_CENTRE = (units.mm(-math.sin(SENSOR_ALPHA)), units.mm(math.cos(SENSOR_ALPHA)), 0.0)
 """d = OC of eqs 3–4: the ellipsoid centre in the sensor frame, [-sin α, cos α, 0] mm, in m."""
-LAW_LINEAR_LIMIT = 6.0
-"""The paper fitted eq 1 below 6 N (§2.2); above it the law is an extrapolation, N."""
 
 TABLE_1 = {
     # condition: (ranges, (mean, max) errors of f_n N, f_t N, q N·m)
