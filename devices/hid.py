@@ -37,6 +37,10 @@ enable = 1) and written. A non-finite component gives the zero-force report with
 renders nothing: send only counts. A failed write raises DeviceError. `close()` first
 writes the zero-force, enable = 0 report when the device renders force.
 
+Configuration: `HidDevice.from_config(cfg, source=...)` takes a scene's [device] table
+(`type = "hid"`, `profile = "spacemouse"`, ...); `HidDevice.from_argument("spacemouse,mode=rate",
+scene)` serves `softproxy run SCENE --device hid:spacemouse,mode=rate`.
+
 `list_devices()` lists the connected HID devices with the profile that matches each;
 `devices_main(as_json)` prints that as a table or JSON (the `softproxy devices` command).
 """
@@ -297,6 +301,41 @@ class HidDevice:
             return cls(profile, transport, **kwargs)
         return cls.open(profile, cfg.get("path"), hid_module=hid_module, **kwargs)
 
+    @classmethod
+    def from_argument(cls, argument: str, scene=None, *, transport=None, hid_module=None) -> "HidDevice":
+        """`softproxy run SCENE --device hid:PROFILE[,key=value...]`: a HID device for any scene.
+
+        PROFILE is a profile name or path (relative to the current folder); the keys are
+        those of `from_config` (e.g. `hid:spacemouse,mode=rate,workspace_offset=0:0:0.05`,
+        vectors separated by ':'). When the scene's own [device] is a HID one, the argument
+        overrides its fields; otherwise the scene's [device] (e.g. a scripted one) is ignored.
+        """
+        source = f"--device hid:{argument}"
+        device_cfg = getattr(scene, "device", None)
+        cfg = dict(device_cfg) if isinstance(device_cfg, dict) and device_cfg.get("type") == "hid" else {}
+        cfg["type"] = "hid"
+        parts = [p.strip() for p in str(argument).split(",") if p.strip()]
+        if parts and "=" not in parts[0]:
+            cfg["profile"] = parts.pop(0)
+        for item in parts:
+            key, eq, value = item.partition("=")
+            key, value = key.strip(), value.strip()
+            if not eq or not key:
+                raise ValueError(f"{source}: expected PROFILE[,key=value...], got {item!r}")
+            if key in ("workspace_offset", "workspace_half_m"):
+                try:
+                    cfg[key] = [float(v) for v in value.split(":")]
+                except ValueError:
+                    raise ValueError(f"{source}: {key} must be 3 numbers separated by ':', got {value!r}") from None
+            elif key in ("profile", "path", "mode", "type"):
+                cfg[key] = value
+            else:
+                try:
+                    cfg[key] = float(value)
+                except ValueError:
+                    raise ValueError(f"{source}: {key} must be a number, got {value!r}") from None
+        return cls.from_config(cfg, source=source, transport=transport, hid_module=hid_module)
+
     # -- the Device protocol -------------------------------------------------------------------
 
     def _fail(self, what: str, exc: BaseException | None = None) -> DeviceError:
@@ -435,7 +474,7 @@ class HidDevice:
             raise DeviceError(self._failed)
         self.sends += 1
         try:
-            finite = math.isfinite(fx + fy + fz + tx + ty + tz)
+            finite = all(math.isfinite(v) for v in (fx, fy, fz, tx, ty, tz))
         except TypeError:
             finite = False
         if not finite:

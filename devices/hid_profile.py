@@ -202,7 +202,7 @@ def _is_num(v) -> bool:
 def _check_keys(source: str, where: str, table: dict, allowed: set, required: set = frozenset()) -> None:
     unknown = set(table) - allowed
     if unknown:
-        raise ProfileError(f"{source}: {where} has unknown field(s) {sorted(unknown)}; "
+        raise ProfileError(f"{source}: {where or 'profile'} has unknown field(s) {sorted(unknown)}; "
                            f"expected some of {sorted(allowed)}")
     for key in sorted(required):
         if key not in table:
@@ -636,6 +636,24 @@ def parse_input(profile: Profile, data, mode: str = "position") -> InputReport |
 # output reports
 
 
+_SEQUENCE, _ENABLE = -1, -2
+_SOURCE_INDEX = {"fx": 0, "fy": 1, "fz": 2, "tx": 3, "ty": 4, "tz": 5, "twist": 6,
+                 "sequence": _SEQUENCE, "enable": _ENABLE}
+
+
+def _output_plan(profile: Profile) -> list:
+    """[(pack_into, offset in the report, source index, sign*scale, lo, hi, integer?)] per output field."""
+    plan = []
+    for f in profile.output.fields:
+        is_int = TYPES[f.type][2] != "float"
+        lo, hi = (int(f.lo), int(f.hi)) if is_int else (f.lo, f.hi)
+        if f.source == "sequence":
+            hi = (1 << (8 * TYPES[f.type][1])) - 1  # the counter's mask
+        plan.append((_UNPACKERS[(f.type, f.endian)].pack_into, 1 + f.offset, _SOURCE_INDEX[f.source],
+                     f.sign * f.scale, lo, hi, is_int))
+    return plan
+
+
 def zero_output(profile: Profile, sequence: int = 0) -> bytes:
     """The zero-force, motors-disabled output report (enable = 0)."""
     return build_output(profile, sequence, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, enable=False)
@@ -672,30 +690,29 @@ def build_output(profile: Profile, sequence: int, fx: float, fy: float, fz: floa
         vals = [float(v) for v in vals]
         for i0, limit in ((0, fmax), (3, tmax)):
             a, b, c = vals[i0:i0 + 3]
-            m2 = a * a + b * b + c * c
-            if m2 > limit * limit:
-                k = limit / math.sqrt(m2) if limit > 0.0 and math.isfinite(m2) else 0.0
+            m = math.hypot(a, b, c)
+            if m > limit:
+                k = limit / m if limit > 0.0 and math.isfinite(m) else 0.0  # |F| overflowed: direction unknown
                 vals[i0:i0 + 3] = [a * k, b * k, c * k]
-            if not all(math.isfinite(v) for v in vals[i0:i0 + 3]):  # |F|² overflowed: direction unknown
-                vals[i0:i0 + 3] = [0.0, 0.0, 0.0]
     ax, ay, az = profile.finger_axis
-    comp = dict(zip(WRENCH, vals))
-    comp["twist"] = vals[3] * ax + vals[4] * ay + vals[5] * az
+    vals.append(vals[3] * ax + vals[4] * ay + vals[5] * az)  # index 6: the torque about the finger axis
+    plan = profile.plans.get("output")
+    if plan is None:
+        plan = profile.plans["output"] = _output_plan(profile)
     buf = bytearray(1 + out.size)
     buf[0] = out.id
-    for f in out.fields:
-        pack = _UNPACKERS[(f.type, f.endian)].pack_into
-        if f.source == "sequence":
-            v = int(sequence) & ((1 << (8 * TYPES[f.type][1])) - 1)
-        elif f.source == "enable":
+    for pack, offset, index, factor, lo, hi, is_int in plan:
+        if index == _SEQUENCE:
+            v = int(sequence) & hi
+        elif index == _ENABLE:
             v = 1 if enable else 0
         else:
-            v = f.sign * comp[f.source] * f.scale
-            v = f.lo if v < f.lo else f.hi if v > f.hi else v
-            if TYPES[f.type][2] != "float":
+            v = factor * vals[index]
+            v = lo if v < lo else hi if v > hi else v
+            if is_int:
                 v = int(round(v))
-                v = int(f.lo) if v < f.lo else int(f.hi) if v > f.hi else v
-        pack(buf, 1 + f.offset, v)
+                v = lo if v < lo else hi if v > hi else v
+        pack(buf, offset, v)
     return bytes(buf)
 
 
