@@ -496,7 +496,8 @@ def calibrate_main(data: str | None, as_json: bool, out_dir: str) -> int:
     e1, e2 = result["parameters"]["e1"], result["parameters"]["e2"]
     print(f"calibration against {result['source']}")
     print(f"  E1  P = b/m (e^(m d) - 1):  b = {e1['b_N_per_mm']:.4f} N/mm ({e1['b_N_per_m']:.1f} N/m), "
-          f"m = {e1['m_per_mm']:+.4f} /mm ({e1['m_per_m']:+.1f} /m){'' if e1['stiffening'] else '  (m < 0: saturating)'}")
+          f"m = {e1['m_per_mm']:+.4f} /mm ({e1['m_per_m']:+.1f} /m)"
+          + ("" if e1["stiffening"] else "  (m < 0: saturating)"))
     print(f"  E2  a/a_max = 1 - e^(-P/P'0):  a_max = {e2['a_max_mm']:.3f} mm, P'0 = {e2['p0_N']:.4f} N "
           f"(seed 002: P'0 = {result['parameters']['seed_002']['p0_N']} N)")
     print(f"  {'depth':>6s}{'F meas':>9s}{'F fit':>9s}{'err%':>7s}{'F FE':>8s}{'err%':>7s}"
@@ -507,13 +508,15 @@ def calibrate_main(data: str | None, as_json: bool, out_dir: str) -> int:
 
     for r in result["per_depth"]:
         print(f"  {r['depth_mm']:6.2f}{r['force_N_measured']:9.3f}{r['force_N_model']:9.3f}"
-              f"{f(r['force_error_pct'], '7.1f')}{f(r.get('force_N_fe'), '8.2f')}{f(r.get('force_error_pct_fe'), '7.1f')}"
+              f"{f(r['force_error_pct'], '7.1f')}{f(r.get('force_N_fe'), '8.2f')}"
+              f"{f(r.get('force_error_pct_fe'), '7.1f')}"
               f"{r['contact_area_mm2_measured']:9.1f}{r['contact_area_mm2_model']:9.1f}"
               f"{f(r['contact_area_error_pct'], '7.1f')}{f(r.get('contact_area_mm2_fe'), '8.1f')}"
               f"{f(r.get('contact_area_error_pct_fe'), '7.1f')}")
     res = result["residuals"]
     print(f"  residuals: force rms {res['force']['rms_N']:.3f} N (max {res['force']['max_abs_N']:.3f} N); "
-          f"contact area rms {res['contact_area']['rms_mm2']:.2f} mm² (max {res['contact_area']['max_abs_mm2']:.2f} mm²)")
+          f"contact area rms {res['contact_area']['rms_mm2']:.2f} mm² "
+          f"(max {res['contact_area']['max_abs_mm2']:.2f} mm²)")
     print(f"  {result['verdict']}")
     odd = [t for t in result["table6_denominators"] if t["closest"] != "experimental"]
     if odd:

@@ -75,10 +75,11 @@ History (eqs 10–16; 001 eq 8) — **Choice**: 001 eq 8's projections
 Pressure (eqs 17–19) — **Choice**: the Δθ → 0 limit of eq 19
     dF = k c = E c dS / h. Eq 17's constant-volume section dS' = (h / t) dS is printed with
     the per-step length t of eq 7, so eq 19 reads dP = E Σ (1 − t/h)(t/h), where
-    t/h = 1 − O(LΔθ/h) (> 0.999 at the paper's Δθ = 0.01°). The limit dP = E c / h is used:
-    it makes the image independent of the step size. Not used: taking t in eq 17 to be the
-    spring's total compressed length h − c, which would multiply the pressure by (1 − c/h)
-    (≈ 0.5 at the centre at 7°) — that is not the t eqs 7 and 17 define.
+    t/h = 1 − LΔθ/h + O(Δθ²) (≥ 0.9986 over the 12 mm sensor at the paper's Δθ = 0.01°).
+    The limit dP = E c / h is used: it makes the image independent of the step size. Not
+    used: taking t in eq 17 to be the spring's total compressed length h − c, which would
+    multiply the pressure by (1 − c/h) (≈ 0.5 at the centre at 7°) — that is not the t eqs 7
+    and 17 define.
 
 Unloading (extension; the paper only loads)
     A step that moves the sphere away gives a negative |V_k Q_k|. A point whose compression
@@ -98,9 +99,10 @@ Rolling (eqs 20–30)
     **Choice**: a point the rolled plane no longer reaches along its own spring (h ≤ the
     rolled plane's height (p − x sin(θ_obj + β)) / cos(θ_obj + β) above R) reads 0, and
     dP_new is clipped at 0 (the printed sum can go negative near the rim, where the history
-    and the instantaneous springs disagree). At β = 0 this is exactly the rotation's image. **Choice** of sign: the paper gives θ_obj = 7°,
-    β = 15° and says θ_obj + β reaches −8°; β is signed here (positive tilts the object's
-    normal toward +x) and the paper's roll is β = −15°.
+    and the instantaneous springs disagree). At β = 0 this is exactly the rotation's image.
+    **Choice** of sign: the paper gives θ_obj = 7°, β = 15° and says θ_obj + β reaches −8°;
+    β is signed here (positive tilts the object's normal toward +x) and the paper's roll is
+    β = −15°.
 
 Sensor
     A cell reads the mean pressure over its area: each cell is sampled on supersample ×
@@ -363,6 +365,8 @@ class TactileSensor:
     at most `max_substeps` of them, so a call costs O(max_substeps × points) at worst) and
     returns the pressure image, a (cells × cells) numpy array in N/m², [row = y, column = x]
     in the frame of `FRAME`. The sensor owns no thread or timer: between calls it does no work.
+    Cost with the defaults (10 × 10 cells, 4 × 4 points each): ~0.2 ms for a call that moves
+    less than one sub-step, ~18 ms for the worst case of 200 sub-steps.
 
     `indentation_m` is the object's displacement toward the sensing plane along its normal
     (the prismatic d of 000 eq 1), `tilt_rad` the finger's rotation θ about the joint at
