@@ -55,44 +55,86 @@ def _parse_faults(text: str) -> dict:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Run a scene on a device and print the result."""
+    """Run a scene on a device and print the result; a window shows it unless --headless.
+
+    The window is its own process reading shared memory (softproxy.viewer): the run is paced
+    in real time while it is open, and no frame of drawing ever delays a tick. --snapshot and
+    --video render offscreen (EGL) after the run, from state copied during it.
+    """
     from softproxy.run import open_device, run_scene
     from softproxy.scene import SceneError, load_scene
 
+    window = not args.headless
+    if window:
+        from softproxy.viewer.launch import display_problem
+
+        problem = display_problem()
+        if problem:
+            print(f"softproxy run: cannot open the viewer window: {problem}.\n"
+                  f"  Run it without a window: softproxy run {args.scene} --headless "
+                  f"(add --snapshot FILE.png for a picture of the end of the run)", file=sys.stderr)
+            return 3
     try:
         scene = load_scene(args.scene)
         if args.faults:
             scene.device["faults"] = _parse_faults(args.faults)
+        views = None
+        if window or args.snapshot or args.video:
+            from softproxy.viewer.attach import RunViews, parse_size
+
+            views = RunViews(scene, window=window, snapshot=args.snapshot, video=args.video,
+                             size=parse_size(args.size), duration_s=args.duration)
         device = open_device(args.device, scene)
-    except (SceneError, ValueError) as exc:
+    except (SceneError, ValueError, RuntimeError) as exc:
         print(f"softproxy run: {exc}", file=sys.stderr)
         return 2
-    if not args.headless:
-        print("softproxy run: the viewer is not built yet; running headless", file=sys.stderr)
+    realtime = args.realtime or window  # a window shows the run as it happens
+    if views is not None and window and not args.realtime:
+        views.note = "softproxy run: the viewer window is open; the run is paced in real time"
     try:
-        result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
-                           finger_model=args.finger_model, realtime=args.realtime, record=args.record)
+        try:
+            result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
+                               finger_model=args.finger_model, realtime=realtime, record=args.record,
+                               on_built=views.on_built if views else None, on_tick=views.on_tick if views else None)
+        finally:
+            device.close()
+        if views is not None:
+            views.save()
+        if args.json:
+            print(json.dumps(result, indent=2))
+        else:
+            print(f"scene {result['scene']}: {result['ticks']} ticks at {result['rate_hz']:g} Hz "
+                  f"({'real time' if result['realtime'] else 'lockstep'})")
+            if "object_rotation_deg" in result:
+                print(f"  {result['object']} turned {result['object_rotation_deg']:+.3f} deg about the measured "
+                      f"axis since start_s (max {result['object_rotation_max_deg']:.3f} deg), "
+                      f"height {result['object_height_m'] * 1000:.1f} mm")
+            _print_table(result["fingers"], [
+                ("name", "finger", "s"), ("model", "model", "s"), ("max_force_N", "max F (N)", ".3f"),
+                ("proxy_penetration_max_m", "max penetration (m)", ".2e"), ("slip_events", "slips", "d"),
+            ])
+            t = result["tick_us"]
+            print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
+            if result.get("deadline_misses") is not None:
+                print(f"  deadline misses {result['deadline_misses']}")
+            if "device" in result:
+                d = result["device"]
+                print(f"  device: injected {d['faults_injected']}; largest force sent {d['max_force_sent_N']} N "
+                      f"(clamp {d['force_clamp_N']} N), NaN sends {d['nan_sends']}")
+        sys.stdout.flush()
+        if views is not None:
+            views.wait_window()
+    except Exception as exc:
+        from softproxy.viewer.launch import ViewerUnavailable
+
+        if not isinstance(exc, ViewerUnavailable):
+            raise
+        print(f"softproxy run: {exc}.\n  Run it without a window: softproxy run {args.scene} --headless "
+              f"(add --snapshot FILE.png for a picture of the end of the run)", file=sys.stderr)
+        return 3
     finally:
-        device.close()
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
-    print(f"scene {result['scene']}: {result['ticks']} ticks at {result['rate_hz']:g} Hz "
-          f"({'real time' if result['realtime'] else 'lockstep'})")
-    if "object_rotation_deg" in result:
-        print(f"  {result['object']} turned {result['object_rotation_deg']:+.3f} deg about the measured axis "
-              f"since start_s (max {result['object_rotation_max_deg']:.3f} deg), "
-              f"height {result['object_height_m'] * 1000:.1f} mm")
-    _print_table(result["fingers"], [
-        ("name", "finger", "s"), ("model", "model", "s"), ("max_force_N", "max F (N)", ".3f"),
-        ("proxy_penetration_max_m", "max penetration (m)", ".2e"), ("slip_events", "slips", "d"),
-    ])
-    t = result["tick_us"]
-    print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
-    if "device" in result:
-        d = result["device"]
-        print(f"  device: injected {d['faults_injected']}; largest force sent {d['max_force_sent_N']} N "
-              f"(clamp {d['force_clamp_N']} N), NaN sends {d['nan_sends']}")
+        if views is not None:
+            views.close()
     return 0
 
 
@@ -132,7 +174,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--record", metavar="FILE", default=None, help="save every device sample to FILE")
     p.add_argument("--faults", metavar="SPEC", default=None,
                    help="inject device faults (sim): e.g. nan=0.01,drop=0.001,spike=0.001,stall=0.0005 (per read)")
-    p.add_argument("--headless", action="store_true", help="no window")
+    p.add_argument("--headless", action="store_true",
+                   help="no window (without it a window shows the run, paced in real time)")
+    p.add_argument("--snapshot", metavar="FILE.png", default=None,
+                   help="write a picture of the last tick (offscreen, EGL) to FILE.png")
+    p.add_argument("--video", metavar="FILE.mp4", default=None,
+                   help="write an MP4 of the run at 30 fps (offscreen; needs the imageio-ffmpeg wheel)")
+    p.add_argument("--size", metavar="WxH", default="1024x768",
+                   help="window, snapshot and video size in pixels (default 1024x768, at least 640x480)")
     p.add_argument("--duration", type=float, default=None, help="seconds to run (default: the scene's)")
     p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")
     p.add_argument("--finger-model", choices=list(MODELS), default=None, help="override every finger's model")

@@ -15,4 +15,5 @@ Modules (only `render`, `offscreen` and `window` import GL; importing this packa
 - `offscreen` EGL standalone context + framebuffer: snapshots and video frames
 - `window`    glfw window: mouse orbit/zoom/pan, keys
 - `launch`    start the viewer process and wait until its window is up
+- `attach`    what `softproxy run` hangs on a run: window, snapshot, video
 """

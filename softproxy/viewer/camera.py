@@ -85,7 +85,7 @@ class OrbitCamera:
     def orbit(self, dx: float, dy: float) -> None:
         """Drag by (dx, dy) pixels: turn about the look-at point."""
         self.azimuth = (self.azimuth - 0.3 * dx) % 360.0
-        self.elevation = min(89.0, max(-89.0, self.elevation + 0.3 * dy))
+        self.elevation = min(89.0, max(-89.0, self.elevation - 0.3 * dy))
 
     def pan(self, dx: float, dy: float, height: int) -> None:
         """Drag by (dx, dy) pixels: move the look-at point in the view plane."""
@@ -109,7 +109,7 @@ def frame_points(model, frame) -> tuple[np.ndarray, float]:
         r = float(model.geom_rbound[g]) or 0.05
         p = frame.geom_xpos[g]
         lo, hi = np.minimum(lo, p - r), np.maximum(hi, p + r)
-    for f in frame.fingers:
+    for f in frame.fingers if frame.ticks > 0 else ():  # fingers are placed at the first tick
         r = float(f[F_RADIUS]) or 0.01
         for p in (f[F_PROXY:F_PROXY + 3], f[F_DEVICE:F_DEVICE + 3]):
             if np.all(np.isfinite(p)) and np.any(p != 0.0):
@@ -121,7 +121,7 @@ def frame_points(model, frame) -> tuple[np.ndarray, float]:
 
 
 def framing(model, frame, azimuth: float = 90.0, elevation: float = -40.0, fovy: float = 45.0,
-            margin: float = 1.15, aspect: float = 4 / 3) -> OrbitCamera:
+            margin: float = 1.0, aspect: float = 4 / 3) -> OrbitCamera:
     """A camera (and its home) that shows the whole scene of `frame`."""
     centre, radius = frame_points(model, frame)
     half = math.radians(fovy) / 2.0

@@ -6,7 +6,7 @@
     session.finish(); session.wait_closed(); session.close()
 
 No GL is imported here: the servo process never loads glfw or moderngl for a window.
-The viewer process runs at a lower priority (nice 5) and, on Mesa's software rasteriser,
+The viewer process runs at idle priority (SCHED_IDLE; nice 10 where there is none) and, on Mesa's software rasteriser,
 with one rendering thread (LP_NUM_THREADS=1 unless set), so that it leaves the servo loop
 its core.
 """
@@ -92,6 +92,8 @@ class ViewerSession:
     def __init__(self, loop, scene_path, offscreen: bool = False, stall_ms: float = 0.0,
                  size: tuple[int, int] | None = None, display_hz: float = 60.0, save_last=None,
                  max_seconds: float | None = None) -> None:
+        self.loop = loop
+        self.offscreen = offscreen
         self.publisher = StatePublisher.for_loop(loop, display_hz)
         try:
             self.process = ViewerProcess(scene_path, self.publisher.name, offscreen, stall_ms, size, save_last,
@@ -101,8 +103,14 @@ class ViewerSession:
             raise
 
     def start(self, timeout: float = 60.0) -> "ViewerSession":
+        """Publish the state before the first tick (the scene, no fingers yet) and wait until
+        the viewer has drawn it: its window is up and its first, slowest frame is behind it."""
         try:
+            self.publisher.publish(self.loop)
             self.process.wait_ready(self.publisher, timeout)
+            deadline = time.monotonic() + timeout
+            while self.publisher.viewer_frames < 1 and self.process.running() and time.monotonic() < deadline:
+                time.sleep(0.01)
         except ViewerUnavailable:
             self.close()
             raise
@@ -124,11 +132,12 @@ class ViewerSession:
             return self.process.proc.returncode
 
     def close(self, timeout: float = 5.0) -> None:
-        """Tell the viewer the run is over, give it `timeout` s to go, then stop it; free the block."""
+        """Tell the viewer the run is over and free the block. An offscreen viewer gets `timeout` s
+        to draw its last frame and go; a window still open (the run was interrupted) is closed."""
         try:
             if self.process.running():
                 self.publisher.finish()
-                if self.process.wait(timeout) is None:
+                if not self.offscreen or self.process.wait(timeout) is None:
                     self.process.terminate()
         finally:
             self.publisher.close()

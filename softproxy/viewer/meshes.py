@@ -129,12 +129,17 @@ def plane(sx: float, sy: float) -> np.ndarray:
                     dtype=np.float32)
 
 
-def triangles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """A triangle mesh with flat (per-face) normals."""
+def triangles(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None = None,
+              face_normals: np.ndarray | None = None) -> np.ndarray:
+    """A triangle mesh: per-corner normals `normals[face_normals]` (MuJoCo's, smooth where the
+    surface is, split at creases) if given, else flat per-face normals."""
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]  # (f, 3, 3)
-    n = _unit(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
     pos = tri.reshape(-1, 3)
-    nrm = np.repeat(n, 3, axis=0)
+    if normals is not None and face_normals is not None and len(normals):
+        nrm = _unit(np.asarray(normals, dtype=np.float64)[np.asarray(face_normals, dtype=np.int64)].reshape(-1, 3))
+    else:
+        n = _unit(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+        nrm = np.repeat(n, 3, axis=0)
     return np.concatenate([pos, nrm, np.zeros((len(pos), 2))], axis=1).astype(np.float32)
 
 
@@ -165,7 +170,15 @@ def geom_mesh(model, g: int, plane_extent: float = 1.0) -> np.ndarray | None:
         fa, fn = int(model.mesh_faceadr[m]), int(model.mesh_facenum[m])
         if vn == 0 or fn == 0:
             return None
-        return triangles(model.mesh_vert[va:va + vn], model.mesh_face[fa:fa + fn])
+        normals = face_normals = None
+        try:
+            na, nn = int(model.mesh_normaladr[m]), int(model.mesh_normalnum[m])
+            if nn > 0:
+                normals = model.mesh_normal[na:na + nn]
+                face_normals = model.mesh_facenormal[fa:fa + fn]
+        except AttributeError:  # a MuJoCo without per-corner normals: flat shading
+            pass
+        return triangles(model.mesh_vert[va:va + vn], model.mesh_face[fa:fa + fn], normals, face_normals)
     return None
 
 

@@ -64,7 +64,8 @@ class OffscreenRenderer:
         if overlay is True:
             overlay = overlay_lines(frame, self.finger_names)
         target = self._msaa or self.fbo
-        self.scene.render(frame, camera, self.width, self.height, framebuffer=target, overlay=overlay or None)
+        self.scene.render(frame, camera, self.width, self.height, framebuffer=target, overlay=overlay or None,
+                          text_scale=min(1.0, self.width / 1000.0))
         if self._msaa is not None:
             self.ctx.copy_framebuffer(self.fbo, self._msaa)
         raw = self.fbo.read(components=3, alignment=1)

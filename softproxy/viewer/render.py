@@ -75,20 +75,27 @@ uniform vec3 u_light;
 uniform int u_textured;
 uniform sampler2D u_tex;
 uniform vec2 u_repeat;
+uniform int u_shadow;        // 1: a shadow flattened onto a plane, shaded as that plane, darker
+uniform mat4 u_plane_inv;    // world -> plane frame
+uniform vec2 u_plane_half;   // plane half-extents
+uniform vec3 u_plane_normal;
 in vec3 v_world;
 in vec3 v_norm;
 in vec2 v_uv;
 out vec4 f_color;
 void main() {
-    vec3 n = normalize(v_norm);
+    vec3 n = u_shadow == 1 ? u_plane_normal : normalize(v_norm);
+    vec2 uv = v_uv;
+    if (u_shadow == 1) uv = (u_plane_inv * vec4(v_world, 1.0)).xy / (2.0 * u_plane_half) + 0.5;
     vec3 v = normalize(u_eye - v_world);
     if (dot(n, v) < 0.0) n = -n;
     vec3 base = u_color.rgb;
-    if (u_textured == 1) base *= texture(u_tex, v_uv * u_repeat).rgb;
+    if (u_textured == 1) base *= texture(u_tex, uv * u_repeat).rgb;
     vec3 l = normalize(-u_light);
     float diffuse = 0.30 + 0.45 * max(dot(n, v), 0.0) + 0.35 * max(dot(n, l), 0.0);
     float spec = 0.12 * pow(max(dot(n, normalize(l + v)), 0.0), 40.0);
-    f_color = vec4(min(base * diffuse + vec3(spec), vec3(1.0)), u_color.a);
+    vec3 c = u_shadow == 1 ? 0.62 * base * diffuse : base * diffuse + vec3(spec);
+    f_color = vec4(min(c, vec3(1.0)), u_color.a);
 }
 """
 
@@ -235,10 +242,11 @@ class TextOverlay:
 
 
 class _Geom:
-    __slots__ = ("index", "vao", "vbo", "color", "texture", "repeat")
+    __slots__ = ("index", "vao", "vbo", "color", "texture", "repeat", "half")
 
-    def __init__(self, index, vao, vbo, color, texture, repeat):
+    def __init__(self, index, vao, vbo, color, texture, repeat, half=(1.0, 1.0)):
         self.index, self.vao, self.vbo, self.color, self.texture, self.repeat = index, vao, vbo, color, texture, repeat
+        self.half = half  # a plane's drawn half-extents
 
 
 class SceneRenderer:
@@ -268,7 +276,8 @@ class SceneRenderer:
             vbo = ctx.buffer(mesh.tobytes())
             vao = self._vao(vbo)
             texture, repeat = self._plane_texture(g) if int(model.geom_type[g]) == meshes.PLANE else (None, (1.0, 1.0))
-            self.geoms.append(_Geom(g, vao, vbo, meshes.geom_rgba(model, g), texture, repeat))
+            half = (float(np.abs(mesh[:, 0]).max()), float(np.abs(mesh[:, 1]).max()))
+            self.geoms.append(_Geom(g, vao, vbo, meshes.geom_rgba(model, g), texture, repeat, half))
         self._buffers = []
         self.sphere = self._mesh(meshes.sphere(1.0, 32, 16))
         self.shaft = self._mesh(meshes.cylinder(1.0, 0.5, 16, z0=0.0))  # z from 0 to 1
@@ -317,12 +326,23 @@ class SceneRenderer:
         return self._textures[tex], (float(repeat[0]), float(repeat[1]))
 
     # -- drawing -----------------------------------------------------------------------
-    def _draw(self, vao, model_m: np.ndarray, normal_m: np.ndarray, color, texture=None, repeat=(1.0, 1.0)) -> None:
+    def _draw(self, vao, model_m: np.ndarray, normal_m: np.ndarray, color, texture=None, repeat=(1.0, 1.0),
+              shadow_on=None) -> None:
+        """One mesh; `shadow_on` = (world-to-plane matrix, half-extents, normal) draws it as a
+        shadow shaded like that plane."""
         prog = self.prog
         prog["u_mvp"].write(_gl(self._vp @ model_m))
         prog["u_model"].write(_gl(model_m))
         prog["u_normal"].write(_gl(normal_m))
         prog["u_color"].value = tuple(float(c) for c in (color if len(color) == 4 else (*color, 1.0)))
+        if shadow_on is not None:
+            inv, half, n = shadow_on
+            prog["u_shadow"].value = 1
+            prog["u_plane_inv"].write(_gl(inv))
+            prog["u_plane_half"].value = half
+            prog["u_plane_normal"].value = tuple(float(v) for v in n)
+        else:
+            prog["u_shadow"].value = 0
         if texture is not None:
             texture.use(0)
             prog["u_tex"].value = 0
@@ -375,10 +395,11 @@ class SceneRenderer:
                 translucent.append(geom)
                 continue
             self._geom(frame, geom)
+        self._shadows(frame)
 
         lines: list = []
         ghosts = []
-        for i, f in enumerate(frame.fingers):
+        for i, f in enumerate(frame.fingers if frame.ticks > 0 else ()):  # no finger before the first tick
             color = finger_color(i)
             r = float(f[F_RADIUS])
             proxy = f[F_PROXY:F_PROXY + 3]
@@ -414,6 +435,45 @@ class SceneRenderer:
             self.text.draw(overlay, width, height, text_scale)
             ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.BLEND)
+
+    def _shadows(self, frame: Frame) -> None:
+        """Planar shadows of the geoms and the proxies on every plane facing the light.
+
+        Each shadow is the object flattened onto the plane along the light, a hair above it,
+        and shaded as the plane itself (its colour, its texture), only darker: opaque, so
+        overlapping shadows and overlapping triangles of one shadow never darken twice."""
+        planes = [g for g in self.geoms if int(self.model.geom_type[g.index]) == meshes.PLANE and g.color[3] >= 0.999]
+        casters = [g for g in self.geoms if int(self.model.geom_type[g.index]) != meshes.PLANE]
+        fingers = frame.fingers if frame.ticks > 0 else ()
+        if not planes or not (casters or len(fingers)):
+            return
+        eps = 1e-3 * max(float(self.model.stat.extent), 1e-3)
+        for plane in planes:
+            rot = frame.geom_xmat[plane.index]
+            n = rot[:, 2]
+            nl = float(n @ self.light)
+            if nl > -0.2:  # the light grazes the plane or comes from below
+                continue
+            d = -float(n @ frame.geom_xpos[plane.index]) - eps  # n.x + d = 0, lifted by eps
+            shadow = np.eye(4)
+            shadow[:3, :3] -= np.outer(self.light, n) / nl
+            shadow[:3, 3] = -self.light * d / nl
+            inv = np.eye(4)
+            inv[:3, :3] = rot.T
+            inv[:3, 3] = -rot.T @ frame.geom_xpos[plane.index]
+            items = []
+            for geom in casters:
+                m = np.eye(4)
+                m[:3, :3] = frame.geom_xmat[geom.index]
+                m[:3, 3] = frame.geom_xpos[geom.index]
+                items.append((geom.vao, m))
+            for f in fingers:
+                m = np.eye(4)
+                m[:3, :3] *= float(f[F_RADIUS])
+                m[:3, 3] = f[F_PROXY:F_PROXY + 3]
+                items.append((self.sphere, m))
+            for vao, m in items:
+                self._draw(vao, shadow @ m, np.eye(3), plane.color, plane.texture, plane.repeat, (inv, plane.half, n))
 
     def _geom(self, frame: Frame, geom: _Geom) -> None:
         rot = frame.geom_xmat[geom.index]
@@ -492,7 +552,7 @@ def overlay_lines(frame: Frame, finger_names: list[str], status: str = "", help_
         m = int(f[F_MODEL])
         kind = "point" if f[F_MODE] == POINT else f"soft {MODEL_NAMES[m] if 0 <= m < len(MODEL_NAMES) else ''}".strip()
         fmag = float(np.linalg.norm(f[F_FORCE:F_FORCE + 3]))
-        text = f"{i + 1} {name:<6} {kind:<8} |F| {fmag:5.2f} N  P {f[F_NORMAL_FORCE]:5.2f} N"
+        text = f"{i + 1} {name:<6} {kind:<9} |F| {fmag:5.2f} N  P {f[F_NORMAL_FORCE]:5.2f} N"
         if f[F_MODE] != POINT:
             state = "-" if not f[F_TORSION_CONTACT] else ("SLIP" if f[F_SLIPPING] else "stick")
             text += (f"  a_p {math.degrees(f[F_ALPHA_P]):+7.3f} a_g {math.degrees(f[F_ALPHA_G]):+7.3f} deg"

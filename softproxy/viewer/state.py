@@ -171,8 +171,9 @@ def tick_percentiles_us(stats, window: int = TICK_WINDOW) -> tuple[float, float]
     i = n % cap
     d = stats.duration
     w = d[i - k:i] if i >= k else np.concatenate((d[cap - (k - i):], d[:i]))
-    p50, p99 = np.percentile(w, (50.0, 99.0))
-    return float(p50) * 1e6, float(p99) * 1e6
+    i50, i99 = (k - 1) // 2, (99 * (k - 1)) // 100  # nearest rank: np.partition is ~15x cheaper than percentile
+    part = np.partition(w, (i50, i99))
+    return float(part[i50]) * 1e6, float(part[i99]) * 1e6
 
 
 # ---------------------------------------------------------------------------------------
@@ -220,12 +221,17 @@ def set_contact_mode(finger, mode: int, saved_slips: dict | None = None) -> bool
     return True
 
 
+_CREATED: set[str] = set()  # blocks this process created (and its resource tracker unlinks)
+
+
 def _attach(name: str) -> shared_memory.SharedMemory:
     """Attach to an existing block without letting this process's resource tracker unlink it."""
     try:
         return shared_memory.SharedMemory(name=name, track=False)  # Python >= 3.13
     except TypeError:
         shm = shared_memory.SharedMemory(name=name)
+        if shm.name in _CREATED:  # same process as the publisher: its registration stays
+            return shm
         try:
             from multiprocessing import resource_tracker
 
@@ -268,6 +274,7 @@ class StatePublisher(_Block):
         if every < 1:
             raise ValueError(f"every must be >= 1 tick, got {every!r}")
         shm = shared_memory.SharedMemory(create=True, size=layout.nbytes, name=name)
+        _CREATED.add(shm.name)
         super().__init__(shm, layout)
         self.header[:] = 0
         self.header[H_MAGIC] = MAGIC
@@ -323,6 +330,15 @@ class StatePublisher(_Block):
         self._seq += 1
         header[SEQ] = self._seq  # even: consistent
 
+    def write(self, data: np.ndarray) -> None:
+        """Copy a whole state array (`layout.size` floats) in under the seqlock."""
+        header = self.header
+        self._seq += 1
+        header[SEQ] = self._seq
+        self.state[:] = data
+        self._seq += 1
+        header[SEQ] = self._seq
+
     def finish(self, loop=None) -> None:
         """Publish the final state (if given the loop) and tell the viewer the run is over."""
         if self.header is None:
@@ -351,6 +367,7 @@ class StatePublisher(_Block):
                 self.shm.unlink()
             except FileNotFoundError:
                 pass
+            _CREATED.discard(self.shm.name)
 
 
 class StateReader(_Block):

@@ -9,6 +9,7 @@ finger, 0 or a select all, q or Esc close the window.
 
 from __future__ import annotations
 
+import os
 import time
 
 import glfw
@@ -63,8 +64,10 @@ class ViewerWindow:
             raise NoDisplay(f"no OpenGL 3.3 context in the window ({exc})") from None
         self.scene = SceneRenderer(self.ctx, model, finger_names)
         self.camera: OrbitCamera | None = None
+        self._auto_frame = True
         self.frame = None
         self.paused = False
+        self._parent = os.getppid()
         self.selected = -1  # -1: every finger
         self.requested: dict[int, int] = {}
         self._drag = None
@@ -110,6 +113,7 @@ class ViewerWindow:
         self._cursor = (x, y)
         if self.camera is None or self._drag is None:
             return
+        self._auto_frame = False
         if self._drag == "orbit":
             self.camera.orbit(dx, dy)
         elif self._drag == "pan":
@@ -119,6 +123,7 @@ class ViewerWindow:
 
     def _on_scroll(self, win, dx, dy) -> None:
         if self.camera is not None:
+            self._auto_frame = False
             self.camera.zoom(dy)
 
     # -- actions -------------------------------------------------------------------------
@@ -149,32 +154,39 @@ class ViewerWindow:
             parts.append("PAUSED (display only)")
         if self.reader.closed:
             parts.append("run finished")
+        elif os.getppid() != self._parent:
+            parts.append("the servo process is gone")
         return "  ".join(parts)
 
+    def step(self) -> None:
+        """One display frame: events, the latest state (unless paused), draw, swap."""
+        glfw.poll_events()
+        if not self.paused:
+            frame = self.reader.read()
+            if frame is not None:
+                self.frame = frame
+                if self.camera is None or (self._auto_frame and frame.ticks > 0):
+                    self._auto_frame = frame.ticks == 0  # frame again once the fingers are there
+                    self.reset_camera()
+        w, h = glfw.get_framebuffer_size(self.win)
+        if self.frame is not None and w > 0 and h > 0:
+            ww = glfw.get_window_size(self.win)[0] or w
+            sel = "all" if self.selected < 0 else self.finger_label(self.selected)
+            lines = overlay_lines(self.frame, self.finger_names, self.status(), HELP.format(sel=sel))
+            self.scene.render(self.frame, self.camera, w, h, framebuffer=self.ctx.screen, overlay=lines,
+                              text_scale=(w / ww) * min(1.0, ww / 1000.0))
+        else:
+            self.ctx.screen.use()
+            self.ctx.clear(0.17, 0.19, 0.23, 1.0)
+        glfw.swap_buffers(self.win)
+        self.reader.count_frame()
+
     def run(self, fps: float = 60.0, stall_s: float = 0.0) -> None:
-        """Until the window closes: read the latest frame (unless paused), draw, swap."""
+        """Until the window closes: `step()` at `fps` (swap waits for vsync where there is one)."""
         period = 1.0 / fps
         while not glfw.window_should_close(self.win):
             start = time.perf_counter()
-            glfw.poll_events()
-            if not self.paused:
-                frame = self.reader.read()
-                if frame is not None:
-                    self.frame = frame
-                    if self.camera is None:
-                        self.reset_camera()
-            w, h = glfw.get_framebuffer_size(self.win)
-            if self.frame is not None and w > 0 and h > 0:
-                ww = glfw.get_window_size(self.win)[0] or w
-                sel = "all" if self.selected < 0 else self.finger_label(self.selected)
-                lines = overlay_lines(self.frame, self.finger_names, self.status(), HELP.format(sel=sel))
-                self.scene.render(self.frame, self.camera, w, h, framebuffer=self.ctx.screen, overlay=lines,
-                                  text_scale=w / ww)
-            else:
-                self.ctx.screen.use()
-                self.ctx.clear(0.17, 0.19, 0.23, 1.0)
-            glfw.swap_buffers(self.win)
-            self.reader.count_frame()
+            self.step()
             if stall_s > 0.0:
                 time.sleep(stall_s)
             rest = period - (time.perf_counter() - start)
