@@ -138,6 +138,49 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sense(args: argparse.Namespace) -> int:
+    """Contact sensing (seed 003): where and how a wrench on the fingertip was applied."""
+    from softproxy.sensing import sense_main
+
+    try:
+        result = sense_main(args.wrench, args.sensor_frame)
+    except ValueError as exc:
+        print(f"softproxy sense: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        for key, value in result.items():
+            print(f"  {key:18s} {value}")
+    return 0 if result.get("explained", True) else 1
+
+
+def cmd_tactile(args: argparse.Namespace) -> int:
+    """The Inoue-Hirai tactile simulation (seeds 000/001)."""
+    from softproxy.tactile import tactile_main
+
+    return tactile_main(args.json, args.out)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Fit the fingertip laws to seed 004's measurements or to a table of your own."""
+    from softproxy.calibration import calibrate_main
+
+    return calibrate_main(args.data, args.json, args.out)
+
+
+def cmd_devices(args: argparse.Namespace) -> int:
+    """Connected HID devices and the profile that matches each (the HID adapter is a plugin)."""
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group="softproxy.devices"):
+        if ep.name == "hid":
+            module = __import__(ep.module, fromlist=["devices_main"])
+            return module.devices_main(args.json)
+    print("softproxy devices: no HID device support installed", file=sys.stderr)
+    return 1
+
+
 def _benchmarks() -> dict:
     from importlib.metadata import entry_points
 
@@ -189,7 +232,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("bench", help="run a benchmark: latency, peer, or all")
+    p = sub.add_parser("sense", help="contact sensing: recover the contact from a fingertip wrench (seed 003)")
+    p.add_argument("--wrench", nargs=6, type=float, required=True, metavar=("FX", "FY", "FZ", "MX", "MY", "MZ"),
+                   help="wrench the contact exerts on the fingertip, N and N·m, ellipsoid frame")
+    p.add_argument("--sensor-frame", action="store_true", help="the wrench (and the answer) in the paper's sensor frame")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_sense)
+
+    p = sub.add_parser("tactile", help="tactile pressure image simulations")
+    p.add_argument("simulation", choices=["inoue-hirai"], help="inoue-hirai: seeds 000/001's rotating finger")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument("--out", default="bench-out", help="folder for the PNG (default bench-out)")
+    p.set_defaults(func=cmd_tactile)
+
+    p = sub.add_parser("calibrate", help="fit the fingertip laws to measured force and contact area")
+    p.add_argument("--data", default=None, help="CSV with depth_mm, force_N, contact_area_mm2 (default: seed 004's)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument("--out", default="bench-out", help="folder for the PNG (default bench-out)")
+    p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("devices", help="list connected HID devices and their matching profiles")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_devices)
+
+    p = sub.add_parser("bench", help="run a benchmark: latency, peer, stability, tradeoff, sensing, or all")
     p.add_argument("name", help="benchmark name, or all")
     p.add_argument("--duration", type=float, default=5.0, help="seconds of servo time to time (default 5)")
     p.add_argument("--paced", type=float, default=None, help="seconds of the paced (real-time) run (default: --duration)")

@@ -25,3 +25,22 @@ def test_models_json_lists_the_four_models_with_seed_constants():
 def test_models_table():
     text = run_cli("models")
     assert "CH" in text and "1.3333" in text and "8.1489" in text
+
+
+def test_sense_recovers_a_pushing_contact():
+    """`softproxy sense`: a 1 N push straight down on the top of the ellipsoid (seed 003) is found there."""
+    out = json.loads(run_cli("sense", "--wrench", "0", "0", "-1", "0", "0", "0", "--json"))
+    assert out["explained"] and out["contact_point_m"][0] == 0.0 and out["contact_point_m"][2] > 0.009
+    assert abs(out["normal_force_N"] - 1.0) < 1e-9
+
+
+def test_tactile_and_calibrate_print_json(tmp_path):
+    tactile = json.loads(run_cli("tactile", "inoue-hirai", "--json", "--out", str(tmp_path)))
+    assert {"rotation", "rolling", "frame"} <= set(tactile)
+    calib = json.loads(run_cli("calibrate", "--json", "--out", str(tmp_path)))
+    assert "depth_mm" in json.dumps(calib) and (tmp_path / "calibration.png").exists()
+
+
+def test_devices_lists_profiles():
+    text = run_cli("devices")
+    assert "spacemouse" in text and "open_haptic" in text
