@@ -23,6 +23,10 @@ class World:
         self.model = model
         self.data = data if data is not None else mujoco.MjData(model)
         mujoco.mj_forward(self.model, self.data)
+        if mesh_shape is None and any(int(t) == int(mujoco.mjtGeom.mjGEOM_MESH) for t in model.geom_type):
+            from softproxy.mesh import MeshShape  # trimesh is imported only for scenes with meshes
+
+            mesh_shape = MeshShape
         self.shapes: list[Shape] = shapes_of(model, self.data, mesh_shape)
         self.moving = [s for s in self.shapes if not s.static]
         # views into mjData, kept: each attribute access of mjData builds a new array object

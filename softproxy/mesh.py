@@ -1,0 +1,815 @@
+"""Triangle-mesh contact for the god-object: the mesh's own triangles, not its convex hull.
+
+MuJoCo collides a mesh geom through its convex hull, so a finger pressed into a bowl would
+stop on the plane of the rim. `MeshShape` answers the god-object's queries
+(`softproxy.geometry.Shape`) on the triangles themselves, in the geom frame MuJoCo compiled
+them into (`model.mesh_vert` is expressed in the frame of `data.geom_xpos/geom_xmat`):
+
+- `distance`: exact Euclidean distance to the nearest triangle, so 1-Lipschitz. On a
+  watertight mesh it is signed by the angle-weighted pseudo-normal of the nearest feature
+  (face, edge or vertex; Bærentzen & Aanæs 2005), which gives the right side wherever the
+  nearest point lies. An open mesh (a sheet) has no inside: its distance is unsigned and
+  both sides of every triangle are solid.
+- `sweep`: a sphere of radius r against each triangle inflated by r, which is convex (a slab
+  over the face, a cylinder per edge, a ball per vertex), so the first touch is exact on a
+  non-convex mesh, a sphere touching a triangle and moving along or away from it never
+  enters it, and no speed carries the sphere through a triangle.
+
+Cost per query is bounded on large meshes by a cached neighbourhood (all in the geom frame):
+1. a static uniform grid of triangle centres, built once with numpy, yields the triangles
+   near a point;
+2. the cache holds every triangle within R of a centre c, sorted by its exact distance D
+   from c. A query within e of c only needs triangles with D - e below its reach, so a scan
+   walks a short prefix and stops; the cache is rebuilt only when a query leaves it;
+3. the triangle the proxy touched last (the hint) is tested first: pressed into it, the
+   sweep ends there at once. Its plane is a certificate: a triangle lying wholly on the far
+   side of that plane is at least as far as the plane, so when the query stays that far
+   (sliding on a face, the nearest point inside a face) only the triangles reaching above
+   the plane (none on a convex patch; the rising wall in a bowl) are examined.
+Scalar Python over the few triangles that remain; numpy only when the cache is rebuilt.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import warnings
+
+import mujoco
+import numpy as np
+import trimesh
+
+from softproxy.geometry import CONTACT_TOL, GRAZE, Shape
+
+ABOVE_TOL = 1e-9
+"""A vertex this far (m) above a certificate plane counts as above it. MuJoCo stores vertices
+in float32 (≈4e-9 m at 5 cm), so coplanar neighbours differ by about this much; the
+certificate may overstate a distance by at most this (m)."""
+NEIGHBOURHOOD_SLACK = 0.0005
+"""Slack (m) around a neighbourhood (the small cache the queries scan): it serves the
+queries until they drift this far, and every triangle in it is this close to their reach."""
+DEGENERATE = 1e-6
+"""A triangle whose area is below this fraction of its longest edge squared is degenerate
+(zero-area: coincident or collinear vertices, within float32 rounding)."""
+VECTOR_MIN = 64
+DRIFT_SCAN = 24
+"""A query that drifted past the slack re-centres the neighbourhood when its scan would read
+more triangles than this."""
+NEIGHBOURHOOD_RADIUS = 0.006
+"""Radius (m) a neighbourhood holds beyond the reach of the sweep that built it: sorted, it
+costs nothing to scan, and it keeps nearby queries valid."""
+"""A scan of more triangles than this is narrowed first by one vectorised distance pass."""
+POINT_RADIUS = 1e-8
+"""A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
+from the nearest point to a point lying on it is rounding noise, so whether it moves into the
+mesh is not decidable; 10 nm gives it a direction and is far below the 1 µm promise."""
+GRID_CELLS = 64
+"""Most grid cells per axis."""
+
+
+class MeshWarning(UserWarning):
+    """A defect found (and repaired or worked around) in a mesh loaded for haptic contact."""
+
+
+# ---------------------------------------------------------------------------------------
+# Validation
+# ---------------------------------------------------------------------------------------
+
+def _clean(vertices, faces, name: str, warn: bool):
+    """`validate_mesh` plus whether the result is watertight (closed, manifold)."""
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(faces).reshape(-1, 3).astype(np.int64)
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        raise ValueError(f"mesh {name}: face indices out of range (0..{len(v) - 1})")
+    defects = []
+    bad_vertex = ~np.isfinite(v).all(axis=1)
+    if bad_vertex.any():
+        keep = ~bad_vertex[f].any(axis=1)
+        defects.append(f"{int((~keep).sum())} triangles with non-finite vertices dropped")
+        f = f[keep]
+    # weld exactly coincident vertices (STL stores each triangle's own copies): the geometry is
+    # unchanged, and edges shared by two triangles become shared in the index too
+    v, inverse = np.unique(np.where(bad_vertex[:, None], 0.0, v), axis=0, return_inverse=True)
+    f = inverse.reshape(-1)[f]
+
+    # degenerate: an index repeated, or an area that is rounding noise for the triangle's size
+    p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    area2 = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    longest2 = np.max([((p1 - p0) ** 2).sum(1), ((p2 - p1) ** 2).sum(1), ((p0 - p2) ** 2).sum(1)], axis=0)
+    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0])
+    degenerate = repeated | (area2 <= DEGENERATE * longest2)
+    if degenerate.any():
+        defects.append(f"{int(degenerate.sum())} degenerate (zero-area) triangles dropped")
+        f = f[~degenerate]
+
+    # duplicates: the same three vertices, in either winding
+    _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+    if len(first) < len(f):
+        defects.append(f"{len(f) - len(first)} duplicate triangles dropped")
+        f = f[np.sort(first)]
+    if len(f) == 0:
+        raise ValueError(f"mesh {name}: no usable triangles ({'; '.join(defects) or 'empty'})")
+
+    tm = trimesh.Trimesh(v, f, process=False)
+    if not tm.is_winding_consistent:
+        before = f.copy()
+        trimesh.repair.fix_winding(tm)
+        f = np.asarray(tm.faces, dtype=np.int64)
+        flipped = int((before != f).any(axis=1).sum())
+        defects.append(f"inconsistent winding: {flipped} triangles flipped to agree with their neighbours")
+    edges = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    open_edges = int((counts == 1).sum())
+    shared = int((counts > 2).sum())
+    closed = open_edges == 0 and shared == 0
+    if open_edges:
+        defects.append(f"open mesh ({open_edges} boundary edges, not watertight): "
+                       "treated as a two-sided sheet, distance unsigned")
+    if shared:
+        defects.append(f"{shared} non-manifold edges (shared by more than two triangles): "
+                       "treated as a two-sided sheet, distance unsigned")
+    if closed and trimesh.Trimesh(v, f, process=False).volume < 0.0:
+        f = f[:, ::-1].copy()
+        defects.append("inverted normals (negative volume on a watertight mesh): all triangles flipped")
+    if warn:
+        for d in defects:
+            warnings.warn(f"mesh {name}: {d}", MeshWarning, stacklevel=3)
+    return v, f, defects, closed
+
+
+def validate_mesh(vertices, faces, name: str, warn: bool = True) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Check and repair a triangle mesh for haptic contact; returns (vertices, faces, defects).
+
+    Exactly coincident vertices are welded. Degenerate (zero-area) and duplicate triangles are
+    dropped; an open or non-manifold mesh is kept (a bowl may be a sheet) and reported;
+    inconsistent winding is made consistent, and a watertight mesh with negative volume
+    (inverted normals) is flipped. Each defect is a sentence in `defects` and, when `warn`,
+    a `MeshWarning` naming the mesh. Raises ValueError when nothing usable is left.
+    """
+    v, f, defects, _ = _clean(vertices, faces, name, warn)
+    return v, f, defects
+
+
+# ---------------------------------------------------------------------------------------
+# Scalar geometry on one triangle (hot path)
+# ---------------------------------------------------------------------------------------
+# A triangle is a tuple of 22 floats, in the geom frame:
+#   A (0-2), B (3-5), C (6-8), AB = B - A (9-11), AC = C - A (12-14), unit normal N (15-17),
+#   AB·AB (18), AB·AC (19), AC·AC (20), 1 / (AB·AB AC·AC - (AB·AC)²) (21).
+# Features: 0 the face, 1 edge AB, 2 edge BC, 3 edge CA, 4 vertex A, 5 vertex B, 6 vertex C.
+
+def _closest(t, px, py, pz):
+    """Closest point of triangle t to p: (squared distance, qx, qy, qz, feature). Ericson's
+    Voronoi-region walk, with the dot products about B and C derived from those about A."""
+    ax, ay, az, bx, by, bz, cx, cy, cz, ux, uy, uz, vx, vy, vz, nx, ny, nz, aa, ab, cc, _ = t
+    wx, wy, wz = px - ax, py - ay, pz - az
+    d1 = ux * wx + uy * wy + uz * wz
+    d2 = vx * wx + vy * wy + vz * wz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return (wx * wx + wy * wy + wz * wz, ax, ay, az, 4)
+    d3 = d1 - aa
+    d4 = d2 - ab
+    if d3 >= 0.0 and d4 <= d3:
+        ex, ey, ez = px - bx, py - by, pz - bz
+        return (ex * ex + ey * ey + ez * ez, bx, by, bz, 5)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        s = d1 / aa
+        qx, qy, qz = ax + s * ux, ay + s * uy, az + s * uz
+        ex, ey, ez = px - qx, py - qy, pz - qz
+        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 1)
+    d5 = d1 - ab
+    d6 = d2 - cc
+    if d6 >= 0.0 and d5 <= d6:
+        ex, ey, ez = px - cx, py - cy, pz - cz
+        return (ex * ex + ey * ey + ez * ez, cx, cy, cz, 6)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        s = d2 / cc
+        qx, qy, qz = ax + s * vx, ay + s * vy, az + s * vz
+        ex, ey, ez = px - qx, py - qy, pz - qz
+        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 3)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 >= d3 and d5 >= d6:
+        s = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        qx, qy, qz = bx + s * (cx - bx), by + s * (cy - by), bz + s * (cz - bz)
+        ex, ey, ez = px - qx, py - qy, pz - qz
+        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 2)
+    h = nx * wx + ny * wy + nz * wz  # inside the face's prism: straight down to the plane
+    return (h * h, px - h * nx, py - h * ny, pz - h * nz, 0)
+
+
+def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
+    """First touch of a sphere (radius r) from a moving by d into triangle t, in the geom frame.
+
+    Returns (lam, nx, ny, nz, feature) with lam in [0, 1), n the unit normal of the inflated
+    triangle at the touch (out of it, against the motion) and the feature touched, or None. `dd` = |d|², `far2` =
+    (r + |d| + CONTACT_TOL)², `graze` = GRAZE |d|.
+    """
+    nx, ny, nz = t[15], t[16], t[17]
+    h0 = nx * (ax - t[0]) + ny * (ay - t[1]) + nz * (az - t[2])
+    hd = nx * dx + ny * dy + nz * dz
+    h1 = h0 + hd
+    reach = r + CONTACT_TOL
+    if (h0 > reach and h1 > reach) or (h0 < -reach and h1 < -reach):
+        return None  # the segment never comes within r of the triangle's plane
+    d2, qx, qy, qz, feature = _closest(t, ax, ay, az)
+    if d2 > far2:
+        return None  # farther than the sphere can reach on this segment
+    if d2 <= reach * reach:
+        # touching now: a hit only if moving into it (the inflated triangle is convex)
+        dist = math.sqrt(d2)
+        if dist > 1e-12:
+            mx, my, mz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
+        elif hd != 0.0:  # centre on the triangle (a point proxy): the side it comes from
+            s = -1.0 if hd > 0.0 else 1.0
+            mx, my, mz = s * nx, s * ny, s * nz
+        else:
+            return None
+        if mx * dx + my * dy + mz * dz < -graze:
+            return (0.0, mx, my, mz, feature)
+        return None
+    # 1. the face: the slab |h| <= r is entered at most once; if the sphere enters it over
+    #    the triangle's interior, nothing of the inflated triangle was reached before
+    if h0 > r or h0 < -r:
+        s = 1.0 if h0 > 0.0 else -1.0
+        rate = s * hd
+        if rate >= -graze:
+            return None  # moving along or away from the plane: the slab is never entered
+        lam = (s * h0 - r) / -rate
+        if lam >= 1.0:
+            return None
+        wx = ax + lam * dx - s * r * nx - t[0]
+        wy = ay + lam * dy - s * r * ny - t[1]
+        wz = az + lam * dz - s * r * nz - t[2]
+        d1 = t[9] * wx + t[10] * wy + t[11] * wz
+        d2 = t[12] * wx + t[13] * wy + t[14] * wz
+        inv = t[21]
+        v = (t[20] * d1 - t[19] * d2) * inv
+        w = (t[18] * d2 - t[19] * d1) * inv
+        if v >= 0.0 and w >= 0.0 and v + w <= 1.0:
+            return (lam, s * nx, s * ny, s * nz, 0)
+    # 2. the edges (cylinders of radius r; their ends belong to the vertex balls)
+    best = 1.0
+    hit = None
+    feature = 1
+    for px, py, pz, ex, ey, ez, length in edges:
+        wx, wy, wz = ax - px, ay - py, az - pz
+        we = wx * ex + wy * ey + wz * ez
+        de = dx * ex + dy * ey + dz * ez
+        qa = dd - de * de
+        qb = wx * dx + wy * dy + wz * dz - we * de
+        if qa <= 0.0 or qb >= 0.0:
+            continue  # along the edge, or moving away from its axis
+        qc = wx * wx + wy * wy + wz * wz - we * we - r * r
+        if qc <= 0.0:
+            continue  # already within r of the axis, beyond the edge's ends: a vertex ball first
+        disc = qb * qb - qa * qc
+        if disc <= 0.0:
+            continue
+        lam = (-qb - math.sqrt(disc)) / qa
+        if lam < best:
+            s = we + lam * de
+            if 0.0 <= s <= length:
+                best = lam
+                hit = (wx + lam * dx - s * ex, wy + lam * dy - s * ey, wz + lam * dz - s * ez, feature)
+        feature += 1
+    # 3. the vertices (balls of radius r)
+    for k in (0, 3, 6):
+        wx, wy, wz = ax - t[k], ay - t[k + 1], az - t[k + 2]
+        qb = wx * dx + wy * dy + wz * dz
+        if qb >= 0.0:
+            continue
+        qc = wx * wx + wy * wy + wz * wz - r * r
+        disc = qb * qb - dd * qc
+        if disc <= 0.0:
+            continue
+        lam = (-qb - math.sqrt(disc)) / dd
+        if lam < best:
+            best = lam
+            hit = (wx + lam * dx, wy + lam * dy, wz + lam * dz, 4 + k // 3)
+    if hit is None:
+        return None
+    mx, my, mz, feature = hit
+    n = math.sqrt(mx * mx + my * my + mz * mz)
+    mx, my, mz = mx / n, my / n, mz / n
+    if mx * dx + my * dy + mz * dz >= -graze:
+        return None  # a tangent graze: the sphere touches without entering
+    return (best if best > 0.0 else 0.0, mx, my, mz, feature)
+
+
+# ---------------------------------------------------------------------------------------
+# The shape
+# ---------------------------------------------------------------------------------------
+
+class MeshShape(Shape):
+    """A mesh geom's triangles as seen by a proxy (world frame in, world frame out; m).
+
+    `MeshShape(model, data, geom, static)` like the primitives; `shading=True` returns the
+    normal interpolated from the vertex normals over a face (force shading) instead of the
+    faceted one; the sweep still stops on the true triangles. Pass `mesh_shape=MeshShape`
+    to `shapes_of` / `World` (`functools.partial(MeshShape, shading=True)` for shading).
+    """
+
+    flat = False
+    __slots__ = (
+        "mesh", "label", "signed", "shading", "defects", "triangles", "_tri", "_edges", "_pn", "_vn", "_adj", "_plane",
+        "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_verts", "_centre", "_rho", "_slack",
+        "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
+        "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_hint", "rebuilds",
+    )
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
+                 shading: bool = False) -> None:
+        super().__init__(model, data, geom, static)
+        mesh = int(model.geom_dataid[geom])
+        if int(model.geom_type[geom]) != int(mujoco.mjtGeom.mjGEOM_MESH) or mesh < 0:
+            raise ValueError(f"geom {self.name!r} is not a mesh geom")
+        self.mesh = mesh
+        self.label = _label(model, geom, mesh, self.name)
+        va, vn = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
+        fa, fn = int(model.mesh_faceadr[mesh]), int(model.mesh_facenum[mesh])
+        vertices = np.array(model.mesh_vert[va:va + vn], dtype=np.float64)
+        faces = np.array(model.mesh_face[fa:fa + fn], dtype=np.int64)
+        vertices, faces, self.defects, self.signed = _clean(vertices, faces, self.label, warn=True)
+        self.shading = bool(shading)
+        self.triangles = len(faces)
+        # the bounding sphere about the geom origin that the god-object's broad phase uses
+        used = vertices[np.unique(faces)]
+        self.rbound = float(np.sqrt((used * used).sum(1)).max()) * (1.0 + 1e-12) + 1e-12
+        self._build(vertices, faces)
+        self._cx = self._cy = self._cz = 0.0
+        self._cr = -1.0  # no neighbourhood yet
+        self._cslack = 0.0
+        self._cd: list = []
+        self._ci: list = []
+        self._cids = None
+        self._cpos: dict = {}
+        self._above: dict = {}
+        self._hint = -1
+        self.rebuilds = 0  # how often the neighbourhood was rebuilt
+
+    # -- load-time tables ---------------------------------------------------------------
+    def _build(self, v: np.ndarray, f: np.ndarray) -> None:
+        a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        ab, ac = b - a, c - a
+        cross = np.cross(ab, ac)
+        n = cross / np.linalg.norm(cross, axis=1)[:, None]
+        aa, abac, cc = (ab * ab).sum(1), (ab * ac).sum(1), (ac * ac).sum(1)
+        inv = 1.0 / (aa * cc - abac * abac)
+        self._tri = [tuple(row) for row in np.column_stack([a, b, c, ab, ac, n, aa, abac, cc, inv]).tolist()]
+        self._plane = [tuple(row) for row in np.column_stack([n, (n * a).sum(1)]).tolist()]
+        # edges AB, BC, CA as (start, unit direction, length) for the swept cylinders
+        starts = np.stack([a, b, c], axis=1)
+        vecs = np.stack([b - a, c - b, a - c], axis=1)
+        lengths = np.linalg.norm(vecs, axis=2)
+        units = vecs / lengths[..., None]
+        self._edges = [tuple(tuple(e) for e in tri) for tri in
+                       np.concatenate([starts, units, lengths[..., None]], axis=2).tolist()]
+        # vectorised tables: exact point-triangle distance by edges (region rebuilds), and the
+        # plane and the three in-plane edge lines as rows of Q, so that Q @ (p, 1) gives the
+        # height over the plane and how far p lies beyond each edge (neighbourhood rebuilds)
+        self._ep, self._ev = starts, vecs
+        self._eil = 1.0 / (lengths * lengths)
+        out = np.cross(units, n[:, None, :])  # in-plane, out of the triangle across each edge
+        self._em = out
+        self._fn = n
+        normals = np.concatenate([n[:, None, :], out], axis=1)                  # (faces, 4, 3)
+        points = np.concatenate([a[:, None, :], starts], axis=1)
+        self._q = np.concatenate([normals, -(normals * points).sum(2, keepdims=True)], axis=2)
+        self._verts = starts
+
+        # pseudo-normals: an edge's is the sum of its two faces' normals, a vertex's the sum
+        # of its faces' normals weighted by the face angle at the vertex
+        angles = np.empty((len(f), 3))
+        for k in range(3):
+            e1 = v[f[:, (k + 1) % 3]] - v[f[:, k]]
+            e2 = v[f[:, (k + 2) % 3]] - v[f[:, k]]
+            cosang = (e1 * e2).sum(1) / (np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1))
+            angles[:, k] = np.arccos(np.clip(cosang, -1.0, 1.0))
+        vnormal = np.zeros((len(v), 3))
+        for k in range(3):
+            np.add.at(vnormal, f[:, k], n * angles[:, k:k + 1])
+        vnormal /= np.maximum(np.linalg.norm(vnormal, axis=1), 1e-300)[:, None]
+        key = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        _, inverse = np.unique(key, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        enormal = np.zeros((inverse.max() + 1, 3))
+        np.add.at(enormal, inverse, np.repeat(n, 3, axis=0))
+        enormal = enormal[inverse.reshape(-1, 3)]  # (faces, 3 edges, 3)
+        # across each edge (AB, BC, CA), the other triangle of a manifold edge, else -1
+        slots = np.argsort(inverse, kind="stable")
+        counts = np.bincount(inverse)
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        adj = np.full(3 * len(f), -1, dtype=np.int64)
+        pair = np.flatnonzero(counts == 2)
+        one, two = slots[first[pair]], slots[first[pair] + 1]
+        adj[one], adj[two] = two // 3, one // 3
+        self._adj = [tuple(row) for row in adj.reshape(-1, 3).tolist()]
+        fv = vnormal[f]                            # (faces, 3 vertices, 3)
+        self._pn = [(tuple(n[i]), *map(tuple, enormal[i]), *map(tuple, fv[i])) for i in range(len(f))]
+        self._vn = [tuple(row) for row in fv.reshape(-1, 9).tolist()]
+
+        # the static grid of triangle centres
+        centre = (a + b + c) / 3.0
+        rho = np.sqrt(np.max([((a - centre) ** 2).sum(1), ((b - centre) ** 2).sum(1), ((c - centre) ** 2).sum(1)], axis=0))
+        self._centre, self._rho = centre, float(rho.max())
+        lo, hi = centre.min(0), centre.max(0)
+        mean_edge = float(lengths.mean())
+        h = max(2.0 * self._rho, 2.0 * mean_edge, float((hi - lo).max()) / GRID_CELLS, 1e-9)
+        dims = np.minimum(np.floor((hi - lo) / h).astype(np.int64) + 1, GRID_CELLS)
+        cell = np.minimum(np.floor((centre - lo) / h).astype(np.int64), dims - 1)
+        key = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+        order = np.argsort(key, kind="stable")
+        self._grid_order = order
+        self._grid_start = np.searchsorted(key[order], np.arange(int(dims.prod()) + 1)).tolist()
+        self._grid_lo, self._grid_h, self._grid_dims = lo.tolist(), h, dims.tolist()
+        self._slack = max(NEIGHBOURHOOD_SLACK, 0.1 * mean_edge)
+
+    # -- the neighbourhood ------------------------------------------------------------------
+    def _neighbourhood(self, cx: float, cy: float, cz: float, radius: float, slack: float) -> None:
+        """Cache the triangles that may lie within `radius` (m) of c, sorted by a lower bound on
+        their distance: sqrt(h² + b²), h the height over the plane, b how far c lies beyond
+        the farthest edge line (exact over the face and most of the edges, short of it near a
+        vertex). `slack` (m): how far queries may drift from c before a new one pays."""
+        self.rebuilds += 1
+        self._cx, self._cy, self._cz, self._cr, self._cslack = cx, cy, cz, radius, slack
+        self._above = {}
+        # the grid cells the ball (grown by the largest triangle) overlaps: one slice per column
+        reach = radius + self._rho
+        (lx, ly, lz), h, (nx, ny, nz) = self._grid_lo, self._grid_h, self._grid_dims
+        x0, x1 = max(0, int((cx - reach - lx) // h)), min(nx - 1, int((cx + reach - lx) // h))
+        y0, y1 = max(0, int((cy - reach - ly) // h)), min(ny - 1, int((cy + reach - ly) // h))
+        z0, z1 = max(0, int((cz - reach - lz) // h)), min(nz - 1, int((cz + reach - lz) // h))
+        start, order = self._grid_start, self._grid_order
+        chunks = []
+        if z0 <= z1:
+            for ix in range(x0, x1 + 1):
+                for iy in range(y0, y1 + 1):
+                    row = (ix * ny + iy) * nz
+                    s, e = start[row + z0], start[row + z1 + 1]
+                    if e > s:
+                        chunks.append(order[s:e])
+        if not chunks:
+            self._cd, self._ci, self._cids, self._cpos = [], [], None, {}
+            return
+        ids = np.concatenate(chunks) if len(chunks) > 1 else chunks[0]
+        v = self._q[ids] @ np.array((cx, cy, cz, 1.0))   # (k, 4): height, beyond each edge
+        beyond = v[:, 1:].max(axis=1)
+        np.maximum(beyond, 0.0, out=beyond)
+        bound = v[:, 0] * v[:, 0] + beyond * beyond
+        sort = np.argsort(bound)
+        bound = bound[sort]
+        n = int(np.searchsorted(bound, radius * radius, side="right"))
+        self._cd = np.sqrt(bound[:n]).tolist()
+        ids = ids[sort[:n]]
+        self._cids = ids
+        self._ci = ids.tolist()
+        self._cpos = dict.fromkeys(self._ci)
+
+    def _distances(self, p: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """Exact distances (m) from point p to triangles `ids`: the plane inside the triangle,
+        else the nearest of its three edges."""
+        w = p - self._ep[ids]                          # (k, 3 edges, 3)
+        ev = self._ev[ids]
+        t = np.clip(np.einsum("kij,kij->ki", w, ev) * self._eil[ids], 0.0, 1.0)
+        diff = w - t[..., None] * ev
+        edge2 = np.einsum("kij,kij->ki", diff, diff).min(axis=1)
+        inside = (np.einsum("kij,kij->ki", w, self._em[ids]) <= 0.0).all(axis=1)
+        h = np.einsum("kj,kj->k", w[:, 0], self._fn[ids])
+        return np.sqrt(np.where(inside, h * h, edge2))
+
+    def _above_list(self, i: int, side: float, n: int) -> list:
+        """Neighbourhood positions below n of the triangles reaching above triangle i's plane
+        on `side` (a vertex higher than ABOVE_TOL). Built lazily, as far as scans have read."""
+        key = i if side > 0.0 else -1 - i
+        memo = self._above.get(key)
+        if memo is None:
+            memo = self._above[key] = [0, []]
+        done, out = memo
+        if n > done:
+            nx, ny, nz, off = self._plane[i]
+            if side < 0.0:
+                nx, ny, nz, off = -nx, -ny, -nz, -off
+            off += ABOVE_TOL
+            tris, ci = self._tri, self._ci
+            for k in range(done, n):
+                t = tris[ci[k]]
+                if (nx * t[0] + ny * t[1] + nz * t[2] > off or nx * t[3] + ny * t[4] + nz * t[5] > off
+                        or nx * t[6] + ny * t[7] + nz * t[8] > off):
+                    out.append(k)
+            memo[0] = n
+            return out
+        return out[:bisect.bisect_left(out, n)] if out and out[-1] >= n else out
+
+    def _shortlist(self, positions, n: int, x: float, y: float, z: float, radius: float):
+        """The neighbourhood positions below n (all, or those in `positions`) worth a scalar
+        test from p; when there are many, only those whose exact distance is within `radius`
+        (one vectorised pass instead of a long scalar scan)."""
+        if positions is None:
+            if n <= VECTOR_MIN:
+                return range(n)
+            positions = np.arange(n)
+        else:
+            positions = positions[:bisect.bisect_left(positions, n)]
+            if len(positions) <= VECTOR_MIN:
+                return positions
+            positions = np.array(positions)
+        dist = self._distances(np.array((x, y, z)), self._cids[positions])
+        return positions[dist <= radius + CONTACT_TOL].tolist()
+
+    def _certified(self, hint: int, feature: int, nx: float, ny: float, nz: float, n: int):
+        """Neighbourhood positions that may come nearer than the tangent plane (normal n, out of
+        the hint at its closest point q), among the first n, or None (read them all).
+
+        A triangle wholly behind the hint's plane lies in the half-space behind the tangent
+        plane when q is inside the face. When q is on an edge shared with a neighbour and n
+        lies in the cone of the two faces' normals (a convex edge seen from outside), the
+        wedge behind both planes lies behind the tangent plane: a triangle behind both is
+        safe. Only those reaching above the plane(s) are left to read."""
+        t = self._tri[hint]
+        dot0 = nx * t[15] + ny * t[16] + nz * t[17]
+        side0 = 1.0 if dot0 >= 0.0 else -1.0
+        if feature == 0:
+            return self._above_list(hint, side0, n)
+        if feature > 3:
+            return None
+        other = self._adj[hint][feature - 1]
+        if other < 0 or other not in self._cpos:
+            return None
+        u = self._tri[other]
+        dot1 = nx * u[15] + ny * u[16] + nz * u[17]
+        side1 = 1.0 if dot1 >= 0.0 else -1.0
+        g = side0 * side1 * (t[15] * u[15] + t[16] * u[16] + t[17] * u[17])
+        det = 1.0 - g * g
+        a0, a1 = side0 * dot0, side1 * dot1
+        if det < 1e-12:
+            # coplanar neighbours: one half-space, whose only normal is the faces' own (a
+            # sphere touching the edge from beside it is not held by the plane); folded back: none
+            if g > 0.0 and a0 > 1.0 - 1e-9:
+                return self._merged(self._above_list(hint, side0, n), self._above_list(other, side1, n))
+            return None
+        if a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
+            return None  # n outside the cone: a concave edge
+        return self._merged(self._above_list(hint, side0, n), self._above_list(other, side1, n))
+
+    @staticmethod
+    def _merged(first: list, second: list) -> list:
+        """Sorted union of two sorted position lists."""
+        if not second:
+            return first
+        if not first:
+            return second
+        return sorted(set(first).union(second))
+
+    # -- queries (geom frame) ---------------------------------------------------------------
+    def local_distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
+        """Signed distance (m) to the nearest triangle and the outward unit normal, geom frame."""
+        best, qx, qy, qz, feature, tri = self._nearest(x, y, z)
+        if best > 0.0:
+            nx, ny, nz = (x - qx) / best, (y - qy) / best, (z - qz) / best
+        else:
+            nx, ny, nz = self._tri[tri][15:18]
+        sign = 1.0
+        if self.signed:
+            px, py, pz = self._pn[tri][feature]
+            if (x - qx) * px + (y - qy) * py + (z - qz) * pz < 0.0:
+                sign = -1.0  # behind the nearest feature: inside; the normal still points out
+                nx, ny, nz = -nx, -ny, -nz
+            elif best == 0.0:
+                n = math.sqrt(px * px + py * py + pz * pz)
+                nx, ny, nz = px / n, py / n, pz / n
+        if self.shading and feature <= 3:
+            nx, ny, nz = self._shade(tri, qx, qy, qz, nx, ny, nz)
+        return (sign * best, nx, ny, nz)
+
+    def _nearest(self, x: float, y: float, z: float):
+        """(distance, closest point, feature, triangle) of the nearest triangle, geom frame."""
+        tris, planes = self._tri, self._plane
+        ex, ey, ez = x - self._cx, y - self._cy, z - self._cz
+        e = math.sqrt(ex * ex + ey * ey + ez * ez)
+        drifted = e > self._cslack
+        while True:
+            cd, ci = self._cd, self._ci
+            best2, bq, bf, bi = math.inf, (0.0, 0.0, 0.0), 0, -1
+            positions = None
+            hint = self._hint
+            n = len(cd)
+            if e < self._cr and hint in self._cpos:
+                best2, qx, qy, qz, bf = _closest(tris[hint], x, y, z)
+                if 1 <= bf <= 3:
+                    # nearest on an edge: the point may lie over the neighbour's face instead
+                    other = self._adj[hint][bf - 1]
+                    if other >= 0 and other in self._cpos:
+                        d2, rx, ry, rz, f = _closest(tris[other], x, y, z)
+                        if d2 < best2:
+                            best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, other
+                bq, bi = (qx, qy, qz), hint
+                best = math.sqrt(best2)
+                n = bisect.bisect_left(cd, best + e)
+                if best2 > 0.0:
+                    # the tangent plane at the hint's nearest point, as a certificate: every
+                    # triangle behind it is at least as far
+                    positions = self._certified(hint, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, n)
+            best = math.sqrt(best2)
+            if drifted and best + e < self._cr and (n if positions is None else len(positions)) > DRIFT_SCAN:
+                # a neighbourhood centred here is cheaper to scan (radius kept)
+                self._neighbourhood(x, y, z, max(self._cr - e, best + self._cslack), self._cslack)
+                e = 0.0
+                drifted = False
+                continue
+            if e < self._cr:
+                positions = self._shortlist(positions, n, x, y, z, best)
+                for k in positions:
+                    if cd[k] - e >= best:
+                        break
+                    i = ci[k]
+                    if i == hint:
+                        continue
+                    nx, ny, nz, off = planes[i]
+                    h = nx * x + ny * y + nz * z - off
+                    if h >= best or -h >= best:
+                        continue  # its plane is already farther than the best
+                    d2, qx, qy, qz, f = _closest(tris[i], x, y, z)
+                    if d2 < best2:
+                        best2, bq, bf, bi = d2, (qx, qy, qz), f, i
+                        best = math.sqrt(d2)
+            if best + e <= self._cr:
+                break
+            # the nearest triangle may lie outside the neighbourhood: one around the point,
+            # large enough to hold a triangle known to be that near
+            bound = best
+            if bound == math.inf and ci:
+                bound = math.sqrt(_closest(tris[ci[0]], x, y, z)[0])
+            if bound == math.inf:
+                # nothing cached near: the nearest triangle centre bounds the distance
+                c = self._centre - np.array((x, y, z))
+                bound = math.sqrt(float(np.einsum("ij,ij->i", c, c).min()))
+            slack = max(self._slack, 0.05 * bound)
+            self._neighbourhood(x, y, z, bound + slack, slack)
+            e = 0.0
+        self._hint = bi
+        return (best, bq[0], bq[1], bq[2], bf, bi)
+
+    def sweep(self, x0: float, y0: float, z0: float, dx: float, dy: float, dz: float, r: float):
+        """First touch of a sphere (radius r, m) moving from x0 by d into a triangle, world frame.
+
+        Returns (fraction in [0, 1), nx, ny, nz) or None, like `Shape.sweep`: a sphere that
+        touches a triangle and moves along or away from it is not stopped by it.
+        """
+        dd = dx * dx + dy * dy + dz * dz
+        if dd == 0.0:
+            return None
+        if r < POINT_RADIUS:
+            r = POINT_RADIUS
+        length = math.sqrt(dd)
+        graze = GRAZE * length
+        far = r + length + CONTACT_TOL
+        far2 = far * far
+        # into the geom frame
+        px, py, pz = x0 - self.px, y0 - self.py, z0 - self.pz
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = (self.r00, self.r01, self.r02, self.r10, self.r11,
+                                                       self.r12, self.r20, self.r21, self.r22)
+        ax = r00 * px + r10 * py + r20 * pz
+        ay = r01 * px + r11 * py + r21 * pz
+        az = r02 * px + r12 * py + r22 * pz
+        ux = r00 * dx + r10 * dy + r20 * dz
+        uy = r01 * dx + r11 * dy + r21 * dz
+        uz = r02 * dx + r12 * dy + r22 * dz
+        tris, edges = self._tri, self._edges
+        reach = r + CONTACT_TOL
+        hint = self._hint
+        hint_hit = None
+        touching = False
+        feature = nx = ny = nz = 0
+        if hint >= 0:
+            t = tris[hint]
+            d2, qx, qy, qz, feature = _closest(t, ax, ay, az)
+            if d2 <= reach * reach and d2 > 1e-24:
+                # touching the triangle it touched last: pressed into it, nothing can come
+                # earlier; moving along or away, it is no obstacle (the inflated triangle is
+                # convex) and its tangent plane may certify most of the others
+                dist = math.sqrt(d2)
+                nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
+                into = nx * ux + ny * uy + nz * uz
+                if into < -graze:
+                    return self._world_hit(hint, (0.0, nx, ny, nz, feature), ax, ay, az, ux, uy, uz, r, graze)
+                # the segment stays r above the hint's tangent plane: only triangles reaching
+                # above it need reading
+                touching = dist + into >= r - CONTACT_TOL
+            else:
+                hint_hit = _sweep_triangle(t, edges[hint], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                if hint_hit is not None and hint_hit[0] == 0.0:
+                    return self._world_hit(hint, hint_hit, ax, ay, az, ux, uy, uz, r, graze)
+        # the neighbourhood must hold every triangle within r of the segment
+        ex, ey, ez = ax - self._cx, ay - self._cy, az - self._cz
+        ea = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ex, ey, ez = ex + ux, ey + uy, ez + uz
+        eb = math.sqrt(ex * ex + ey * ey + ez * ez)
+        rebuilt = ea + reach > self._cr or eb + reach > self._cr
+        if rebuilt:
+            # centred on the start: the scan reads triangles in order of distance from it, so
+            # once a hit is found near the start, the triangles beyond reach of the part of the
+            # segment before it are left unread
+            self._neighbourhood(ax, ay, az, length + reach + NEIGHBOURHOOD_RADIUS, self._slack)
+            ea, eb = 0.0, length
+        best, best_lam, best_tri = None, 1.0, -1
+        if hint_hit is not None:
+            # only the part of the segment before the hint's hit matters now
+            best, best_lam, best_tri = hint_hit, hint_hit[0], hint
+            far = reach + best_lam * length
+            far2 = far * far
+            ex = ax + best_lam * ux - self._cx
+            ey = ay + best_lam * uy - self._cy
+            ez = az + best_lam * uz - self._cz
+            eb = math.sqrt(ex * ex + ey * ey + ez * ez)
+        emax = ea if ea > eb else eb
+        n = bisect.bisect_right(self._cd, reach + emax)
+        if hint_hit is not None:
+            # before reaching the hint, the sphere stays r above the tangent plane at the
+            # point it reaches: the same certificate holds for that part of the segment
+            _, nx, ny, nz, feature = hint_hit
+            touching = True
+        positions = self._certified(hint, feature, nx, ny, nz, n) if touching and hint in self._cpos else None
+        if not rebuilt and ea > self._slack and (n if positions is None else len(positions)) > DRIFT_SCAN:
+            # drifted: re-centred, the scan reads fewer triangles
+            self._neighbourhood(ax, ay, az, length + reach + NEIGHBOURHOOD_RADIUS, self._slack)
+            ea = 0.0
+            if hint_hit is None:
+                eb = length
+            else:
+                eb = best_lam * length
+            emax = eb
+            n = bisect.bisect_right(self._cd, reach + emax)
+            positions = self._certified(hint, feature, nx, ny, nz, n) if touching and hint in self._cpos else None
+        cd, ci = self._cd, self._ci
+        limit = reach + emax
+        positions = self._shortlist(positions, n, ax, ay, az, far)
+        for k in positions:
+            if cd[k] > limit:
+                break
+            i = ci[k]
+            if i == hint:
+                continue
+            hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+            if hit is not None and hit[0] < best_lam:
+                best, best_lam, best_tri = hit, hit[0], i
+                if best_lam == 0.0:
+                    break
+                # only the part of the segment before this hit matters now
+                ex = ax + best_lam * ux - self._cx
+                ey = ay + best_lam * uy - self._cy
+                ez = az + best_lam * uz - self._cz
+                eb = math.sqrt(ex * ex + ey * ey + ez * ez)
+                limit = reach + (ea if ea > eb else eb)
+                far = reach + best_lam * length
+                far2 = far * far
+        if best is None:
+            return None
+        return self._world_hit(best_tri, best, ax, ay, az, ux, uy, uz, r, graze)
+
+    def _world_hit(self, tri, hit, ax, ay, az, ux, uy, uz, r, graze):
+        """The hit with its normal turned into the world frame (shaded when asked)."""
+        self._hint = tri
+        lam, nx, ny, nz, _ = hit
+        if self.shading:
+            qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
+            sx, sy, sz = self._shade(tri, qx, qy, qz, nx, ny, nz)
+            if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
+                nx, ny, nz = sx, sy, sz
+        return (lam,
+                self.r00 * nx + self.r01 * ny + self.r02 * nz,
+                self.r10 * nx + self.r11 * ny + self.r12 * nz,
+                self.r20 * nx + self.r21 * ny + self.r22 * nz)
+
+    def _shade(self, tri, qx, qy, qz, nx, ny, nz):
+        """Force shading: the vertex normals interpolated at q (barycentric), on n's side."""
+        t = self._tri[tri]
+        wx, wy, wz = qx - t[0], qy - t[1], qz - t[2]
+        d1 = t[9] * wx + t[10] * wy + t[11] * wz
+        d2 = t[12] * wx + t[13] * wy + t[14] * wz
+        v = (t[20] * d1 - t[19] * d2) * t[21]
+        w = (t[18] * d2 - t[19] * d1) * t[21]
+        v = 0.0 if v < 0.0 else 1.0 if v > 1.0 else v
+        w = 0.0 if w < 0.0 else 1.0 - v if w > 1.0 - v else w
+        u = 1.0 - v - w
+        a0, a1, a2, b0, b1, b2, c0, c1, c2 = self._vn[tri]
+        sx, sy, sz = u * a0 + v * b0 + w * c0, u * a1 + v * b1 + w * c1, u * a2 + v * b2 + w * c2
+        if sx * t[15] + sy * t[16] + sz * t[17] < 0.0:
+            return (nx, ny, nz)  # vertex normals disagree with the face: keep the geometric one
+        if sx * nx + sy * ny + sz * nz < 0.0:  # n on the back side of the face (open mesh)
+            sx, sy, sz = -sx, -sy, -sz
+        s = math.sqrt(sx * sx + sy * sy + sz * sz)
+        return (sx / s, sy / s, sz / s) if s > 0.0 else (nx, ny, nz)
+
+
+def _label(model: mujoco.MjModel, geom: int, mesh: int, geom_name: str) -> str:
+    """How warnings name a mesh: geom, mesh asset and file when known."""
+    mesh_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MESH, mesh) or f"#{mesh}"
+    parts = [f"geom {geom_name!r}"]
+    adr = int(model.mesh_pathadr[mesh])
+    if adr >= 0:
+        path = bytes(model.paths[adr:]).split(b"\0", 1)[0].decode(errors="replace")
+        if path:
+            parts.append(f"file {path!r}")
+    return f"{mesh_name!r} ({', '.join(parts)})"

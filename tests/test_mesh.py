@@ -1,0 +1,543 @@
+"""Triangle-mesh contact: exact distance and sweep, the proxy never inside, the bowl's dent, validation."""
+
+import functools
+import math
+import warnings
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given, settings, strategies as st
+
+from softproxy.geometry import shapes_of
+from softproxy.mesh import MeshShape, MeshWarning, validate_mesh
+from softproxy.proxy import GodObject
+
+TOL = 1e-6  # the promise: never more than 1 µm inside anything
+SCENES = Path(__file__).resolve().parent.parent / "scenes"
+BOWL_XML = SCENES / "mesh_object.xml"
+
+
+def deepest(god):
+    return max(god.radius - s.distance(god.x, god.y, god.z)[0] for s in god.shapes)
+
+
+def geodesic_sphere(freq: int, radius: float) -> trimesh.Trimesh:
+    """An icosahedron with each face cut into freq² triangles, pushed onto the sphere (20 freq² faces)."""
+    ico = trimesh.creation.icosahedron()
+    verts, faces, index = [], [], {}
+
+    def vertex(p):
+        p = p / np.linalg.norm(p)
+        key = tuple(np.round(p, 9))
+        if key not in index:
+            index[key] = len(verts)
+            verts.append(p * radius)
+        return index[key]
+
+    for a, b, c in ico.vertices[ico.faces]:
+        grid = {(i, j): vertex(a + (b - a) * i / freq + (c - a) * j / freq)
+                for i in range(freq + 1) for j in range(freq + 1 - i)}
+        for i in range(freq):
+            for j in range(freq - i):
+                faces.append([grid[i, j], grid[i + 1, j], grid[i, j + 1]])
+                if i + j < freq - 1:
+                    faces.append([grid[i + 1, j], grid[i + 1, j + 1], grid[i, j + 1]])
+    return trimesh.Trimesh(np.array(verts), np.array(faces), process=False)
+
+
+def mesh_model(path: Path, mesh: trimesh.Trimesh, body: str = "", geom: str = "", extra: str = ""):
+    """A model with one mesh geom named 'g' (asset 'm', file `path`), shapes built with MeshShape."""
+    path.write_text(trimesh.exchange.obj.export_obj(mesh, include_normals=False, include_texture=False, digits=10))
+    xml = (f'<mujoco><asset><mesh name="m" file="{path}"/></asset><worldbody>'
+           f'<body name="b" {body}><geom name="g" type="mesh" mesh="m" {geom}/></body>{extra}</worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    return m, d, shapes_of(m, d, mesh_shape=MeshShape)
+
+
+@functools.cache
+def sphere10k(tmp: str):
+    """The 10k-triangle sphere (radius 5 cm, 9680 triangles) at the origin."""
+    return mesh_model(Path(tmp) / "sphere10k.obj", geodesic_sphere(22, 0.05))
+
+
+@functools.cache
+def bowl():
+    m = mujoco.MjModel.from_xml_path(str(BOWL_XML))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    return m, d, shapes_of(m, d, mesh_shape=MeshShape)
+
+
+@functools.cache
+def tilted_ball(tmp: str):
+    """An icosphere (1280 triangles) in a rotated, offset body, itself offset and rotated in it."""
+    return mesh_model(Path(tmp) / "ball.obj", trimesh.creation.icosphere(3, radius=0.03),
+                      body='pos="0.1 -0.05 0.2" euler="20 -35 50"', geom='pos="0.01 0.02 -0.01" euler="10 0 -70"')
+
+
+@pytest.fixture(scope="module")
+def tmp(tmp_path_factory):
+    return str(tmp_path_factory.mktemp("meshes"))
+
+
+def world_mesh(m, d, geom=None):
+    """The geom's triangles in the world frame, as MuJoCo compiled them: (vertices, faces)."""
+    g = geom if geom is not None else int(np.flatnonzero(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)[0])
+    k = m.geom_dataid[g]
+    v = m.mesh_vert[m.mesh_vertadr[k]:m.mesh_vertadr[k] + m.mesh_vertnum[k]].astype(float)
+    f = m.mesh_face[m.mesh_faceadr[k]:m.mesh_faceadr[k] + m.mesh_facenum[k]]
+    return v @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g], f
+
+
+def winding_number(points, v, f):
+    """Generalised winding number of a closed mesh at each point (1 inside, 0 outside)."""
+    a, b, c = (v[f[:, k]][None] - points[:, None] for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+    det = np.einsum("pij,pij->pi", a, np.cross(b, c))
+    den = la * lb * lc + np.einsum("pij,pij->pi", a, b) * lc + np.einsum("pij,pij->pi", b, c) * la \
+        + np.einsum("pij,pij->pi", c, a) * lb
+    return np.arctan2(det, den).sum(axis=1) / (2.0 * np.pi)
+
+
+def textbook_distance(points, v, f):
+    """Distance from each point to the nearest triangle, the textbook way: the plane when the
+    foot falls inside the triangle (barycentric coordinates >= 0), else the nearest edge."""
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    out = []
+    for p in points:
+        h = ((p - a) * n).sum(1)
+        foot = p - h[:, None] * n
+        # barycentric coordinates of the foot by sub-triangle areas, signed along n
+        wa = (np.cross(b - foot, c - foot) * n).sum(1)
+        wb = (np.cross(c - foot, a - foot) * n).sum(1)
+        wc = (np.cross(a - foot, b - foot) * n).sum(1)
+        inside = (wa >= 0) & (wb >= 0) & (wc >= 0)
+        best = np.full(len(f), np.inf)
+        best[inside] = np.abs(h[inside])
+        for s0, s1 in ((a, b), (b, c), (c, a)):
+            e = s1 - s0
+            t = np.clip(((p - s0) * e).sum(1) / (e * e).sum(1), 0.0, 1.0)
+            best = np.minimum(best, np.linalg.norm(p - (s0 + t[:, None] * e), axis=1))
+        out.append(best.min())
+    return np.array(out)
+
+
+def reference_distance(points, v, f):
+    """The nearest triangle's distance: trimesh's closest point, checked by the textbook formula
+    (trimesh 5's per-triangle closest point can land on an edge when the foot is just inside)."""
+    _, dist, _ = trimesh.proximity.closest_point_naive(trimesh.Trimesh(v, f, process=False), points)
+    return np.minimum(dist, textbook_distance(points, v, f))
+
+
+def mesh_shape(shapes):
+    return next(s for s in shapes if isinstance(s, MeshShape))
+
+
+# ---------------------------------------------------------------------------------------
+# Frame and exactness
+# ---------------------------------------------------------------------------------------
+
+def test_vertices_are_in_the_geom_frame(tmp):
+    """MuJoCo recentres a mesh; mesh_vert is in the frame of geom_xpos/geom_xmat: every vertex of
+    the file, placed by the body and geom poses written in the XML, lies on the MeshShape surface."""
+    m, d, shapes = tilted_ball(tmp)
+    s = mesh_shape(shapes)
+    ico = trimesh.creation.icosphere(3, radius=0.03)
+
+    def pose(pos, euler):
+        quat = np.zeros(4)
+        mujoco.mju_euler2Quat(quat, np.radians(euler), "xyz")
+        mat = np.zeros(9)
+        mujoco.mju_quat2Mat(mat, quat)
+        return np.array(pos), mat.reshape(3, 3)
+
+    pb, rb = pose([0.1, -0.05, 0.2], [20, -35, 50])
+    pg, rg = pose([0.01, 0.02, -0.01], [10, 0, -70])
+    world = (ico.vertices @ rg.T + pg) @ rb.T + pb
+    for p in world[::7]:
+        assert abs(s.distance(*p)[0]) < 1e-7  # float32 vertices
+    # and the centre of the ball is 3 cm inside
+    centre = rb @ pg + pb
+    assert s.distance(*centre)[0] == pytest.approx(-0.03, abs=5e-4)
+
+
+coord = st.floats(-1.0, 1.0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.sampled_from(["ball", "bowl"]), st.lists(st.tuples(coord, coord, coord), min_size=5, max_size=20))
+def test_distance_and_normal_match_trimesh(tmp, which, unit_points):
+    """Exact distance and outward normal against trimesh's closest point on random points, in
+    the world frame; the sign says inside (winding number) wherever the point is not on the surface."""
+    m, d, shapes = tilted_ball(tmp) if which == "ball" else bowl()
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    lo, hi = v.min(0), v.max(0)
+    pts = (lo + hi) / 2 + np.array(unit_points) * 0.75 * (hi - lo)
+    dist = reference_distance(pts, v, f)
+    inside = winding_number(pts, v, f) > 0.5
+    feet = []
+    for p, dd, ins in zip(pts, dist, inside):
+        sd, nx, ny, nz = s.distance(*p)
+        assert abs(abs(sd) - dd) < 1e-9
+        assert math.isclose(nx * nx + ny * ny + nz * nz, 1.0, abs_tol=1e-9)
+        if dd > 1e-7:
+            assert (sd < 0) == ins
+        feet.append(p - sd * np.array((nx, ny, nz)))  # back along the outward normal
+    # the foot of the normal is a nearest point (ties allowed): on the surface
+    assert reference_distance(np.array(feet), v, f).max() < 1e-9
+
+
+def test_distance_far_from_the_mesh_is_exact(tmp):
+    """Far queries (an audit of a free finger) rebuild the neighbourhood and stay exact."""
+    m, d, shapes = bowl()
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    pts = np.array([[0.0, 0.0, 0.09], [0.0, 0.0, 0.04], [0.3, 0.1, -0.2], [0.0, 0.0, 0.0405], [0.05, 0.0, 0.0401]])
+    dist = reference_distance(pts, v, f)
+    for p, dd in zip(pts, dist):
+        assert abs(abs(s.distance(*p)[0]) - dd) < 1e-9
+
+
+def distances_along(v, f, a, dvec, samples=200):
+    """Exact distances to the mesh at samples along the segment from a by dvec."""
+    t = np.linspace(0.0, 1.0, samples)
+    return t, reference_distance(a + t[:, None] * dvec, v, f)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.tuples(coord, coord, coord), st.tuples(coord, coord, coord), st.floats(0.0, 0.012), st.floats(0.002, 0.06))
+def test_sweep_finds_the_first_touch(tmp, start, direction, r, length):
+    """A sphere swept along a random segment: where the sweep stops the sphere touches; before it
+    the sphere was never within r of any triangle; a miss stays out of reach all along."""
+    m, d, shapes = tilted_ball(tmp)
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    centre = v.mean(0)
+    a = centre + np.array(start) * 0.06
+    u = np.array(direction)
+    if np.linalg.norm(u) < 1e-3:
+        return
+    dvec = u / np.linalg.norm(u) * length
+    if reference_distance(a[None], v, f)[0] < r + 1e-6:
+        return  # starts touching: covered by the tangent/into tests
+    hit = s.sweep(*a, *dvec, r)
+    t, dist = distances_along(v, f, a, dvec)
+    if hit is None:
+        assert dist.min() >= r - 1e-9
+        return
+    lam = hit[0]
+    assert 0.0 <= lam < 1.0
+    assert reference_distance((a + lam * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+    assert dist[t < lam].min(initial=math.inf) >= r - 1e-9
+    # the normal opposes the motion and points from the mesh to the sphere's centre
+    n = np.array(hit[1:])
+    assert n @ dvec < 0 and abs(np.linalg.norm(n) - 1.0) < 1e-9
+
+
+def test_sweep_touching_sphere_slides_and_lifts_freely(tmp):
+    """A sphere resting on a face and moving along or away from it is not stopped; into it, at once."""
+    m, d, shapes = sphere10k(tmp)
+    s = mesh_shape(shapes)
+    r = 0.005
+    god = GodObject(shapes, r, 0.0, 0.0, (0.0, 0.0, 0.08))
+    god.update(0.0, 0.0, 0.05)
+    assert god.contact
+    x = (god.x, god.y, god.z)
+    _, nx, ny, nz = s.distance(*x)
+    n = np.array([nx, ny, nz])
+    tangent = np.cross(n, [1.0, 0.0, 0.0])
+    tangent *= 1e-4 / np.linalg.norm(tangent)
+    assert s.sweep(*x, *(n * 1e-3), r) is None
+    hit = s.sweep(*x, *(-n * 1e-3), r)
+    assert hit is not None and hit[0] == 0.0 and np.allclose(hit[1:], n, atol=1e-6)
+    hit = s.sweep(*x, *tangent, r)
+    assert hit is None or hit[0] > 0.0  # a neighbour face may rise in the way, never the one touched
+
+
+# ---------------------------------------------------------------------------------------
+# The god-object on meshes
+# ---------------------------------------------------------------------------------------
+
+def random_path(rng_points, centre, scale):
+    return [tuple(float(c) for c in centre + np.array(p) * scale) for p in rng_points]
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.sampled_from(["sphere10k", "bowl"]), st.floats(0.0, 0.01), st.floats(0.0, 1.0),
+       st.lists(st.tuples(coord, coord, coord), min_size=2, max_size=30))
+def test_never_inside_on_a_random_device_path(tmp, which, radius, mu, points):
+    """Random proxy radius, friction and device path through a 10k-triangle sphere and the bowl:
+    the proxy never sits more than 1e-6 m inside."""
+    if which == "sphere10k":
+        m, d, shapes = sphere10k(tmp)
+        centre, scale, start = np.zeros(3), 0.07, (0.0, 0.0, 0.09)
+    else:
+        m, d, shapes = bowl()
+        centre, scale, start = np.array([0.0, 0.0, 0.03]), 0.05, (0.0, 0.0, 0.09)
+    god = GodObject(shapes, radius, mu, 0.8 * mu, start)
+    for p in random_path(points, centre, scale):
+        god.update(*p)
+        assert deepest(god) <= TOL
+
+
+def test_never_inside_sliding_on_the_10k_sphere(tmp):
+    """Pressed 2 mm in and dragged around a great circle and back: always outside, always touching."""
+    m, d, shapes = sphere10k(tmp)
+    r = 0.008
+    god = GodObject(shapes, r, 0.3, 0.2, (0.0, 0.0, 0.09))
+    u, v = np.array([0.31, 0.17, -0.93]), np.array([0.48, -0.87, 0.0])
+    u /= np.linalg.norm(u)
+    v -= (v @ u) * u
+    v /= np.linalg.norm(v)
+    rad = 0.05 + r - 0.002
+    for k in range(600):
+        a = 0.004 * k
+        god.update(*(rad * (math.cos(a) * u + math.sin(a) * v)).tolist())
+        assert deepest(god) <= TOL
+        if k > 5:
+            assert god.contact
+
+
+def test_finger_rests_in_the_bowl_below_the_hull():
+    """Pressed into the bowl, the finger rests on the inner bottom (z = 5 mm + r), far below the
+    plane of the rim (z = 40 mm) where MuJoCo's convex hull would hold it."""
+    m, d, shapes = bowl()
+    r = 0.008
+    god = GodObject(shapes, r, 0.0, 0.0, (0.0, 0.0, 0.09))
+    for z in np.linspace(0.09, 0.011, 40):
+        god.update(0.0, 0.0, float(z))
+        assert deepest(god) <= TOL
+    assert god.contact and god.shape.name == "bowl"
+    assert god.z == pytest.approx(0.005 + r, abs=1e-4)  # faceted: a hair above the sphere
+    assert god.z < 0.04
+    assert (god.nx, god.ny, god.nz) == pytest.approx((0.0, 0.0, 1.0), abs=1e-6)
+    # stroked across the inside, it follows the concave wall up
+    for a in np.linspace(0.0, math.radians(60), 60):
+        god.update(0.029 * math.sin(a), 0.0, 0.04 - 0.029 * math.cos(a))
+        assert deepest(god) <= TOL and god.contact
+    assert math.hypot(god.x, god.z - 0.04) == pytest.approx(0.027, abs=1e-4)
+
+
+def plate(open_sheet: bool) -> trimesh.Trimesh:
+    """A 10 cm square, 1 mm thick (a closed box about z = 0), or a zero-thickness sheet at z = 0
+    with a flap bent down along one side (MuJoCo needs a volume for the hull it collides with)."""
+    if open_sheet:
+        v = [[-0.05, -0.05, 0.0], [0.05, -0.05, 0.0], [0.05, 0.05, 0.0], [-0.05, 0.05, 0.0], [0.06, 0.0, -0.01]]
+        return trimesh.Trimesh(np.array(v), np.array([[0, 1, 2], [0, 2, 3], [1, 4, 2]]), process=False)
+    return trimesh.creation.box(extents=(0.1, 0.1, 0.001))
+
+
+@pytest.mark.parametrize("open_sheet", [False, True])
+@pytest.mark.parametrize("speed", [1.0, 10.0, 100.0])
+def test_thin_mesh_plate_never_popped_through(tmp_path, open_sheet, speed):
+    """A 1 mm mesh plate (and a zero-thickness sheet) crossed at up to 100 m/s at 1 kHz: the
+    proxy stays on the near side."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        m, d, shapes = mesh_model(tmp_path / "plate.obj", plate(open_sheet))
+    assert any("open mesh" in str(w.message) for w in caught) == open_sheet
+    top = 0.0 if open_sheet else 0.0005
+    for radius in (0.0, 0.005):
+        god = GodObject(shapes, radius, 0.5, 0.4, (0.001, 0.0, 0.01))
+        z = 0.01
+        for _ in range(40):
+            z -= speed * 1e-3
+            god.update(0.001, 0.0, z)
+            assert god.z >= top + radius - TOL
+            assert deepest(god) <= TOL
+        assert god.contact
+
+
+def test_moving_mesh_carries_and_pushes_out(tmp_path):
+    """The proxy rides a moving mesh body and is pushed out when the mesh moves into it."""
+    xml_box = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
+    m, d, shapes = mesh_model(tmp_path / "box.obj", xml_box, body='mocap="true"')
+    s = mesh_shape(shapes)
+    assert not s.static
+    god = GodObject(shapes, 0.0, 1.0, 0.8, (0.0, 0.0, 0.1))
+    god.update(0.0, 0.0, 0.04)
+    assert god.z == pytest.approx(0.05, abs=1e-9)
+    d.mocap_pos[0] = (0.01, 0.0, 0.0)
+    mujoco.mj_forward(m, d)
+    s.refresh()
+    god.update(0.0, 0.0, 0.04)
+    assert god.x == pytest.approx(0.01, abs=1e-9) or not god.sticking
+    god.reset(0.0, 0.0, 0.06)
+    d.mocap_pos[0] = (0.0, 0.0, 0.02)  # the box rises 2 cm into the free proxy
+    mujoco.mj_forward(m, d)
+    s.refresh()
+    god.update(0.0, 0.0, 0.2)
+    assert deepest(god) <= TOL
+
+
+def test_force_shading_smooths_the_normal(tmp):
+    """With shading the normal follows the interpolated vertex normals: on a faceted sphere it is
+    closer to the true radial direction than the face normal, and the proxy still stays outside."""
+    m, d, _ = sphere10k(tmp)
+    shaded = shapes_of(m, d, mesh_shape=functools.partial(MeshShape, shading=True))
+    plain = shapes_of(m, d, mesh_shape=MeshShape)
+    rng = np.random.default_rng(3)
+    worse = 0
+    for p in rng.normal(size=(50, 3)):
+        p = p / np.linalg.norm(p) * 0.052
+        radial = p / np.linalg.norm(p)
+        a = np.array(shaded[0].distance(*p)[1:])
+        b = np.array(plain[0].distance(*p)[1:])
+        assert abs(np.linalg.norm(a) - 1.0) < 1e-9
+        worse += np.arccos(min(1.0, a @ radial)) > np.arccos(min(1.0, b @ radial)) + 1e-12
+    assert worse == 0
+    god = GodObject(shaded, 0.005, 0.0, 0.0, (0.0, 0.0, 0.09))
+    for k in range(200):
+        a = 0.01 * k
+        god.update(0.053 * math.sin(a), 0.0, 0.053 * math.cos(a))
+        assert deepest(god) <= TOL
+
+
+def test_neighbourhood_is_reused_while_sliding(tmp):
+    """Bounded work: sliding 0.1 mm per tick on the 10k sphere rebuilds the cached
+    neighbourhood on few ticks (the scans read a handful of triangles in between)."""
+    m, d, shapes = sphere10k(tmp)
+    s = mesh_shape(shapes)
+    r = 0.008
+    god = GodObject(shapes, r, 0.0, 0.0, (0.0, 0.0, 0.09))
+    god.update(0.0, 0.0, 0.05 + r - 0.002)
+    before = s.rebuilds
+    n = 1000
+    for k in range(n):
+        a = k * 1e-4 / 0.056
+        god.update(0.056 * math.sin(a), 0.0, 0.056 * math.cos(a))
+    assert god.contact
+    assert (s.rebuilds - before) / n < 0.1
+
+
+# ---------------------------------------------------------------------------------------
+# The scene
+# ---------------------------------------------------------------------------------------
+
+def test_mesh_object_scene_strokes_inside_the_bowl():
+    """The shipped scene: one finger strokes the inside of the bowl; with mesh contact it stays
+    out of the triangles and goes down into the dent, below the rim's plane."""
+    from softproxy.finger import SoftFingerProxy
+    from softproxy.fingertip import model as fingertip_model
+    from softproxy.run import open_device
+    from softproxy.scene import load_scene
+    from softproxy.servo import ServoLoop
+    from softproxy.world import World
+
+    scene = load_scene("mesh_object")
+    world = World(scene.load_model(), mesh_shape=MeshShape)
+    fingers = [SoftFingerProxy(p, world.shapes, fingertip_model(p.model)) for p in scene.fingers]
+    loop = ServoLoop(world, fingers, open_device("sim", scene), scene.rate_hz, audit=True, overrun_watchdog=False)
+    lowest, touched = math.inf, 0
+    for _ in range(int(scene.duration_s * scene.rate_hz)):
+        loop.tick()
+        god = fingers[0].god
+        if god.contact:
+            touched += 1
+            lowest = min(lowest, god.z)
+    assert fingers[0].penetration_max <= TOL
+    assert touched > 1500
+    assert lowest == pytest.approx(0.013, abs=2e-4)
+
+
+# ---------------------------------------------------------------------------------------
+# Validation
+# ---------------------------------------------------------------------------------------
+
+@pytest.fixture
+def good():
+    ico = trimesh.creation.icosphere(1, radius=0.03)
+    return np.array(ico.vertices), np.array(ico.faces)
+
+
+def volume(v, f):
+    return trimesh.Trimesh(v, f, process=False).volume
+
+
+def test_clean_mesh_has_no_defects(good):
+    v, f, defects = validate_mesh(*good, "ico")
+    assert defects == [] and len(f) == len(good[1])
+
+
+def test_degenerate_triangles_are_dropped(good):
+    v, f = good
+    v2 = np.vstack([v, [[0.1, 0.0, 0.0], [0.2, 0.0, 0.0], [0.3, 0.0, 0.0]]])  # collinear
+    n = len(v)
+    f2 = np.vstack([f, [[0, 0, 1], [n, n + 1, n + 2]]])
+    with pytest.warns(MeshWarning, match="mesh ico: 2 degenerate \\(zero-area\\) triangles dropped"):
+        _, out, defects = validate_mesh(v2, f2, "ico")
+    assert len(out) == len(f) and any("degenerate" in x for x in defects)
+
+
+def test_duplicate_triangles_are_dropped(good):
+    v, f = good
+    f2 = np.vstack([f, f[:3], f[3:4, ::-1]])  # the same triangles again, one of them flipped
+    with pytest.warns(MeshWarning, match="4 duplicate triangles dropped"):
+        _, out, _ = validate_mesh(v, f2, "ico")
+    assert len(out) == len(f)
+
+
+def test_open_mesh_is_kept_and_reported(good):
+    v, f = good
+    with pytest.warns(MeshWarning, match="open mesh .*boundary edges"):
+        _, out, defects = validate_mesh(v, f[:-4], "ico")
+    assert len(out) == len(f) - 4
+
+
+def test_inverted_normals_are_flipped(good):
+    v, f = good
+    with pytest.warns(MeshWarning, match="inverted normals"):
+        v2, out, _ = validate_mesh(v, f[:, ::-1], "ico")
+    assert volume(v2, out) > 0.0
+
+
+def test_inconsistent_winding_is_made_consistent(good):
+    v, f = good
+    f2 = f.copy()
+    f2[:7] = f2[:7, ::-1]
+    with pytest.warns(MeshWarning, match="inconsistent winding"):
+        v2, out, _ = validate_mesh(v, f2, "ico")
+    t = trimesh.Trimesh(v2, out, process=False)
+    assert t.is_winding_consistent and t.volume > 0.0
+
+
+def test_non_manifold_edges_are_reported(good):
+    v, f = good
+    a, b = f[0, 0], f[0, 1]
+    v2 = np.vstack([v, [[0.0, 0.0, 0.2]]])
+    with pytest.warns(MeshWarning, match="non-manifold"):
+        validate_mesh(v2, np.vstack([f, [[a, b, len(v)]]]), "ico")
+
+
+def test_unusable_meshes_raise_naming_the_mesh(good):
+    v, f = good
+    with pytest.raises(ValueError, match="mesh lump: no usable triangles"):
+        validate_mesh(v, np.array([[0, 0, 1], [1, 1, 2]]), "lump", warn=False)
+    with pytest.raises(ValueError, match="mesh lump: face indices out of range"):
+        validate_mesh(v, np.array([[0, 1, 999]]), "lump", warn=False)
+
+
+def test_warning_names_geom_mesh_and_file(tmp_path, good):
+    """Loading a bad mesh through MuJoCo: the warning says which geom, which mesh asset, which
+    file, and what was wrong; the shape works on the repaired mesh (signed: inside is negative)."""
+    v, f = good
+    bad = trimesh.Trimesh(v, np.vstack([f, f[:2]])[:, ::-1], process=False)  # duplicates, inverted
+    with pytest.warns(MeshWarning) as caught:
+        m, d, shapes = mesh_model(tmp_path / "crafted.obj", bad)
+    text = [str(w.message) for w in caught]
+    assert any("2 duplicate triangles dropped" in t for t in text)
+    assert any("inverted normals" in t for t in text)
+    for t in text:
+        assert "'m'" in t and "geom 'g'" in t and "crafted.obj" in t
+    s = mesh_shape(shapes)
+    assert s.defects and s.signed
+    assert s.distance(0.0, 0.0, 0.0)[0] < -0.02  # the centre is inside
+    assert s.distance(0.0, 0.0, 0.05)[0] > 0.0
