@@ -12,7 +12,7 @@ import trimesh
 from hypothesis import given, settings, strategies as st
 
 from softproxy.geometry import shapes_of
-from softproxy.mesh import MeshShape, MeshWarning, validate_mesh
+from softproxy.mesh import POINT_RADIUS, MeshShape, MeshWarning, validate_mesh
 from softproxy.proxy import GodObject
 
 TOL = 1e-6  # the promise: never more than 1 µm inside anything
@@ -229,6 +229,7 @@ def test_sweep_finds_the_first_touch(tmp, start, direction, r, length):
     if reference_distance(a[None], v, f)[0] < r + 1e-6:
         return  # starts touching: covered by the tangent/into tests
     hit = s.sweep(*a, *dvec, r)
+    r = max(r, POINT_RADIUS)  # a point proxy is swept as a 10 nm sphere (see softproxy.mesh)
     t, dist = distances_along(v, f, a, dvec)
     if hit is None:
         assert dist.min() >= r - 1e-9
@@ -364,7 +365,7 @@ def test_moving_mesh_carries_and_pushes_out(tmp_path):
     assert not s.static
     god = GodObject(shapes, 0.0, 1.0, 0.8, (0.0, 0.0, 0.1))
     god.update(0.0, 0.0, 0.04)
-    assert god.z == pytest.approx(0.05, abs=1e-9)
+    assert god.z == pytest.approx(0.05 + POINT_RADIUS, abs=1e-9)  # a point proxy rests 10 nm off
     d.mocap_pos[0] = (0.01, 0.0, 0.0)
     mujoco.mj_forward(m, d)
     s.refresh()
