@@ -115,6 +115,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             ])
             t = result["tick_us"]
             print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
+            if result.get("device_error"):
+                print(f"  the device failed ({result['faults']['device_error']} ticks, zero force each): "
+                      f"{result['device_error']}")
             if result.get("deadline_misses") is not None:
                 print(f"  deadline misses {result['deadline_misses']}")
             if "device" in result:

@@ -140,6 +140,8 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     result["tick_us"] = loop.stats.summary_us()
     result["deadline_misses"] = loop.stats.misses if realtime else None
     result["faults"] = dict(loop.faults)
+    if loop.last_device_error:
+        result["device_error"] = loop.last_device_error
     if getattr(original, "faults", None):  # a device injecting faults reports what it did
         result["device"] = {
             "faults_injected": dict(original.injected),

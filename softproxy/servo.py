@@ -90,6 +90,7 @@ class ServoLoop:
         self.ticks = 0
         self._safe_next = False  # the watchdog asks for one tick of zero force
         self._started = False
+        self.last_device_error = ""  # what the device said when it last failed
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -120,8 +121,9 @@ class ServoLoop:
         ok = True
         try:
             device.read(self.t, samples)
-        except Exception:  # a device that fails must not take the loop (and a motor) with it
+        except Exception as exc:  # a device that fails must not take the loop (and a motor) with it
             self.faults["device_error"] += 1
+            self.last_device_error = str(exc) or type(exc).__name__
             ok = False
         safe = self._safe_next
         self._safe_next = False

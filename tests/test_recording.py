@@ -76,6 +76,8 @@ def test_device_failures_replay_as_failures(tmp_path):
     device.read = flaky
     path = tmp_path / "knob.rec"
     first = run_scene(scene, device, duration_s=0.5, record=str(path))
-    assert first["faults"]["device_error"] == 3
+    assert first["faults"]["device_error"] == 3 and first["device_error"] == "cable pulled"
     again = run_scene(load_scene("knob"), open_device(f"replay:{path}", scene), duration_s=0.5)
+    assert again.pop("device_error") == "the recorded device failed on read 299"  # the replay's own words
+    first.pop("device_error")
     assert without_timing(again) == without_timing(first)
