@@ -15,18 +15,20 @@ them into (`model.mesh_vert` is expressed in the frame of `data.geom_xpos/geom_x
   non-convex mesh, a sphere touching a triangle and moving along or away from it never
   enters it, and no speed carries the sphere through a triangle.
 
-Cost per query is bounded on large meshes by a cached neighbourhood (all in the geom frame):
-1. a static uniform grid of triangle centres, built once with numpy, yields the triangles
-   near a point;
-2. the cache holds every triangle within R of a centre c, sorted by its exact distance D
-   from c. A query within e of c only needs triangles with D - e below its reach, so a scan
-   walks a short prefix and stops; the cache is rebuilt only when a query leaves it;
-3. the triangle the proxy touched last (the hint) is tested first: pressed into it, the
-   sweep ends there at once. Its plane is a certificate: a triangle lying wholly on the far
-   side of that plane is at least as far as the plane, so when the query stays that far
-   (sliding on a face, the nearest point inside a face) only the triangles reaching above
-   the plane (none on a convex patch; the rising wall in a bowl) are examined.
-Scalar Python over the few triangles that remain; numpy only when the cache is rebuilt.
+A point proxy is swept as a 10 nm sphere (see POINT_RADIUS).
+
+Cost per query is bounded on large meshes (all in the geom frame; numpy only to rebuild):
+1. a static uniform grid of triangle centres, built once with numpy at load;
+2. a neighbourhood: every triangle within R of a centre c, from the grid, sorted by a lower
+   bound on its distance from c (one matrix product). A query within e of c reads only the
+   triangles whose bound minus e is within its reach, a short prefix; the neighbourhood is
+   rebuilt when a query leaves it or drifted far enough that its prefix grew long;
+3. the hint, the triangle touched or nearest last, is tested first: pressed into it, the
+   sweep ends at once. Its tangent plane at the nearest point is a certificate: a triangle
+   lying wholly behind the hint's plane (behind both faces' planes at a convex edge) is at
+   least as far as that tangent plane, so a sphere sliding on it, or a point whose nearest
+   point is there, needs only the triangles reaching above those planes: none on a convex
+   patch, the rising wall in a bowl. Scalar Python over the few triangles that remain.
 """
 
 from __future__ import annotations
@@ -43,26 +45,25 @@ from softproxy.geometry import CONTACT_TOL, GRAZE, Shape
 
 ABOVE_TOL = 1e-9
 """A vertex this far (m) above a certificate plane counts as above it. MuJoCo stores vertices
-in float32 (≈4e-9 m at 5 cm), so coplanar neighbours differ by about this much; the
-certificate may overstate a distance by at most this (m)."""
-NEIGHBOURHOOD_SLACK = 0.0005
-"""Slack (m) around a neighbourhood (the small cache the queries scan): it serves the
-queries until they drift this far, and every triangle in it is this close to their reach."""
-DEGENERATE = 1e-6
-"""A triangle whose area is below this fraction of its longest edge squared is degenerate
-(zero-area: coincident or collinear vertices, within float32 rounding)."""
-VECTOR_MIN = 64
-DRIFT_SCAN = 24
-"""A query that drifted past the slack re-centres the neighbourhood when its scan would read
-more triangles than this."""
+in float32 (≈4e-9 m at 5 cm), so coplanar neighbours differ by about this much; a certified
+distance may be overstated by at most this (m)."""
 NEIGHBOURHOOD_RADIUS = 0.006
-"""Radius (m) a neighbourhood holds beyond the reach of the sweep that built it: sorted, it
-costs nothing to scan, and it keeps nearby queries valid."""
-"""A scan of more triangles than this is narrowed first by one vectorised distance pass."""
+"""Radius (m) a neighbourhood holds beyond the reach of the sweep that builds it: sorted, the
+extra triangles cost nothing to scan, and they keep the next queries valid as the proxy moves."""
+NEIGHBOURHOOD_SLACK = 0.0005
+"""A query this far (m) from the neighbourhood's centre re-centres it when its scan would read
+more than DRIFT_SCAN triangles (the lower bounds loosen by the drift)."""
+DRIFT_SCAN = 24
+VECTOR_MIN = 64
+"""A scan of more triangles than this is narrowed first by one vectorised distance pass
+(a point far from a symmetric mesh is nearly as far from hundreds of triangles)."""
 POINT_RADIUS = 1e-8
 """A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
 from the nearest point to a point lying on it is rounding noise, so whether it moves into the
 mesh is not decidable; 10 nm gives it a direction and is far below the 1 µm promise."""
+DEGENERATE = 1e-6
+"""A triangle whose area is below this fraction of its longest edge squared is degenerate
+(zero-area: coincident or collinear vertices, within float32 rounding)."""
 GRID_CELLS = 64
 """Most grid cells per axis."""
 
