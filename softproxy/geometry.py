@@ -24,6 +24,8 @@ CONTACT_TOL = 1e-9
 GRAZE = 1e-9
 """A touching sphere moves *into* a surface only if the motion's inward component exceeds
 this fraction of its length; below it the motion is tangent (rounding noise)."""
+FACE_PARALLEL = 1.0 - 1e-12
+"""A normal this aligned with a face's normal (cosine) is that face's."""
 MAX_ADVANCE_STEPS = 32
 """Conservative-advancement iterations before a grazing sweep stops short (safe side)."""
 
@@ -75,27 +77,36 @@ class Shape:
                 self.r10 * nx + self.r11 * ny + self.r12 * nz,
                 self.r20 * nx + self.r21 * ny + self.r22 * nz)
 
+    def on_face(self, nx: float, ny: float, nz: float) -> bool:
+        """True when a contact of normal n (world) lies on a planar face, not on a rounded
+        edge or corner of the proxy-swept shape: the contact plane then holds as long as the
+        proxy touches the shape (see `GodObject._solve`)."""
+        return False
+
     def sweep(self, x0: float, y0: float, z0: float, dx: float, dy: float, dz: float, r: float):
         """First touch of a sphere (radius r) moving from x0 by (dx, dy, dz) into the geom.
 
-        Returns (fraction in [0, 1), nx, ny, nz) or None. Conservative advancement on the
-        signed distance, which is 1-Lipschitz, so the sphere never passes through: a thin
-        plate crossed at any speed stops the sphere on its near side.
+        Returns (fraction in [0, 1), nx, ny, nz) or None. Conservative advancement to the
+        supporting plane: the shape is convex, so it lies behind the tangent plane at its
+        point nearest the sphere, and the sphere cannot touch it before reaching that plane;
+        a thin plate crossed at any speed stops the sphere on its near side. Convexity also
+        ends the search early: the distance is convex along the segment, so once the motion
+        stops approaching (n·d ≥ 0, within GRAZE) the sphere never comes closer.
         """
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
         if length == 0.0:
             return None
-        inv = 1.0 / length
+        graze = GRAZE * length
         lam = 0.0
         for _ in range(MAX_ADVANCE_STEPS):
             d, nx, ny, nz = self.distance(x0 + lam * dx, y0 + lam * dy, z0 + lam * dz)
+            approach = -(nx * dx + ny * dy + nz * dz)
+            if approach <= graze:  # along or away from the surface: never closer
+                return None
             gap = d - r
             if gap <= CONTACT_TOL:
-                # touching: a hit only if moving into the surface (convexity does the rest)
-                if nx * dx + ny * dy + nz * dz < -GRAZE * length:
-                    return (lam, nx, ny, nz)
-                return None
-            lam += gap * inv
+                return (lam, nx, ny, nz)
+            lam += gap / approach
             if lam >= 1.0:
                 return None
         # grazing approach not yet converged: stop here, short of the surface (safe)
@@ -110,6 +121,9 @@ class PlaneShape(Shape):
 
     def local_distance(self, x, y, z):
         return (z, 0.0, 0.0, 1.0)
+
+    def on_face(self, nx, ny, nz):
+        return True
 
     def distance(self, x, y, z):
         nx, ny, nz = self.r02, self.r12, self.r22
@@ -139,6 +153,14 @@ class SphereShape(Shape):
         if n == 0.0:
             return (-self.radius, 0.0, 0.0, 1.0)
         return (n - self.radius, x / n, y / n, z / n)
+
+    def distance(self, x, y, z):
+        # rotation-free: the centre is all that matters
+        dx, dy, dz = x - self.px, y - self.py, z - self.pz
+        n = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if n == 0.0:
+            return (-self.radius, self.r02, self.r12, self.r22)
+        return (n - self.radius, dx / n, dy / n, dz / n)
 
 
 class CapsuleShape(Shape):
@@ -196,6 +218,37 @@ class BoxShape(Shape):
     def __init__(self, model, data, geom, static):
         self.hx, self.hy, self.hz = (float(v) for v in model.geom_size[geom][:3])
         super().__init__(model, data, geom, static)
+
+    def distance(self, x, y, z):
+        # Shape.distance with the local query inlined: the box is the commonest shape touched
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = (self.r00, self.r01, self.r02, self.r10, self.r11,
+                                                       self.r12, self.r20, self.r21, self.r22)
+        dx, dy, dz = x - self.px, y - self.py, z - self.pz
+        lx = r00 * dx + r10 * dy + r20 * dz
+        ly = r01 * dx + r11 * dy + r21 * dz
+        lz = r02 * dx + r12 * dy + r22 * dz
+        sx = 1.0 if lx >= 0.0 else -1.0
+        sy = 1.0 if ly >= 0.0 else -1.0
+        sz = 1.0 if lz >= 0.0 else -1.0
+        qx, qy, qz = sx * lx - self.hx, sy * ly - self.hy, sz * lz - self.hz
+        if qx <= 0.0 and qy <= 0.0 and qz <= 0.0:  # inside: the nearest face
+            if qx >= qy and qx >= qz:
+                return (qx, sx * r00, sx * r10, sx * r20)
+            if qy >= qz:
+                return (qy, sy * r01, sy * r11, sy * r21)
+            return (qz, sz * r02, sz * r12, sz * r22)
+        ox = sx * qx if qx > 0.0 else 0.0
+        oy = sy * qy if qy > 0.0 else 0.0
+        oz = sz * qz if qz > 0.0 else 0.0
+        n = math.sqrt(ox * ox + oy * oy + oz * oz)
+        ox, oy, oz = ox / n, oy / n, oz / n
+        return (n, r00 * ox + r01 * oy + r02 * oz, r10 * ox + r11 * oy + r12 * oz, r20 * ox + r21 * oy + r22 * oz)
+
+    def on_face(self, nx, ny, nz):
+        # a face normal is a geom axis; an edge or corner normal of the rounded box is not
+        return (abs(self.r00 * nx + self.r10 * ny + self.r20 * nz) > FACE_PARALLEL
+                or abs(self.r01 * nx + self.r11 * ny + self.r21 * nz) > FACE_PARALLEL
+                or abs(self.r02 * nx + self.r12 * ny + self.r22 * nz) > FACE_PARALLEL)
 
     def local_distance(self, x, y, z):
         sx = 1.0 if x >= 0.0 else -1.0

@@ -24,6 +24,9 @@ LIFT_TOL = 1e-7
 """After sliding on a curved shape's tangent plane, re-follow the surface when the proxy has
 lifted more than this (m)."""
 PARALLEL = 1.0 - 1e-9
+WARM_TOL = 1e-8
+"""A warm-started solve is kept when its end point touches every plane's real surface within
+this (m); farther, the proxy slid off a face's edge along the face's plane."""
 WORKSPACE_LIMIT = 1e3
 """A device position farther than this from the origin on any axis (m) is garbage, like NaN."""
 
@@ -34,6 +37,11 @@ def _project(px: float, py: float, pz: float, planes: list) -> tuple[float, floa
     `planes` holds (nx, ny, nz, c, shape). Returns None when the planes admit no point (a
     degenerate set, e.g. opposite parallel faces closer than the proxy's diameter).
     """
+    if len(planes) == 1:  # the common case, a face: inline
+        nx, ny, nz, c, _ = planes[0]
+        lam = c - (nx * px + ny * py + nz * pz)
+        return (px + lam * nx, py + lam * ny, pz + lam * nz) if lam > 0.0 else (px, py, pz)
+
     def feasible(x, y, z, skip=()):
         for i, (nx, ny, nz, c, _) in enumerate(planes):
             if i not in skip and nx * x + ny * y + nz * z < c - CONTACT_TOL:
@@ -140,7 +148,7 @@ class GodObject:
         if self.sticking and self.x == x and self.y == y and self.z == z and self._still_stuck(xd, yd, zd):
             return True
         x, y, z = self.x, self.y, self.z
-        fx, fy, fz, first = self._move(x, y, z, xd, yd, zd)
+        fx, fy, fz, first = self._solve(x, y, z, xd, yd, zd)
         planes = self.planes
         if not planes:
             self.x, self.y, self.z = fx, fy, fz
@@ -293,14 +301,51 @@ class GodObject:
                 best = (hit[0], hit[1], hit[2], hit[3], s)
         return best
 
-    def _move(self, x, y, z, gx, gy, gz):
+    def _solve(self, x, y, z, gx, gy, gz):
+        """`_move` warm-started with last tick's planes on planar faces of static shapes.
+
+        A proxy resting on a face, an edge or a corner keeps resting on the same planes from
+        tick to tick: starting from them saves a sweep per plane. A face plane extends past
+        the face's edges, so the end point must still touch every plane's real surface; when
+        one does not (the proxy slid past an edge), the solve starts again from no planes.
+        Never unsafe either way: every motion is still swept against every shape.
+        """
+        warm = self.planes
+        if warm:
+            for p in warm:
+                s = p[4]
+                if not (s.static and s.on_face(p[0], p[1], p[2])):
+                    warm = None
+                    break
+            if warm:
+                fx, fy, fz, first = self._move(x, y, z, gx, gy, gz, warm)
+                r = self.radius
+                for p in self.planes:
+                    if p[4].distance(fx, fy, fz)[0] - r > WARM_TOL:
+                        break
+                else:
+                    return fx, fy, fz, first
+        return self._move(x, y, z, gx, gy, gz)
+
+    def _move(self, x, y, z, gx, gy, gz, warm=None):
         """Constrained motion toward (gx, gy, gz). Leaves the tight planes in self.planes.
 
-        Returns the end point and the first surface point reached (or the end point).
+        `warm`: planes the proxy rests on at (x, y, z) to start from. Returns the end point
+        and the first surface point reached (or the end point).
         """
         planes: list = []
         first = None
         tx, ty, tz = gx, gy, gz
+        if warm:
+            # through the proxy as it is now: it may sit up to 1e-7 m off a plane's old offset,
+            # and a target on the old offset would then lie a hair inside the face
+            warm = [(nx, ny, nz, nx * x + ny * y + nz * z, s) for nx, ny, nz, _, s in warm]
+            target = _project(gx, gy, gz, warm)
+            # only a device pressing into a plane keeps the proxy on it from the start
+            if target is not None and target != (gx, gy, gz):
+                planes = warm
+                first = (x, y, z)
+                tx, ty, tz = target
         for _ in range(MAX_ITERATIONS):
             dx, dy, dz = tx - x, ty - y, tz - z
             if dx * dx + dy * dy + dz * dz < 1e-24:

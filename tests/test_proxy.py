@@ -186,3 +186,53 @@ def test_unsupported_geom_is_named():
     d = mujoco.MjData(m)
     with pytest.raises(ValueError, match="terrain.*hfield"):
         shapes_of(m, d)
+
+
+class _ColdGodObject(GodObject):
+    """The same solver with no warm start: every tick's planes are found from scratch."""
+
+    __slots__ = ()
+
+    def _solve(self, x, y, z, gx, gy, gz):
+        return self._move(x, y, z, gx, gy, gz)
+
+
+SCENERY = (
+    '<geom type="plane" size="1 1 .01"/>'
+    '<geom type="box" size=".03 .03 .03" pos="-.03 0 .03" quat="0.9659 0 0 0.2588"/>'
+    '<geom type="box" size=".05 .02 .04" pos="0 -.05 .04"/>'
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.floats(-0.06, 0.06), st.floats(-0.06, 0.06), st.floats(-0.02, 0.08)),
+                min_size=2, max_size=30), st.floats(0.0, 1.0), st.floats(0.001, 0.01))
+def test_warm_start_finds_what_a_cold_solve_finds(path, mu, radius):
+    """Starting from last tick's face planes (GodObject._solve) ends where solving from no
+    planes ends, on faces, creases, corners and past edges, and never inside."""
+    _, _, shapes = world(SCENERY)
+    warm = GodObject(shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
+    cold = _ColdGodObject(shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
+    for p in path:
+        # small steps between the random points: faces held and slid on, not only jumps
+        sx, sy, sz = warm.x, warm.y, warm.z
+        for k in range(1, 6):
+            q = tuple(a + (b - a) * k / 5 for a, b in zip((sx, sy, sz), p))
+            warm.update(*q)
+            cold.update(*q)
+            assert deepest(warm) <= TOL
+            assert math.dist((warm.x, warm.y, warm.z), (cold.x, cold.y, cold.z)) < 1e-7
+            assert warm.contact == cold.contact
+
+
+def test_warm_start_leaves_a_face_past_its_edge():
+    """A proxy slid along a box's top past its edge drops around the edge toward the device
+    instead of floating on the face's extended plane."""
+    _, _, shapes = world('<geom type="box" size=".02 .02 .02"/>')
+    god = GodObject(shapes, 0.005, 0.0, 0.0, (0.0, 0.0, 0.05))
+    god.update(0.0, 0.0, 0.023)
+    assert god.contact and god.z == pytest.approx(0.025, abs=1e-9)
+    for k in range(1, 41):
+        god.update(0.001 * k, 0.0, 0.023 - 0.0005 * k)  # out over the +x edge and down
+    assert god.x > 0.02 and god.z < 0.02  # around the edge, on the side face
+    assert deepest(god) <= TOL
