@@ -62,7 +62,8 @@ class FingerParams:
 
 
 class SoftFingerProxy:
-    """One finger: god-object + torsion + virtual coupling. `update(...)` once per tick.
+    """One finger: god-object + torsion + virtual coupling. `update(...)` (or `hold()`) once
+    per tick, after mj_step1: it first turns α_p with the body it touched last tick.
 
     Outputs after `update`: fx, fy, fz (force on the finger, world, N), torque (M about n,
     N·m), tx, ty, tz (M·n, N·m), px, py, pz (contact point on the object, m), body (touched
@@ -84,6 +85,7 @@ class SoftFingerProxy:
         self.scale = params.scale
         self.max_speed = params.max_speed
         self.soft_start = params.soft_start
+        self.dt = 1e-3  # the last tick's period (s), for a hold() that has none of its own
         self._ramp = 1.0  # soft start: fraction of the clamps in force; 0 right after placement
         self.xd = self.yd = self.zd = 0.0
         self._sx = self._sy = self._sz = 0.0    # last spring stretch, for damping
@@ -117,9 +119,23 @@ class SoftFingerProxy:
 
     def hold(self) -> None:
         """No usable device sample this tick: zero force, the proxy only follows its body."""
+        if self.body >= 0:
+            self._follow_body()
+        self._rest()
+
+    def _rest(self) -> None:
+        """Zero force; the proxy stays on its body and out of anything that moved into it."""
         if self.placed:
             self.god.follow()
         self.clear_output()
+
+    def _follow_body(self) -> None:
+        """Eqs 41–42: the touched body's spin about n (rad/s, world) drags α_p, signed."""
+        tors = self.torsion
+        if tors is not None and tors.in_contact:
+            god = self.god
+            wx, wy, wz, _, _, _ = god.shape.cvel.tolist()
+            tors.follow_object(wx * god.nx + wy * god.ny + wz * god.nz, self.dt)
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
@@ -136,6 +152,9 @@ class SoftFingerProxy:
         Returns False when the sample was unusable (out of the workspace, non-finite twist):
         the finger then renders zero force and its proxy stays where it was.
         """
+        self.dt = dt
+        if self.body >= 0:  # in contact last tick: the body it touches turns α_p with it
+            self._follow_body()
         if not self.placed:
             ok = self.place(x, y, z) and twist == twist and twist not in (math.inf, -math.inf)
             self.clear_output()
@@ -150,7 +169,7 @@ class SoftFingerProxy:
         if ex * ex + ey * ey + ez * ez > reach * reach and self._spike_run < SPIKE_PATIENCE:
             self._spike_run += 1
             self.spikes_rejected += 1
-            self.hold()
+            self._rest()
             return False
         self._spike_run = 0
         god = self.god
@@ -221,13 +240,6 @@ class SoftFingerProxy:
         self.torque = M
         self.tx, self.ty, self.tz = M * nx, M * ny, M * nz
         return True
-
-    def follow_object(self, omega_x: float, omega_y: float, omega_z: float, dt: float) -> None:
-        """Eqs 41–42: the touched object's spin about n (rad/s, world) drags α_p, signed."""
-        tors = self.torsion
-        if tors is not None and tors.in_contact:
-            god = self.god
-            tors.follow_object(omega_x * god.nx + omega_y * god.ny + omega_z * god.nz, dt)
 
     @property
     def slip_events(self) -> int:

@@ -37,7 +37,7 @@ class Shape:
     """True when every face is planar (the solver then needs no curvature refinement)."""
 
     __slots__ = ("geom", "body", "name", "static", "rbound", "px", "py", "pz",
-                 "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22", "_xpos", "_xmat")
+                 "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22", "_xpos", "_xmat", "cvel")
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool) -> None:
         self.geom = geom
@@ -48,6 +48,9 @@ class Shape:
         # views into mjData, kept: each `data.geom_xpos` access builds a new array object
         self._xpos = data.geom_xpos[geom]
         self._xmat = data.geom_xmat[geom]
+        self.cvel = data.cvel[self.body]
+        """The body's velocity (ω, v) in MuJoCo's com-based frame, rad/s and m/s, current after
+        mj_step1: a view into mjData, ω read by the fingers that touch it (eqs 41–42)."""
         self.refresh()
 
     def refresh(self) -> None:

@@ -129,10 +129,6 @@ class ServoLoop:
         self._safe_next = False
         world.begin_step()
         for f in self.fingers:
-            if f.body >= 0:
-                wx, wy, wz = world.angular_velocity(f.body)
-                f.follow_object(wx, wy, wz, dt)
-        for f in self.fingers:
             s = samples[f.params.device_finger]
             if not ok or not s.valid or not s.is_finite():
                 if ok:

@@ -31,7 +31,6 @@ class World:
         self.moving = [s for s in self.shapes if not s.static]
         # views into mjData, kept: each attribute access of mjData builds a new array object
         self._xfrc = self.data.xfrc_applied
-        self._cvel = self.data.cvel
         self._xipos = self.data.xipos
         self._pushed: list[int] = []  # bodies with a wrench from last tick
         self._wrench: dict[int, list[float]] = {}
@@ -53,11 +52,6 @@ class World:
         mujoco.mj_step1(self.model, self.data)
         for s in self.moving:
             s.refresh()
-
-    def angular_velocity(self, body: int) -> tuple[float, float, float]:
-        """Angular velocity of a body, world frame (rad/s), valid after begin_step."""
-        wx, wy, wz, _, _, _ = self._cvel[body].tolist()
-        return wx, wy, wz
 
     def push(self, body: int, fx, fy, fz, px, py, pz, tx, ty, tz) -> None:
         """Add force (N) at world point p (m) plus a pure torque (N·m) on `body` for this tick."""
