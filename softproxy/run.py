@@ -48,7 +48,7 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
 
     `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog.
     """
-    world = World(scene.load_model())
+    world = World(scene.load_model(), force_shading=scene.force_shading)
     fingers = []
     for params in scene.fingers:
         name = finger_model or params.model

@@ -3,7 +3,9 @@
 A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked):
 
     [scene]            mjcf (required, path relative to the TOML), description, rate_hz (1000),
-                       duration_s (5.0), audit (true: track proxy penetration every tick)
+                       duration_s (5.0), audit (true: track proxy penetration every tick),
+                       force_shading (false: mesh contacts report the faceted normal; true:
+                       the normal interpolated from the vertex normals)
     [measure]          object (body name), axis ([x, y, z]), start_s: the run reports how far
                        the object turned about the axis from start_s (e.g. the end of a
                        grasp's squeeze) to the end of the run
@@ -30,7 +32,7 @@ import mujoco
 from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
 
-_SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit"}
+_SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit", "force_shading"}
 _MEASURE_KEYS = {"object", "axis", "start_s"}
 _FINGER_KEYS = {f.name for f in dataclasses.fields(FingerParams)}
 
@@ -57,6 +59,7 @@ class Scene:
     rate_hz: float = 1000.0
     duration_s: float = 5.0
     audit: bool = True
+    force_shading: bool = False
     fingers: list[FingerParams] = field(default_factory=list)
     device: dict = field(default_factory=dict)
     measure: MeasureSpec | None = None
@@ -108,6 +111,12 @@ def _number(where: str, key: str, value, *, positive=False, non_negative=False) 
         raise SceneError(f"{where}: {key} must be > 0, got {value!r}")
     if non_negative and value < 0.0:
         raise SceneError(f"{where}: {key} must be >= 0, got {value!r}")
+    return value
+
+
+def _flag(where: str, key: str, value) -> bool:
+    if not isinstance(value, bool):
+        raise SceneError(f"{where}: {key} must be true or false, got {value!r}")
     return value
 
 
@@ -171,7 +180,8 @@ def load_scene(name_or_path: str) -> Scene:
         name=path.stem, path=path, mjcf=mjcf, description=str(s.get("description", "")),
         rate_hz=_number(where, "scene.rate_hz", s.get("rate_hz", 1000.0), positive=True),
         duration_s=_number(where, "scene.duration_s", s.get("duration_s", 5.0), positive=True),
-        audit=bool(s.get("audit", True)),
+        audit=_flag(where, "scene.audit", s.get("audit", True)),
+        force_shading=_flag(where, "scene.force_shading", s.get("force_shading", False)),
     )
     defaults = _table(where, doc, "finger_defaults", _FINGER_KEYS)
     fingers = doc.get("finger", [])

@@ -9,6 +9,8 @@ MuJoCo's Euler or implicit integrator (RK4 has no split step).
 
 from __future__ import annotations
 
+import functools
+
 import mujoco
 
 from softproxy.geometry import Shape, shapes_of
@@ -17,7 +19,10 @@ from softproxy.geometry import Shape, shapes_of
 class World:
     """A MuJoCo model and data plus the shapes the fingers touch. SI units, world frame."""
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData | None = None, mesh_shape=None) -> None:
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData | None = None, mesh_shape=None,
+                 force_shading: bool = False) -> None:
+        """`force_shading`: mesh contacts report the normal interpolated from the vertex normals
+        (smooth feel of a faceted surface); the proxy still stops on the true triangles."""
         if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
             raise ValueError("the servo loop steps MuJoCo in two halves; RK4 cannot: use Euler or implicitfast")
         self.model = model
@@ -26,7 +31,7 @@ class World:
         if mesh_shape is None and any(int(t) == int(mujoco.mjtGeom.mjGEOM_MESH) for t in model.geom_type):
             from softproxy.mesh import MeshShape  # trimesh is imported only for scenes with meshes
 
-            mesh_shape = MeshShape
+            mesh_shape = functools.partial(MeshShape, shading=True) if force_shading else MeshShape
         self.shapes: list[Shape] = shapes_of(model, self.data, mesh_shape)
         self.moving = [s for s in self.shapes if not s.static]
         # views into mjData, kept: each attribute access of mjData builds a new array object
