@@ -42,6 +42,20 @@ def _project(px: float, py: float, pz: float, planes: list) -> tuple[float, floa
         lam = c - (nx * px + ny * py + nz * pz)
         return (px + lam * nx, py + lam * ny, pz + lam * nz) if lam > 0.0 else (px, py, pz)
 
+    for nx, ny, nz, c, _ in planes:
+        if nx * px + ny * py + nz * pz < c - CONTACT_TOL:
+            break
+    else:
+        return (px, py, pz)
+    if len(planes) == 3:  # a proxy held in a corner: try the corner first
+        corner = _corner(px, py, pz, planes)
+        if corner is not None:
+            return corner
+    return _project_by_enumeration(px, py, pz, planes)
+
+
+def _project_by_enumeration(px: float, py: float, pz: float, planes: list) -> tuple[float, float, float] | None:
+    """`_project` by trying active sets of one, two, then three planes in turn."""
     def feasible(x, y, z, skip=()):
         for i, (nx, ny, nz, c, _) in enumerate(planes):
             if i not in skip and nx * x + ny * y + nz * z < c - CONTACT_TOL:
@@ -88,6 +102,38 @@ def _project(px: float, py: float, pz: float, planes: list) -> tuple[float, floa
             qz = (ax * (by * cc - cb * cy) - ay * (bx * cc - cb * cx) + ca * (bx * cy - by * cx)) / det
             return (qx, qy, qz)
     return None
+
+
+def _corner(px: float, py: float, pz: float, planes: list) -> tuple[float, float, float] | None:
+    """The point q on all three planes when it is the projection of p, i.e. q - p = Σ λ_i n_i
+    with every λ_i ≥ 0 (each plane pushes, none pulls); otherwise None."""
+    (ax, ay, az, ca, _), (bx, by, bz, cb, _), (cx, cy, cz, cc, _) = planes
+    # rows of the inverse of N = [a; b; c] are the cross products over the determinant
+    ux, uy, uz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx   # b × c
+    vx, vy, vz = cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax   # c × a
+    wx, wy, wz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx   # a × b
+    det = ax * ux + ay * uy + az * uz
+    if abs(det) <= 1e-12:
+        return None
+    # distances to push p along each plane's normal: e_i = c_i - n_i·p; q = p + N⁻¹ e
+    ea = ca - (ax * px + ay * py + az * pz)
+    eb = cb - (bx * px + by * py + bz * pz)
+    ec = cc - (cx * px + cy * py + cz * pz)
+    dx = (ux * ea + vx * eb + wx * ec) / det
+    dy = (uy * ea + vy * eb + wy * ec) / det
+    dz = (uz * ea + vz * eb + wz * ec) / det
+    # q - p = Nᵀλ and N q = c give G λ = e with the Gram matrix G = N Nᵀ (unit normals:
+    # ones on its diagonal); λ = G⁻¹ e by cofactors, only its signs matter
+    gab, gac, gbc = ax * bx + ay * by + az * bz, ax * cx + ay * cy + az * cz, bx * cx + by * cy + bz * cz
+    c00, c11, c22 = 1.0 - gbc * gbc, 1.0 - gac * gac, 1.0 - gab * gab
+    c01, c02, c12 = gac * gbc - gab, gab * gbc - gac, gab * gac - gbc
+    gdet = c00 + gab * c01 + gac * c02
+    if gdet <= 1e-12:
+        return None
+    if (c00 * ea + c01 * eb + c02 * ec) / gdet < 0.0 or (c01 * ea + c11 * eb + c12 * ec) / gdet < 0.0 \
+            or (c02 * ea + c12 * eb + c22 * ec) / gdet < 0.0:
+        return None
+    return (px + dx, py + dy, pz + dz)
 
 
 class GodObject:

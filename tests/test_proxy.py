@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from softproxy.geometry import shapes_of
+from softproxy import proxy as proxy_module
 from softproxy.proxy import GodObject
 
 TOL = 1e-6  # the promise: never more than 1 µm inside anything
@@ -236,3 +237,21 @@ def test_warm_start_leaves_a_face_past_its_edge():
         god.update(0.001 * k, 0.0, 0.023 - 0.0005 * k)  # out over the +x edge and down
     assert god.x > 0.02 and god.z < 0.02  # around the edge, on the side face
     assert deepest(god) <= TOL
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1), st.floats(-0.05, 0.05)),
+                min_size=3, max_size=3).filter(lambda ps: all(a * a + b * b + c * c > 0.01 for a, b, c, _ in ps)),
+       point)
+def test_corner_shortcut_is_the_projection(raw, p):
+    """The corner tried first for three planes (`_corner`) is the point the full active-set
+    enumeration finds whenever it answers (KKT: on all planes, every multiplier ≥ 0)."""
+    planes = []
+    for a, b, c, off in raw:
+        n = math.sqrt(a * a + b * b + c * c)
+        planes.append((a / n, b / n, c / n, off, None))
+    corner = proxy_module._corner(*p, planes)
+    if corner is None:
+        return
+    full = proxy_module._project_by_enumeration(*p, planes)
+    assert full is not None and math.dist(corner, full) < 1e-9
