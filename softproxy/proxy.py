@@ -108,7 +108,7 @@ def _corner(px: float, py: float, pz: float, planes: list) -> tuple[float, float
     """The point q on all three planes when it is the projection of p, i.e. q - p = Σ λ_i n_i
     with every λ_i ≥ 0 (each plane pushes, none pulls); otherwise None."""
     (ax, ay, az, ca, _), (bx, by, bz, cb, _), (cx, cy, cz, cc, _) = planes
-    # rows of the inverse of N = [a; b; c] are the cross products over the determinant
+    # the columns of the inverse of N = [a; b; c] (normals as rows) are b × c, c × a, a × b over det N
     ux, uy, uz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx   # b × c
     vx, vy, vz = cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax   # c × a
     wx, wy, wz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx   # a × b
