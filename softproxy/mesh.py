@@ -315,7 +315,7 @@ class MeshShape(Shape):
     flat = False
     __slots__ = (
         "mesh", "label", "signed", "shading", "defects", "triangles", "_tri", "_edges", "_pn", "_vn", "_adj", "_plane",
-        "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_verts", "_centre", "_rho", "_slack",
+        "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
         "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_hint", "rebuilds",
     )
@@ -377,8 +377,13 @@ class MeshShape(Shape):
         self._fn = n
         normals = np.concatenate([n[:, None, :], out], axis=1)                  # (faces, 4, 3)
         points = np.concatenate([a[:, None, :], starts], axis=1)
-        self._q = np.concatenate([normals, -(normals * points).sum(2, keepdims=True)], axis=2)
-        self._verts = starts
+        q = np.concatenate([normals, -(normals * points).sum(2, keepdims=True)], axis=2)
+        # and |p - m|² - |p|² for the triangle's centre m (the bounding-sphere bound, tight
+        # where the edge lines are not: far along a thin triangle that points at p)
+        centre = (a + b + c) / 3.0
+        self._q = np.concatenate([q.reshape(-1, 16), -2.0 * centre, (centre * centre).sum(1)[:, None]], axis=1)
+        self._rhos = np.sqrt(np.max([((a - centre) ** 2).sum(1), ((b - centre) ** 2).sum(1),
+                                     ((c - centre) ** 2).sum(1)], axis=0))
 
         # pseudo-normals: an edge's is the sum of its two faces' normals, a vertex's the sum
         # of its faces' normals weighted by the face angle at the vertex
@@ -411,10 +416,38 @@ class MeshShape(Shape):
         self._pn = [(tuple(n[i]), *map(tuple, enormal[i]), *map(tuple, fv[i])) for i in range(len(f))]
         self._vn = [tuple(row) for row in fv.reshape(-1, 9).tolist()]
 
+        # vertex fans, for the certificate of a nearest point on a vertex: each triangle's three
+        # vertex ids; per vertex, its triangles and the edges to its ring of neighbours (from
+        # the vertex), and a circular cone (axis, cosine) of directions that see every edge
+        # going away from them (n·e <= 0): inside it, the whole fan lies behind the tangent plane
+        self._tv = [tuple(row) for row in f.tolist()]
+        order = np.argsort(f.reshape(-1), kind="stable")
+        bounds = np.searchsorted(f.reshape(-1)[order], np.arange(len(v) + 1))
+        tri_of = (order // 3).tolist()
+        bounds = bounds.tolist()
+        pairs = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        pairs = np.unique(np.concatenate([pairs, pairs[:, ::-1]]), axis=0)
+        pstart = np.searchsorted(pairs[:, 0], np.arange(len(v) + 1)).tolist()
+        evec = v[pairs[:, 1]] - v[pairs[:, 0]]
+        eunit = evec / np.linalg.norm(evec, axis=1)[:, None]
+        fans, rings, cones = [], [], []
+        evec_l, eunit_l, vn_l = evec.tolist(), eunit, vnormal.tolist()
+        for i in range(len(v)):
+            fans.append(frozenset(tri_of[bounds[i]:bounds[i + 1]]))
+            s0, s1 = pstart[i], pstart[i + 1]
+            rings.append(tuple(c for e in evec_l[s0:s1] for c in e))
+            if s1 > s0:
+                # the largest cone about the vertex normal a inside {n: n·e <= 0 for every edge e}
+                sines = -(eunit_l[s0:s1] @ vnormal[i])
+                smin = float(sines.min())
+                cos = math.sqrt(max(0.0, 1.0 - smin * smin)) + 1e-12 if smin > 0.0 else 2.0
+            else:
+                cos = 2.0
+            cones.append((*vn_l[i], cos))
+        self._fan, self._ring, self._vcone = fans, rings, cones
+
         # the static grid of triangle centres
-        centre = (a + b + c) / 3.0
-        rho = np.sqrt(np.max([((a - centre) ** 2).sum(1), ((b - centre) ** 2).sum(1), ((c - centre) ** 2).sum(1)], axis=0))
-        self._centre, self._rho = centre, float(rho.max())
+        self._centre, self._rho = centre, float(self._rhos.max())
         lo, hi = centre.min(0), centre.max(0)
         mean_edge = float(lengths.mean())
         h = max(2.0 * self._rho, 2.0 * mean_edge, float((hi - lo).max()) / GRID_CELLS, 1e-9)
@@ -430,9 +463,10 @@ class MeshShape(Shape):
     # -- the neighbourhood ------------------------------------------------------------------
     def _neighbourhood(self, cx: float, cy: float, cz: float, radius: float, slack: float) -> None:
         """Cache the triangles that may lie within `radius` (m) of c, sorted by a lower bound on
-        their distance: sqrt(h² + b²), h the height over the plane, b how far c lies beyond
-        the farthest edge line (exact over the face and most of the edges, short of it near a
-        vertex). `slack` (m): how far queries may drift from c before a new one pays."""
+        their distance: the larger of sqrt(h² + b²), h the height over the plane, b how far c
+        lies beyond the farthest edge line (exact over the face and most of the edges, short of
+        it near a vertex), and the distance to the triangle's bounding sphere about its centre.
+        `slack` (m): how far queries may drift from c before a new one pays."""
         self.rebuilds += 1
         self._cx, self._cy, self._cz, self._cr, self._cslack = cx, cy, cz, radius, slack
         self._above = {}
@@ -455,10 +489,18 @@ class MeshShape(Shape):
             self._cd, self._ci, self._cids, self._cpos = [], [], None, {}
             return
         ids = np.concatenate(chunks) if len(chunks) > 1 else chunks[0]
-        v = self._q[ids] @ np.array((cx, cy, cz, 1.0))   # (k, 4): height, beyond each edge
-        beyond = v[:, 1:].max(axis=1)
+        # one matrix product (k, 20) @ (20, 5): height, beyond each edge line, |c - m|² - |c|²
+        p = np.zeros((20, 5))
+        for j in range(5):
+            p[4 * j:4 * j + 3, j] = (cx, cy, cz)
+            p[4 * j + 3, j] = 1.0
+        v = self._q[ids] @ p
+        beyond = v[:, 1:4].max(axis=1)
         np.maximum(beyond, 0.0, out=beyond)
         bound = v[:, 0] * v[:, 0] + beyond * beyond
+        sphere = np.sqrt(np.maximum(v[:, 4] + (cx * cx + cy * cy + cz * cz), 0.0)) - self._rhos[ids]
+        np.maximum(sphere, 0.0, out=sphere)
+        np.maximum(bound, sphere * sphere, out=bound)
         sort = np.argsort(bound)
         bound = bound[sort]
         n = int(np.searchsorted(bound, radius * radius, side="right"))
@@ -534,7 +576,7 @@ class MeshShape(Shape):
         if feature == 0:
             return self._above_list(hint, side0, n)
         if feature > 3:
-            return None
+            return self._vertex_certified(self._tv[hint][feature - 4], nx, ny, nz, n)
         other = self._adj[hint][feature - 1]
         if other < 0 or other not in self._cpos:
             return None
@@ -553,6 +595,32 @@ class MeshShape(Shape):
         if a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
             return None  # n outside the cone: a concave edge
         return self._merged(self._above_list(hint, side0, n), self._above_list(other, side1, n))
+
+    def _vertex_certified(self, vertex: int, nx: float, ny: float, nz: float, n: int):
+        """`_certified` when q is a vertex: the tangent plane there passes through the vertex,
+        and a fan triangle (the vertex's own) lies behind it when every edge leaving the vertex
+        does (n·e <= ABOVE_TOL; first by the precomputed cone, one dot product). Then the
+        positions below n of the triangles outside the fan are left, else None. Where 50 thin
+        triangles meet (a uv-sphere's pole) this is what keeps a proxy held there cheap."""
+        ax, ay, az, cos = self._vcone[vertex]
+        if nx * ax + ny * ay + nz * az < cos:
+            ring = self._ring[vertex]
+            for k in range(0, len(ring), 3):
+                if nx * ring[k] + ny * ring[k + 1] + nz * ring[k + 2] > ABOVE_TOL:
+                    return None
+        key = ("v", vertex)
+        memo = self._above.get(key)
+        if memo is None:
+            memo = self._above[key] = [0, []]
+        done, out = memo
+        if n > done:
+            fan, ci = self._fan[vertex], self._ci
+            for k in range(done, n):
+                if ci[k] not in fan:
+                    out.append(k)
+            memo[0] = n
+            return out
+        return out[:bisect.bisect_left(out, n)] if out and out[-1] >= n else out
 
     @staticmethod
     def _merged(first: list, second: list) -> list:
