@@ -16,6 +16,8 @@ import numpy as np
 from softproxy.device import Device
 from softproxy.finger import SoftFingerProxy
 from softproxy.fingertip import model as fingertip_model
+from softproxy.fingertip_sensors import attach as attach_sensors
+from softproxy.fingertip_sensors import summaries as sensor_summaries
 from softproxy.recording import RecordingDevice
 from softproxy.scene import Scene, SceneError
 from softproxy.servo import ServoLoop
@@ -47,14 +49,21 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     """World + fingers + servo loop for `scene`, driven by `device`.
 
     `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog.
+    The fingers whose scene entry asks for `tactile` or `sensing` get their channels in
+    `loop.sensors` (softproxy.fingertip_sensors); no other finger costs the tick anything.
     """
     world = World(scene.load_model(), force_shading=scene.force_shading)
     fingers = []
     for params in scene.fingers:
         name = finger_model or params.model
         fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
-    return ServoLoop(world, fingers, device, rate_hz or scene.rate_hz,
+    loop = ServoLoop(world, fingers, device, rate_hz or scene.rate_hz,
                      audit=scene.audit if audit is None else audit, overrun_watchdog=realtime)
+    try:
+        attach_sensors(loop, scene.tactile, scene.sensing)
+    except ValueError as exc:
+        raise SceneError(f"{scene.path}: {exc}") from None
+    return loop
 
 
 def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
@@ -137,6 +146,8 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         }
         for f in loop.fingers
     ]
+    for i, channels in sensor_summaries(loop).items():  # only the fingers whose scene asked
+        result["fingers"][i].update(channels)
     result["tick_us"] = loop.stats.summary_us()
     result["deadline_misses"] = loop.stats.misses if realtime else None
     result["faults"] = dict(loop.faults)

@@ -9,8 +9,16 @@ A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked
     [measure]          object (body name), axis ([x, y, z]), start_s: the run reports how far
                        the object turned about the axis from start_s (e.g. the end of a
                        grasp's squeeze) to the end of the run
-    [finger_defaults]  any `FingerParams` field, for every finger
-    [[finger]]         one per finger: any `FingerParams` field (name, device_finger, offset, ...)
+    [finger_defaults]  any `FingerParams` field, for every finger, and `tactile` / `sensing`
+    [[finger]]         one per finger: any `FingerParams` field (name, device_finger, offset, ...),
+                       and the fidelity options (softproxy.fingertip_sensors; off unless asked):
+                       tactile = true, or a table of rate_hz (100), radius, side (m; default
+                         the finger radius and 2 × it), cells (10), supersample (2),
+                         youngs_modulus (Pa), indentation ("force" | "depth"), max_substeps
+                         (10), pad, distal ([x, y, z] world), history (20 frames)
+                       sensing = true, or a table of rate_hz (100), noise ("none" | "gauss" |
+                         "quantise"), seed (0), pad, distal, history
+                       a finger's table is merged over [finger_defaults]'s; false turns it off
     [device]           handed as is to the device named by its `type` (e.g. "sim")
 
 Scenes are found by name in the folders registered under the `softproxy.scene_dirs` entry
@@ -31,10 +39,16 @@ import mujoco
 
 from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
+from softproxy.fingertip_sensors import SensingSpec, TactileSpec
 
 _SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit", "force_shading"}
 _MEASURE_KEYS = {"object", "axis", "start_s"}
 _FINGER_KEYS = {f.name for f in dataclasses.fields(FingerParams)}
+_OPTION_SPECS = {"tactile": TactileSpec, "sensing": SensingSpec}
+_OPTION_KEYS = {name: {f.name for f in dataclasses.fields(spec)} for name, spec in _OPTION_SPECS.items()}
+_OPTION_STRINGS = {"indentation", "noise"}
+_OPTION_VECTORS = {"pad", "distal"}
+_OPTION_INTEGERS = {"cells", "supersample", "max_substeps", "history", "seed"}
 
 
 class SceneError(ValueError):
@@ -63,6 +77,8 @@ class Scene:
     fingers: list[FingerParams] = field(default_factory=list)
     device: dict = field(default_factory=dict)
     measure: MeasureSpec | None = None
+    tactile: list[TactileSpec | None] = field(default_factory=list)  # per finger; None = off
+    sensing: list[SensingSpec | None] = field(default_factory=list)  # per finger; None = off
 
     def load_model(self) -> mujoco.MjModel:
         """Compile the scene's MJCF; SceneError naming the file on failure."""
@@ -131,10 +147,48 @@ def _table(where: str, doc: dict, key: str, allowed: set | None) -> dict:
     return t
 
 
-def _finger(where: str, defaults: dict, entry: dict, index: int) -> FingerParams:
+def _option(where: str, name: str, label: str, default, value):
+    """A finger's `tactile` / `sensing` entry (true, false or a table, over the default's) -> spec or None."""
+    for v, lab in ((default, f"finger_defaults.{name}"), (value, label)):
+        if v is not None and not isinstance(v, (bool, dict)):
+            raise SceneError(f"{where}: {lab} must be true, false or a table, got {v!r}")
+    chosen = value if value is not None else default
+    if chosen is None or chosen is False:
+        return None
+    table = dict(default) if isinstance(default, dict) else {}
+    if isinstance(value, dict):
+        table.update(value)
+    unknown = set(table) - _OPTION_KEYS[name]
+    if unknown:
+        raise SceneError(f"{where}: {label} has unknown field(s) {sorted(unknown)}; "
+                         f"expected some of {sorted(_OPTION_KEYS[name])}")
+    for key, v in table.items():
+        field_name = f"{label}.{key}"
+        if key in _OPTION_STRINGS:
+            if not isinstance(v, str):
+                raise SceneError(f"{where}: {field_name} must be a string, got {v!r}")
+        elif key in _OPTION_VECTORS:
+            if not isinstance(v, list) or len(v) != 3:
+                raise SceneError(f"{where}: {field_name} must be [x, y, z] (a world direction), got {v!r}")
+            table[key] = tuple(_number(where, field_name, c) for c in v)
+        elif key in _OPTION_INTEGERS:
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise SceneError(f"{where}: {field_name} must be an integer, got {v!r}")
+        else:
+            table[key] = _number(where, field_name, v, positive=True)
+    try:
+        return _OPTION_SPECS[name](**table)
+    except (ValueError, TypeError) as exc:
+        raise SceneError(f"{where}: {label}: {exc}") from None
+
+
+def _finger(where: str, defaults: dict, entry: dict, index: int) -> tuple[FingerParams, TactileSpec | None,
+                                                                           SensingSpec | None]:
     if not isinstance(entry, dict):
         raise SceneError(f"{where}: finger[{index}] must be a table")
-    merged = {**defaults, **entry}
+    options = [_option(where, name, f"finger[{index}].{name}", defaults.get(name), entry.get(name))
+               for name in _OPTION_SPECS]
+    merged = {k: v for k, v in {**defaults, **entry}.items() if k not in _OPTION_SPECS}
     unknown = set(merged) - _FINGER_KEYS
     if unknown:
         raise SceneError(f"{where}: finger[{index}] has unknown field(s) {sorted(unknown)}; expected some of {sorted(_FINGER_KEYS)}")
@@ -154,7 +208,7 @@ def _finger(where: str, defaults: dict, entry: dict, index: int) -> FingerParams
     if "device_finger" in merged and (isinstance(merged["device_finger"], bool) or not isinstance(merged["device_finger"], int)):
         raise SceneError(f"{where}: finger[{index}].device_finger must be an integer, got {merged['device_finger']!r}")
     try:
-        return FingerParams(**merged)
+        return FingerParams(**merged), options[0], options[1]
     except (ValueError, TypeError) as exc:
         raise SceneError(f"{where}: finger[{index}]: {exc}") from None
 
@@ -183,11 +237,14 @@ def load_scene(name_or_path: str) -> Scene:
         audit=_flag(where, "scene.audit", s.get("audit", True)),
         force_shading=_flag(where, "scene.force_shading", s.get("force_shading", False)),
     )
-    defaults = _table(where, doc, "finger_defaults", _FINGER_KEYS)
+    defaults = _table(where, doc, "finger_defaults", _FINGER_KEYS | set(_OPTION_SPECS))
     fingers = doc.get("finger", [])
     if not isinstance(fingers, list) or not fingers:
         raise SceneError(f"{where}: at least one [[finger]] table is required")
-    scene.fingers = [_finger(where, defaults, f, i) for i, f in enumerate(fingers)]
+    parsed = [_finger(where, defaults, f, i) for i, f in enumerate(fingers)]
+    scene.fingers = [p[0] for p in parsed]
+    scene.tactile = [p[1] for p in parsed]
+    scene.sensing = [p[2] for p in parsed]
     scene.device = _table(where, doc, "device", None)
     if "measure" in doc:
         g = _table(where, doc, "measure", _MEASURE_KEYS)

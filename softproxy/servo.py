@@ -91,6 +91,7 @@ class ServoLoop:
         self._safe_next = False  # the watchdog asks for one tick of zero force
         self._started = False
         self.last_device_error = ""  # what the device said when it last failed
+        self.sensors = []  # fingertip sensor channels (softproxy.fingertip_sensors): tick(loop) each tick
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -144,6 +145,8 @@ class ServoLoop:
             if self.audit:
                 f.audit()
             self._send(f, safe)
+        for ch in self.sensors:
+            ch.tick(self)
         world.end_step()
         self.t += dt
         self.ticks += 1
