@@ -41,7 +41,7 @@ import mujoco
 import numpy as np
 import trimesh
 
-from softproxy.geometry import CONTACT_TOL, GRAZE, Shape
+from softproxy.geometry import CONTACT_TOL, FACE_PARALLEL, GRAZE, Shape
 
 ABOVE_TOL = 1e-9
 """A vertex this far (m) above a certificate plane counts as above it. MuJoCo stores vertices
@@ -66,6 +66,9 @@ DEGENERATE = 1e-6
 (zero-area: coincident or collinear vertices, within float32 rounding)."""
 GRID_CELLS = 64
 """Most grid cells per axis."""
+RECENT_HITS = 4
+"""Triangles a sweep stopped on that `on_face` remembers (a proxy held in a concave corner of
+a mesh rests on up to three)."""
 
 
 class MeshWarning(UserWarning):
@@ -318,6 +321,7 @@ class MeshShape(Shape):
         "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
         "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_hint", "rebuilds",
+        "_recent", "_dkey", "_dval",
     )
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
@@ -349,6 +353,9 @@ class MeshShape(Shape):
         self._above: dict = {}
         self._hint = -1
         self.rebuilds = 0  # how often the neighbourhood was rebuilt
+        self._recent: list = []  # the triangles last hit by sweeps (RECENT_HITS at most), newest last
+        self._dkey = None  # the last distance query (geom frame) and its answer
+        self._dval = None
 
     # -- load-time tables ---------------------------------------------------------------
     def _build(self, v: np.ndarray, f: np.ndarray) -> None:
@@ -632,8 +639,35 @@ class MeshShape(Shape):
         return sorted(set(first).union(second))
 
     # -- queries (geom frame) ---------------------------------------------------------------
+    def on_face(self, nx: float, ny: float, nz: float) -> bool:
+        """True when n (world) is the normal of a triangle a recent sweep stopped on: a contact
+        inside a face, whose plane holds while the proxy stays over the face (the god-object
+        then warm-starts from it, and checks that the proxy still touches the mesh after)."""
+        lx = self.r00 * nx + self.r10 * ny + self.r20 * nz
+        ly = self.r01 * nx + self.r11 * ny + self.r21 * nz
+        lz = self.r02 * nx + self.r12 * ny + self.r22 * nz
+        tris = self._tri
+        for i in self._recent:
+            t = tris[i]
+            dot = lx * t[15] + ly * t[16] + lz * t[17]
+            if dot > FACE_PARALLEL or dot < -FACE_PARALLEL:
+                return True
+        return False
+
     def local_distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
-        """Signed distance (m) to the nearest triangle and the outward unit normal, geom frame."""
+        """Signed distance (m) to the nearest triangle and the outward unit normal, geom frame.
+
+        The last answer is kept: the god-object asks again about the point it holds (once per
+        constraint plane). The key is the point in the geom frame, where the triangles never
+        move, so a new pose (`refresh`) changes the key, never the answer to it."""
+        key = (x, y, z)
+        if key == self._dkey:
+            return self._dval
+        self._dkey = key
+        self._dval = value = self._local_distance(x, y, z)
+        return value
+
+    def _local_distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
         best, qx, qy, qz, feature, tri = self._nearest(x, y, z)
         if best > 0.0:
             nx, ny, nz = (x - qx) / best, (y - qy) / best, (z - qz) / best
@@ -840,6 +874,11 @@ class MeshShape(Shape):
     def _world_hit(self, tri, hit, ax, ay, az, ux, uy, uz, r, graze):
         """The hit with its normal turned into the world frame (shaded when asked)."""
         self._hint = tri
+        recent = self._recent
+        if tri not in recent:
+            recent.append(tri)
+            if len(recent) > RECENT_HITS:
+                del recent[0]
         lam, nx, ny, nz, _ = hit
         if self.shading:
             qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz

@@ -542,3 +542,108 @@ def test_warning_names_geom_mesh_and_file(tmp_path, good):
     assert s.defects and s.signed
     assert s.distance(0.0, 0.0, 0.0)[0] < -0.02  # the centre is inside
     assert s.distance(0.0, 0.0, 0.05)[0] > 0.0
+
+
+# ---------------------------------------------------------------------------------------
+# Cheap paths: they must give the answers of the full scans
+# ---------------------------------------------------------------------------------------
+
+@functools.cache
+def uv_sphere(tmp: str):
+    """trimesh's uv-sphere (radius 5 cm, ~10k triangles): ~100 thin triangles meet at each pole."""
+    mesh = trimesh.creation.uv_sphere(radius=0.05, count=[51, 51])
+    mesh.merge_vertices()
+    mesh.update_faces(mesh.nondegenerate_faces())
+    return mesh_model(Path(tmp) / "uv.obj", mesh)
+
+
+def test_held_on_a_pole_is_exact_and_cheap(tmp):
+    """A proxy pressed onto the pole vertex of a uv-sphere: the vertex certificate skips the
+    fan, and the answers agree with the reference, for points about the pole and sweeps from
+    there in every direction."""
+    from softproxy import mesh as mesh_module
+
+    m, d, shapes = uv_sphere(tmp)
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    pole = v[np.argmax(v[:, 2])]
+    r = 0.005
+    god = GodObject(shapes, r, 0.5, 0.4, (0.0, 0.0, 0.08))
+    for k in range(50):
+        god.update(1e-5 * math.sin(0.1 * k), 0.0, pole[2] + r - 0.003)
+        assert deepest(god) <= TOL
+    assert god.contact
+    rng = np.random.default_rng(7)
+    pts = pole + np.array([0.0, 0.0, r]) + rng.normal(scale=2e-5, size=(30, 3))
+    dist = reference_distance(pts, v, f)
+    calls = 0
+    closest = mesh_module._closest
+
+    def counted(*a):
+        nonlocal calls
+        calls += 1
+        return closest(*a)
+
+    mesh_module._closest = counted
+    try:
+        for p, dd in zip(pts, dist):
+            assert abs(s.distance(*p)[0] - dd) < 1e-9
+    finally:
+        mesh_module._closest = closest
+    assert calls <= 3 * len(pts)  # the hint (and its neighbour), not the ~100 triangles of the fan
+    start = np.array((god.x, god.y, god.z))
+    for u in rng.normal(size=(20, 3)):
+        dvec = u / np.linalg.norm(u) * 2e-4
+        hit = s.sweep(*start, *dvec, r)
+        t, along = distances_along(v, f, start, dvec, samples=50)
+        if hit is None:
+            assert along.min() >= r - 1e-9
+        else:
+            assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
+            assert reference_distance((start + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+
+
+def test_distance_answer_kept_only_for_the_same_point_and_pose(tmp_path):
+    """The last distance is kept for a repeated query; a moved mesh (refresh) answers anew."""
+    m, d, shapes = mesh_model(tmp_path / "box.obj", trimesh.creation.box(extents=(0.1, 0.1, 0.1)),
+                              body='mocap="true"')
+    s = mesh_shape(shapes)
+    p = (0.01, 0.02, 0.08)
+    first = s.distance(*p)
+    assert first[0] == pytest.approx(0.03, abs=1e-7)
+    assert s.distance(*p) == first
+    d.mocap_pos[0] = (0.0, 0.0, 0.01)
+    mujoco.mj_forward(m, d)
+    s.refresh()
+    assert s.distance(*p)[0] == pytest.approx(0.02, abs=1e-7)
+    d.mocap_quat[0] = (math.cos(math.pi / 8), math.sin(math.pi / 8), 0.0, 0.0)  # 45° about x
+    mujoco.mj_forward(m, d)
+    s.refresh()
+    dd, nx, ny, nz = s.distance(*p)
+    # the box's +z face turned to face (0, -1, 1)/√2, its -y face to (0, -1, -1)/√2 ...: the
+    # corner-free answer from the rotated frame
+    local = np.array(p) - d.geom_xpos[0]
+    local = d.geom_xmat[0].reshape(3, 3).T @ local
+    q = np.clip(local, -0.05, 0.05)
+    assert dd == pytest.approx(np.linalg.norm(local - q), abs=1e-7)
+
+
+def test_on_face_only_for_faces_just_hit(tmp):
+    """on_face: true for the normal of a face a sweep stopped on, false for an edge's or a
+    vertex's normal, and for a face nothing stopped on."""
+    m, d, shapes = sphere10k(tmp)
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    a, b, c = v[f[123]]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n)
+    centre = (a + b + c) / 3.0
+    assert not s.on_face(*n)
+    hit = s.sweep(*(centre + 0.01 * n), *(-0.02 * n), 0.001)
+    assert hit is not None and np.allclose(hit[1:], n, atol=1e-9)
+    assert s.on_face(*n) and s.on_face(*-n)
+    edge = (a + b) / 2.0
+    out = edge / np.linalg.norm(edge)
+    hit = s.sweep(*(edge + 0.01 * out), *(-0.02 * out), 0.001)
+    assert hit is not None
+    assert not s.on_face(*hit[1:])
