@@ -54,6 +54,23 @@ def _parse_faults(text: str) -> dict:
     return faults
 
 
+def _print_fingertip_sensors(f: dict) -> None:
+    """One line per fingertip sensor channel a finger ran (softproxy.fingertip_sensors)."""
+    t = f.get("tactile")
+    if t is not None:
+        c = t["last_pressure_centre_m"]
+        where = f"centre ({c[0] * 1e3:+.2f}, {c[1] * 1e3:+.2f}) mm" if c else "no contact"
+        print(f"  {f['name']} tactile: {t['frames']} frames at {t['rate_hz']:g} Hz ({t['contact_frames']} in contact), "
+              f"last total force {t['last_total_force_N']:.3f} N, {where}; errors {t['errors']}")
+    s = f.get("sensing")
+    if s is not None:
+        e = s["error"]
+        errs = (f"location error max {e['location_max_m'] * 1e3:.4f} mm, RMS {e['location_rms_m'] * 1e3:.4f} mm; "
+                f"normal force error max {e['normal_force_max_N']:.4f} N" if s["sensed"] else "nothing sensed")
+        print(f"  {f['name']} sensing ({s['noise']} noise): {s['sensed']} contacts sensed at {s['rate_hz']:g} Hz, "
+              f"{s['refused']} refused; {errs}; errors {s['errors']}")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scene on a device and print the result; a window shows it unless --headless.
 
@@ -113,6 +130,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                 ("name", "finger", "s"), ("model", "model", "s"), ("max_force_N", "max F (N)", ".3f"),
                 ("proxy_penetration_max_m", "max penetration (m)", ".2e"), ("slip_events", "slips", "d"),
             ])
+            for f in result["fingers"]:
+                _print_fingertip_sensors(f)
             t = result["tick_us"]
             print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
             if result.get("device_error"):

@@ -25,25 +25,29 @@ Pad frame (both channels; **Choice**: the proxy is a sphere with no orientation 
 Tactile (seeds 000/001 through `softproxy.tactile.TactileSensor`) — how a contact maps to the
 Inoue–Hirai inputs (**Choice**)
     - sensing-plane frame: +z = p̂, +x = d̂ (the model's "distal"), +y = p̂ × d̂;
-    - no finger joint: `joint_distance` = 0, so the finger angle θ of 000 eq 1 is the tilt
-      of the contact normal relative to the pad, θ = atan2(u·d̂, u·p̂) with u = -n (the object
-      normal in the sensing plane frame is (sin θ, 0, cos θ)); the component of u along +y
-      has no place in the planar model and is dropped (reported as `lateral_tilt_rad`);
-    - roll β = 0: the proxy does not tell whether the finger or the object turned, so every
-      change of the normal goes through the rotation history (eqs 7–16); eqs 20–30 unused;
+    - no finger joint: the proxy has none, so the finger angle θ of 000 eq 1 stays 0 and
+      `joint_distance` = 0. (Mapping the pad-to-normal angle onto θ with the joint under the
+      tip was tried and rejected: a rotation about the sphere's own centre adds no compression
+      to springs already in contact, eqs 7–9, so the image barely moved under a 10° tilt.)
+    - the angle between the pad and the contact is the object's roll β about the fingertip
+      (eqs 20–30: the object turns while the finger holds still, at the same distance p from
+      the tip's centre): β = atan2(u·d̂, u·p̂) with u = -n, so β > 0 tilts the object's normal
+      toward +x and moves the centre of pressure distally; the component of u along +y has
+      no place in the planar model and is dropped (reported as `lateral_roll_rad`);
     - indentation d (000 eq 1) from the proxy's normal force P through the virtual-spring
       fingertip's own law pressed straight: the springs at h > r - d compress by h - r + d,
       dP = E (h - r + d)/h, whose integral over the contact disc is F = π E d², so
-      d = √(P / (π E)) and the image carries P when the pad faces the contact
-      (`indentation = "force"`, default); `indentation = "depth"` uses the device
-      penetration |x_p - x_d| (m) instead, which ties the image to the coupling stiffness;
+      d = √(P / (π E)) and the image carries P while the pad faces the contact
+      (`indentation = "force"`, default; rolled by β it carries less, e.g. 6 % less at 10°);
+      `indentation = "depth"` uses the device penetration |x_p - x_d| (m) instead, which
+      ties the image to the coupling stiffness. The history of eqs 10–16 integrates d;
     - the fingertip radius r defaults to the finger's proxy radius, the sensor side to 2r
       (the whole base: the paper's 12 mm sensor on a 10 mm tip misses the rim of a 3 N
       contact), E to the paper's 0.3636 MPa, 10 × 10 cells, 2 × 2 samples per cell (the
       standalone default is 4 × 4: ~0.36 ms a frame instead of ~0.22 ms), at most
       `max_substeps` = 10 history sub-steps per frame (bounds a frame's cost);
-    - a new contact starts the history at its tilt (`TactileSensor.reset(tilt)`); contact
-      lost, or a normal at 60° or more from the pad, clears it and the image reads zero.
+    - contact lost, or a normal at 60° or more from the pad, clears the history and the
+      image reads zero.
 
 Sensing (seed 003 through `softproxy.sensing.ContactSensor`) — the fingertip's pose (**Choice**)
     The ellipsoid frame (semi-axes a = 9.5, b = 17, c = 10.5 mm along x, y, z; the skin
@@ -81,7 +85,7 @@ INDENTATION = ("force", "depth")
 """Where the tactile indentation comes from: the normal force or the device penetration."""
 _VERTICAL = math.cos(math.radians(25.0))
 MAX_TILT = math.radians(60.0)
-"""Largest pad-to-normal angle the tactile channel images (TactileSensor's clamp), rad."""
+"""Largest pad-to-normal angle (roll) the tactile channel images (TactileSensor's clamp), rad."""
 
 
 def _unit(name: str, v) -> tuple[float, float, float] | None:
@@ -272,7 +276,7 @@ class TactileChannel(_Channel):
 
     Readable after any tick: `image` (cells × cells, Pa, [row = y, column = x] in the pad's
     sensing-plane frame), `total_force` (N), `pressure_centre` ((x, y) m, nan without contact),
-    `tilt_rad`, `lateral_tilt_rad`, `indentation_m`; `history` of the last frames.
+    `roll_rad`, `lateral_roll_rad`, `indentation_m`; `history` of the last frames.
     """
 
     kind = "tactile"
@@ -291,7 +295,7 @@ class TactileChannel(_Channel):
         self.off_pad = 0  # contact frames whose normal was MAX_TILT or more from the pad
         self.total_force = 0.0
         self.pressure_centre = (math.nan, math.nan)
-        self.tilt_rad = self.lateral_tilt_rad = self.indentation_m = 0.0
+        self.roll_rad = self.lateral_roll_rad = self.indentation_m = 0.0
         self.max_total_force = 0.0
 
     @property
@@ -305,7 +309,7 @@ class TactileChannel(_Channel):
         self.in_contact = False
         self.total_force = 0.0
         self.pressure_centre = (math.nan, math.nan)
-        self.tilt_rad = self.lateral_tilt_rad = self.indentation_m = 0.0
+        self.roll_rad = self.lateral_roll_rad = self.indentation_m = 0.0
 
     def _frame(self, t: float, twist: float) -> None:
         f = self.finger
@@ -320,20 +324,18 @@ class TactileChannel(_Channel):
             up = ux * p[0] + uy * p[1] + uz * p[2]
             ud = ux * d[0] + uy * d[1] + uz * d[2]
             ul = -(ux * fr.lateral[0] + uy * fr.lateral[1] + uz * fr.lateral[2])  # along +y = p̂ × d̂ = -l̂
-            theta = math.atan2(ud, up)
-            if up <= 0.0 or abs(theta) >= MAX_TILT:
+            beta = math.atan2(ud, up)
+            if up <= 0.0 or abs(beta) >= MAX_TILT:
                 self.off_pad += 1
                 self._clear()
             else:
                 depth = math.sqrt(P * self._force_to_depth) if self.spec.indentation == "force" else god.depth
                 self.contact_frames += 1
-                if not self.in_contact:
-                    self.sensor.reset(theta)
-                    self.in_contact = True
-                self.sensor.update(depth, theta)
+                self.in_contact = True
+                self.sensor.update(depth, 0.0, beta)
                 self.total_force = self.sensor.total_force()
                 self.pressure_centre = self.sensor.pressure_centre()
-                self.tilt_rad, self.lateral_tilt_rad, self.indentation_m = theta, math.atan2(ul, up), depth
+                self.roll_rad, self.lateral_roll_rad, self.indentation_m = beta, math.atan2(ul, up), depth
                 if self.total_force > self.max_total_force:
                     self.max_total_force = self.total_force
         self.history.append((t, P if self.in_contact else 0.0, self.total_force, self.pressure_centre))
@@ -347,7 +349,7 @@ class TactileChannel(_Channel):
             "cells": self.sensor.grid.cells, "side_m": self.sensor.grid.side,
             "last_total_force_N": _r(self.total_force, 6),
             "last_pressure_centre_m": None if math.isnan(c[0]) else [_r(c[0]), _r(c[1])],
-            "last_tilt_rad": _r(self.tilt_rad, 6), "max_total_force_N": _r(self.max_total_force, 6),
+            "last_roll_rad": _r(self.roll_rad, 6), "max_total_force_N": _r(self.max_total_force, 6),
             "history": [{"t": _r(t, 6), "normal_force_N": _r(P, 6), "total_force_N": _r(F, 6),
                          "pressure_centre_m": None if math.isnan(cc[0]) else [_r(cc[0]), _r(cc[1])]}
                         for t, P, F, cc in self.history],

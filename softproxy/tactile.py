@@ -249,20 +249,13 @@ class VirtualSpringFingertip:
         self._h_safe = np.where(self._h > 0.0, self._h, 1.0)
         self.reset()
 
-    def reset(self, theta: float = 0.0) -> None:
-        """Undeformed fingertip at finger angle `theta` (rad), d = 0 (just touching the object).
-
-        With no history the pose the first step starts from does not enter it (every point
-        starts with its partial segment, eq 12), so a contact first made at a tilt is exact.
-        """
-        theta = _check_finite("theta", theta)
-        if abs(theta) >= math.pi / 2.0:
-            raise ValueError(f"theta must be within ±90°, got {theta!r}")
+    def reset(self) -> None:
+        """Undeformed fingertip at θ = 0, d = 0 (just touching the object)."""
         shape = self.grid.x.shape
         self._sx = np.zeros(shape)
         self._sz = np.zeros(shape)
         self._contact = np.zeros(shape, dtype=bool)
-        self.theta = theta
+        self.theta = 0.0
         self.indentation = 0.0
         self.steps = 0
 
@@ -436,11 +429,9 @@ class TactileSensor:
         """Centre of pressure of the last image (x, y) in m, (nan, nan) with no contact."""
         return self.grid.pressure_centre(self._image)
 
-    def reset(self, tilt_rad: float = 0.0) -> None:
-        """Forget the deformation history (the fingertip left the object); the next contact
-        starts at finger angle `tilt_rad` (clamped to `max_tilt_rad`) with no history."""
-        lim = self.max_tilt_rad
-        self.model.reset(min(max(_check_finite("tilt_rad", tilt_rad), -lim), lim))
+    def reset(self) -> None:
+        """Forget the deformation history (the fingertip left the object)."""
+        self.model.reset()
         self._image = np.zeros_like(self._image)
 
 
