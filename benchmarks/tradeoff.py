@@ -11,19 +11,29 @@ reports its cost per tick (p50, µs, and as a multiple of a bare mj_step timed i
 run) and its errors: RMS of the rendered force and torque on finger 0 sampled every 4 ms
 (N, N·mm), the object's final position (m) and orientation (deg), and the outcome (how far
 the object turned about the scene's measured axis, deg). The chart shows cost against force error with the
-Pareto front. Contact area, tactile image and contact sensing join the levels once the
-tick can run them. Writes tradeoff.json and tradeoff.png.
+Pareto front.
+
+The fingertip sensors (softproxy.fingertip_sensors) are measured on the grasp at 1 kHz (CH):
+both off (twice: the second is the noise floor of the comparison), the tactile image on both
+fingers at 100 Hz, contact sensing on both at 100 Hz and at 1 kHz, and both at 100 Hz. The
+configurations run side by side, one tick of each in turn, and only their ticks from first
+contact on are counted; each reports tick p50 / mean / p99 as a ratio to "off" in the same run (the
+mean carries a decimated channel's cost, the p99 its working ticks), the cost of one frame
+(µs: the mean tick's excess over "off" spread over the frames) and what it measured (sensing location error, tactile force). The cost of "off" itself is
+one loop over an empty list, timed alone. Writes tradeoff.json and tradeoff.png.
 """
 
 from __future__ import annotations
 
 import json
 import time
+import timeit
 
 import mujoco
 import numpy as np
 
 from benchmarks.report import Progress, figure, save
+from softproxy.fingertip_sensors import SensingSpec, TactileSpec
 from softproxy.run import _rotation_about, build, open_device
 from softproxy.scene import load_scene
 
@@ -88,6 +98,80 @@ def pareto(points: list[tuple[float, float]]) -> list[int]:
     return sorted(front, key=lambda i: points[i][0])
 
 
+FIDELITY = {  # name: (tactile spec, sensing spec) on both fingers of the grasp
+    "off": (None, None),
+    "off (again)": (None, None),
+    "tactile 100 Hz": (TactileSpec(rate_hz=100.0), None),
+    "sensing 100 Hz": (None, SensingSpec(rate_hz=100.0)),
+    "sensing 1 kHz": (None, SensingSpec(rate_hz=1000.0)),
+    "tactile + sensing 100 Hz": (TactileSpec(rate_hz=100.0), SensingSpec(rate_hz=100.0)),
+}
+FIDELITY_RATE = 1000.0
+CONTACT_S = 0.5  # the grasp's fingers touch the box at ~0.48 s: ticks before are not counted
+
+
+def fidelity_loop(name: str):
+    """The grasp at 1 kHz (CH) with the fingertip sensors of FIDELITY[name] on both fingers."""
+    tactile, sensing = FIDELITY[name]
+    scene = load_scene(SCENE)
+    scene.tactile = [tactile] * len(scene.fingers)
+    scene.sensing = [sensing] * len(scene.fingers)
+    return build(scene, open_device("sim", scene), rate_hz=FIDELITY_RATE, finger_model="CH", audit=False,
+                 realtime=False)
+
+
+def measure_fidelity(duration: float, rounds: int = 2, progress=None) -> dict:
+    """Tick cost of the fingertip sensors on the grasp, as ratios to both off in the same run.
+
+    Every round builds one loop per configuration and ticks them in turn, one tick each, so a
+    slow spell of the machine lands on all of them alike.
+    """
+    ticks = int(round(duration * FIDELITY_RATE))
+    skip = int(CONTACT_S * FIDELITY_RATE)
+    runs = {name: [] for name in FIDELITY}
+    for r in range(rounds):
+        if progress:
+            progress(f"fingertip sensors: {len(FIDELITY)} configurations side by side, round {r + 1}/{rounds}")
+        loops = {name: fidelity_loop(name) for name in FIDELITY}
+        order = list(loops.values())
+        for i in range(ticks):
+            for lp in (order if i % 2 else order[::-1]):  # neither first nor last always
+                lp.tick()
+        for name, lp in loops.items():
+            lp.stop()
+            runs[name].append({"durations": lp.stats.durations()[skip:], "frames": sum(ch.frames for ch in lp.sensors),
+                               "summaries": [ch.summary() for ch in lp.sensors]})
+    stats = {}
+    for name, rs in runs.items():
+        d = np.concatenate([x["durations"] for x in rs])
+        stats[name] = {"p50": float(np.median(d)), "mean": float(d.mean()), "p99": float(np.percentile(d, 99)),
+                       "ticks": int(d.size), "frames": sum(x["frames"] for x in rs), "runs": rs}
+    off = stats["off"]
+    rows = []
+    for name, st in stats.items():
+        last = st["runs"][-1]["summaries"]
+        sensing = [s for s in last if "sensed" in s]
+        tactile = [s for s in last if "last_total_force_N" in s]
+        # µs of channel work per frame: the mean tick's excess over "off", spread over the frames
+        per_frame = ((st["mean"] - off["mean"]) * st["ticks"] / st["frames"] * 1e6) if st["frames"] else None
+        rows.append({
+            "config": name, "tick_us_p50": round(st["p50"] * 1e6, 2), "tick_us_mean": round(st["mean"] * 1e6, 2),
+            "tick_us_p99": round(st["p99"] * 1e6, 2), "p50_x_off": round(st["p50"] / off["p50"], 3),
+            "mean_x_off": round(st["mean"] / off["mean"], 3), "p99_x_off": round(st["p99"] / off["p99"], 3),
+            "frames": st["frames"], "us_per_frame": None if per_frame is None else round(per_frame, 1),
+            "sensing_location_max_m": max((s["error"]["location_max_m"] or 0.0) for s in sensing) if sensing else None,
+            "sensing_refused": sum(s["refused"] for s in sensing) if sensing else None,
+            "tactile_last_force_N": [s["last_total_force_N"] for s in tactile] if tactile else None,
+        })
+    n = 200_000  # the servo's `for ch in self.sensors: ch.tick(self)` on an empty list, less timeit's own loop
+    empty = min(timeit.repeat("for ch in sensors:\n    ch.tick(loop)", setup="sensors = []; loop = None",
+                              number=n, repeat=5))
+    bare = min(timeit.repeat("pass", number=n, repeat=5))
+    empty_ns = max(empty - bare, 0.0) / n * 1e9
+    return {"scene": SCENE, "rate_hz": FIDELITY_RATE, "model": "CH", "duration_s": duration, "rounds": rounds,
+            "counted_from_s": CONTACT_S, "empty_sensor_list_ns": round(empty_ns, 1), "rows": rows}
+
+
 def measure(full: bool = False, progress=None, duration: float | None = None) -> dict:
     rates = [250.0, 500.0, 1000.0, 2000.0, 4000.0, 10000.0] if full else [250.0, 1000.0, 4000.0, 10000.0]
     models = ["point", "CH", "MH", "VS", "LFM"]
@@ -124,14 +208,30 @@ def measure(full: bool = False, progress=None, duration: float | None = None) ->
         rows.extend(scene_rows)
     for row in rows:
         row["cost_x_mj_step"] = round(row["tick_us_p50"] / step_us, 2)
+    fidelity = measure_fidelity(duration, 3 if full else 2, progress)
     return {"scenes": list(SCENES), "reference": {"model": "LFM", "rate_hz": max(rates)},
-            "mj_step_us_p50": round(step_us, 2), "duration_s": duration, "rows": rows}
+            "mj_step_us_p50": round(step_us, 2), "duration_s": duration, "rows": rows,
+            "fingertip_sensors": fidelity}
 
 
 def chart(result: dict):
     """Per scene: cost against error with the Pareto front, and outcome error against rate."""
     scenes = result["scenes"]
-    fig, axes = figure(2, len(scenes), (6 * len(scenes), 8.5), squeeze=False)
+    fig, axes = figure(3, len(scenes), (6 * len(scenes), 12.5), squeeze=False)
+    fid = result.get("fingertip_sensors")
+    for col, key in enumerate(("mean_x_off", "p99_x_off")[:len(scenes)]):
+        c = axes[2][col]
+        if not fid:
+            c.set_axis_off()
+            continue
+        names = [r["config"] for r in fid["rows"]]
+        c.barh(names, [r[key] for r in fid["rows"]])
+        c.axvline(1.0, color="k", lw=0.8)
+        c.set_xlabel(f"tick {key.split('_')[0]} ÷ sensors off (same run)")
+        c.set_title(f"fingertip sensors on the grasp at {fid['rate_hz']:g} Hz", fontsize=9)
+        c.tick_params(labelsize=7)
+    for col in range(2, len(scenes)):
+        axes[2][col].set_axis_off()
     for col, scene in enumerate(scenes):
         a, b = axes[0][col], axes[1][col]
         rows = [r for r in result["rows"] if r["scene"] == scene]
@@ -172,5 +272,21 @@ def main(args) -> int:
         print(f"  {r['scene']:17s}{r['model']:6s}{r['rate_hz']:10g}{r['tick_us_p50']:15.1f}{r['cost_x_mj_step']:11.2f}"
               f"{r['force_rms_error_N']:15.4f}{r['torque_rms_error_Nmm']:19.4f}{r['position_error_m']:13.2e}"
               f"{r['turned_deg']:12.3f}  {'*' if r['pareto'] else ''}")
+    fid = result["fingertip_sensors"]
+    print(f"fingertip sensors on {fid['scene']} at {fid['rate_hz']:g} Hz ({fid['model']}, both fingers, ticks from "
+          f"{fid['counted_from_s']} s, {fid['rounds']} rounds side by side); sensors off cost one loop over an "
+          f"empty list: {fid['empty_sensor_list_ns']} ns")
+    print(f"  {'config':26s}{'p50 (µs)':>10s}{'mean (µs)':>11s}{'p99 (µs)':>10s}{'p50 ×off':>10s}{'mean ×off':>11s}"
+          f"{'p99 ×off':>10s}{'frames':>8s}{'µs/frame':>10s}  measured")
+    for r in fid["rows"]:
+        got = []
+        if r["sensing_location_max_m"] is not None:
+            got.append(f"location err ≤ {r['sensing_location_max_m']:.1e} m, refused {r['sensing_refused']}")
+        if r["tactile_last_force_N"] is not None:
+            got.append("tactile F " + ", ".join(f"{v:.3f}" for v in r["tactile_last_force_N"]) + " N")
+        pf = "-" if r["us_per_frame"] is None else f"{r['us_per_frame']:.1f}"
+        print(f"  {r['config']:26s}{r['tick_us_p50']:10.1f}{r['tick_us_mean']:11.1f}{r['tick_us_p99']:10.1f}"
+              f"{r['p50_x_off']:10.3f}{r['mean_x_off']:11.3f}{r['p99_x_off']:10.3f}{r['frames']:8d}{pf:>10s}  "
+              f"{'; '.join(got)}")
     print(f"  wrote {json_path} and {png_path}")
     return 0

@@ -51,3 +51,11 @@ def test_tradeoff_bench(tmp_path):
     ref = [r for r in rows if r["model"] == "LFM" and r["rate_hz"] == data["reference"]["rate_hz"]]
     assert all(r["force_rms_error_N"] == 0.0 for r in ref)  # the reference against itself
     assert any(r["pareto"] for r in rows)
+    fid = {r["config"]: r for r in data["fingertip_sensors"]["rows"]}
+    assert set(fid) == {"off", "off (again)", "tactile 100 Hz", "sensing 100 Hz", "sensing 1 kHz",
+                        "tactile + sensing 100 Hz"}
+    assert fid["off"]["frames"] == fid["off (again)"]["frames"] == 0 and fid["off"]["mean_x_off"] == 1.0
+    assert fid["sensing 1 kHz"]["frames"] == 10 * fid["sensing 100 Hz"]["frames"] > 0
+    assert fid["sensing 100 Hz"]["sensing_location_max_m"] < 1e-6 and fid["sensing 100 Hz"]["sensing_refused"] == 0
+    assert all(abs(f - 3.0) < 0.1 for f in fid["tactile 100 Hz"]["tactile_last_force_N"])  # the 3 N grip
+    assert "fingertip sensors on two_finger_grasp" in text
