@@ -353,7 +353,9 @@ class MeshShape(Shape):
         self._above: dict = {}
         self._hint = -1
         self.rebuilds = 0  # how often the neighbourhood was rebuilt
-        self._recent: list = []  # the triangles last hit by sweeps (RECENT_HITS at most), newest last
+        # the triangles sweeps last stopped on (RECENT_HITS at most, newest last): [triangle,
+        # sphere centre at the touch (geom frame), whether the hit before was there too]
+        self._recent: list = []
         self._dkey = None  # the last distance query (geom frame) and its answer
         self._dval = None
 
@@ -640,18 +642,21 @@ class MeshShape(Shape):
 
     # -- queries (geom frame) ---------------------------------------------------------------
     def on_face(self, nx: float, ny: float, nz: float) -> bool:
-        """True when n (world) is the normal of a triangle a recent sweep stopped on: a contact
-        inside a face, whose plane holds while the proxy stays over the face (the god-object
-        then warm-starts from it, and checks that the proxy still touches the mesh after)."""
+        """True when n (world) is the normal of a triangle the last two sweeps that stopped on
+        it stopped at the same point: a proxy held on a face, whose plane holds while the proxy
+        stays over the face (the god-object then warm-starts from it, and checks that the proxy
+        still touches the mesh after). A sliding proxy is not warm-started: on a curved or
+        concave mesh the face planes it leaves behind would cost it a second solve."""
         lx = self.r00 * nx + self.r10 * ny + self.r20 * nz
         ly = self.r01 * nx + self.r11 * ny + self.r21 * nz
         lz = self.r02 * nx + self.r12 * ny + self.r22 * nz
         tris = self._tri
-        for i in self._recent:
-            t = tris[i]
-            dot = lx * t[15] + ly * t[16] + lz * t[17]
-            if dot > FACE_PARALLEL or dot < -FACE_PARALLEL:
-                return True
+        for i, _, _, _, held in self._recent:
+            if held:
+                t = tris[i]
+                dot = lx * t[15] + ly * t[16] + lz * t[17]
+                if dot > FACE_PARALLEL or dot < -FACE_PARALLEL:
+                    return True
         return False
 
     def local_distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
@@ -874,12 +879,18 @@ class MeshShape(Shape):
     def _world_hit(self, tri, hit, ax, ay, az, ux, uy, uz, r, graze):
         """The hit with its normal turned into the world frame (shaded when asked)."""
         self._hint = tri
+        lam, nx, ny, nz, _ = hit
+        cx, cy, cz = ax + lam * ux, ay + lam * uy, az + lam * uz
         recent = self._recent
-        if tri not in recent:
-            recent.append(tri)
+        for entry in recent:
+            if entry[0] == tri:
+                entry[4] = entry[1] == cx and entry[2] == cy and entry[3] == cz
+                entry[1], entry[2], entry[3] = cx, cy, cz
+                break
+        else:
+            recent.append([tri, cx, cy, cz, False])
             if len(recent) > RECENT_HITS:
                 del recent[0]
-        lam, nx, ny, nz, _ = hit
         if self.shading:
             qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
             sx, sy, sz = self._shade(tri, qx, qy, qz, nx, ny, nz)

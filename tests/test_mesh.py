@@ -628,9 +628,10 @@ def test_distance_answer_kept_only_for_the_same_point_and_pose(tmp_path):
     assert dd == pytest.approx(np.linalg.norm(local - q), abs=1e-7)
 
 
-def test_on_face_only_for_faces_just_hit(tmp):
-    """on_face: true for the normal of a face a sweep stopped on, false for an edge's or a
-    vertex's normal, and for a face nothing stopped on."""
+def test_on_face_only_for_faces_held(tmp):
+    """on_face: true for the normal of a face sweeps stopped on twice at the same point (a held
+    proxy), false once it stopped elsewhere on it (sliding), for an edge's normal, and for a
+    face nothing stopped on."""
     m, d, shapes = sphere10k(tmp)
     s = mesh_shape(shapes)
     v, f = world_mesh(m, d)
@@ -639,9 +640,14 @@ def test_on_face_only_for_faces_just_hit(tmp):
     n /= np.linalg.norm(n)
     centre = (a + b + c) / 3.0
     assert not s.on_face(*n)
-    hit = s.sweep(*(centre + 0.01 * n), *(-0.02 * n), 0.001)
+    start = centre + 0.01 * n
+    hit = s.sweep(*start, *(-0.02 * n), 0.001)
     assert hit is not None and np.allclose(hit[1:], n, atol=1e-9)
-    assert s.on_face(*n) and s.on_face(*-n)
+    assert not s.on_face(*n)  # stopped there once: maybe sliding
+    assert s.sweep(*start, *(-0.02 * n), 0.001) == hit
+    assert s.on_face(*n) and s.on_face(*-n)  # held
+    assert s.sweep(*(start + 1e-5 * (b - a)), *(-0.02 * n), 0.001) is not None
+    assert not s.on_face(*n)  # stopped elsewhere on it: sliding
     edge = (a + b) / 2.0
     out = edge / np.linalg.norm(edge)
     hit = s.sweep(*(edge + 0.01 * out), *(-0.02 * out), 0.001)
