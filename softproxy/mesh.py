@@ -20,15 +20,25 @@ A point proxy is swept as a 10 nm sphere (see POINT_RADIUS).
 Cost per query is bounded on large meshes (all in the geom frame; numpy only to rebuild):
 1. a static uniform grid of triangle centres, built once with numpy at load;
 2. a neighbourhood: every triangle within R of a centre c, from the grid, sorted by a lower
-   bound on its distance from c (one matrix product). A query within e of c reads only the
-   triangles whose bound minus e is within its reach, a short prefix; the neighbourhood is
-   rebuilt when a query leaves it or drifted far enough that its prefix grew long;
+   bound on its distance from c (one matrix product: the plane and edge lines, and the
+   triangle's bounding sphere, tight where a thin triangle points at c). A query within e
+   of c reads only the triangles whose bound minus e is within its reach, a short prefix;
+   the neighbourhood is rebuilt when a query leaves it or drifted far enough that its
+   prefix grew long;
 3. the hint, the triangle touched or nearest last, is tested first: pressed into it, the
    sweep ends at once. Its tangent plane at the nearest point is a certificate: a triangle
    lying wholly behind the hint's plane (behind both faces' planes at a convex edge) is at
    least as far as that tangent plane, so a sphere sliding on it, or a point whose nearest
    point is there, needs only the triangles reaching above those planes: none on a convex
-   patch, the rising wall in a bowl. Scalar Python over the few triangles that remain.
+   patch, the rising wall in a bowl. When the nearest point is a vertex, the vertex's own fan
+   lies behind the tangent plane whenever every edge leaving the vertex does (one dot
+   product against a precomputed cone, else one per edge): a proxy held on the pole of a
+   uv-sphere, where ~100 thin triangles meet, reads none of them. Scalar Python over the
+   few triangles that remain.
+4. the last distance answer is kept (the god-object asks again about the point it holds),
+   keyed by the point in the geom frame, so a new pose never returns a stale answer; and
+   `on_face` names a face two sweeps stopped on at the same point, so a proxy held in a
+   concave corner of the mesh warm-starts from its planes instead of sweeping into each.
 """
 
 from __future__ import annotations
