@@ -76,6 +76,8 @@ DEGENERATE = 1e-6
 (zero-area: coincident or collinear vertices, within float32 rounding)."""
 GRID_CELLS = 64
 """Most grid cells per axis."""
+WALK_STEPS = 8
+"""Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
 RECENT_HITS = 4
 """Triangles a sweep stopped on that `on_face` remembers (a proxy held in a concave corner of
 a mesh rests on up to three)."""
@@ -328,7 +330,7 @@ class MeshShape(Shape):
     flat = False
     __slots__ = (
         "mesh", "label", "signed", "shading", "defects", "triangles", "_tri", "_edges", "_pn", "_vn", "_adj", "_plane",
-        "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
+        "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_sph", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
         "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_hint", "rebuilds",
         "_recent", "_dkey", "_dval",
@@ -396,11 +398,12 @@ class MeshShape(Shape):
         self._fn = n
         normals = np.concatenate([n[:, None, :], out], axis=1)                  # (faces, 4, 3)
         points = np.concatenate([a[:, None, :], starts], axis=1)
-        q = np.concatenate([normals, -(normals * points).sum(2, keepdims=True)], axis=2)
-        # and |p - m|² - |p|² for the triangle's centre m (the bounding-sphere bound, tight
-        # where the edge lines are not: far along a thin triangle that points at p)
+        self._q = np.concatenate([normals, -(normals * points).sum(2, keepdims=True)], axis=2).reshape(-1, 16)
+        # and (-2m, |m|²) for the triangle's centre m, so that (p, 1) gives |p - m|² - |p|²: the
+        # bounding-sphere bound (first, to drop the far triangles cheaply; then tight where the
+        # edge lines are not: far along a thin triangle that points at p)
         centre = (a + b + c) / 3.0
-        self._q = np.concatenate([q.reshape(-1, 16), -2.0 * centre, (centre * centre).sum(1)[:, None]], axis=1)
+        self._sph = np.concatenate([-2.0 * centre, (centre * centre).sum(1)[:, None]], axis=1)
         self._rhos = np.sqrt(np.max([((a - centre) ** 2).sum(1), ((b - centre) ** 2).sum(1),
                                      ((c - centre) ** 2).sum(1)], axis=0))
 
@@ -437,7 +440,7 @@ class MeshShape(Shape):
 
         # vertex fans, for the certificate of a nearest point on a vertex: each triangle's three
         # vertex ids; per vertex, its triangles and the edges to its ring of neighbours (from
-        # the vertex), and a circular cone (axis, cosine) of directions that see every edge
+        # the vertex, each with a triangle on it), and a circular cone (axis, cosine) of directions that see every edge
         # going away from them (n·e <= 0): inside it, the whole fan lies behind the tangent plane
         self._tv = [tuple(row) for row in f.tolist()]
         order = np.argsort(f.reshape(-1), kind="stable")
@@ -451,10 +454,17 @@ class MeshShape(Shape):
         eunit = evec / np.linalg.norm(evec, axis=1)[:, None]
         fans, rings, cones = [], [], []
         evec_l, eunit_l, vn_l = evec.tolist(), eunit, vnormal.tolist()
+        edge_tri = {}
+        for t, (i, j, k) in enumerate(f.tolist()):
+            for e0, e1 in ((i, j), (j, k), (k, i)):
+                edge_tri.setdefault((e0, e1) if e0 < e1 else (e1, e0), t)
+        pairs_l = pairs.tolist()
         for i in range(len(v)):
             fans.append(frozenset(tri_of[bounds[i]:bounds[i + 1]]))
             s0, s1 = pstart[i], pstart[i + 1]
-            rings.append(tuple(c for e in evec_l[s0:s1] for c in e))
+            # (edge vector, a triangle on that edge) per neighbour
+            rings.append(tuple((*evec_l[k], edge_tri[(i, w) if i < w else (w, i)])
+                               for k, (_, w) in zip(range(s0, s1), pairs_l[s0:s1])))
             if s1 > s0:
                 # the largest cone about the vertex normal a inside {n: n·e <= 0 for every edge e}
                 sines = -(eunit_l[s0:s1] @ vnormal[i])
@@ -508,18 +518,29 @@ class MeshShape(Shape):
             self._cd, self._ci, self._cids, self._cpos = [], [], None, {}
             return
         ids = np.concatenate(chunks) if len(chunks) > 1 else chunks[0]
-        # one matrix product (k, 20) @ (20, 5): height, beyond each edge line, |c - m|² - |c|²
-        p = np.zeros((20, 5))
-        for j in range(5):
-            p[4 * j:4 * j + 3, j] = (cx, cy, cz)
-            p[4 * j + 3, j] = 1.0
-        v = self._q[ids] @ p
-        beyond = v[:, 1:4].max(axis=1)
-        np.maximum(beyond, 0.0, out=beyond)
-        bound = v[:, 0] * v[:, 0] + beyond * beyond
-        sphere = np.sqrt(np.maximum(v[:, 4] + (cx * cx + cy * cy + cz * cz), 0.0)) - self._rhos[ids]
+        # the bounding spheres first: only the triangles whose sphere meets the ball go on
+        c4 = np.array((cx, cy, cz, 1.0))
+        sphere = self._sph[ids] @ c4
+        sphere += cx * cx + cy * cy + cz * cz
         np.maximum(sphere, 0.0, out=sphere)
-        np.maximum(bound, sphere * sphere, out=bound)
+        np.sqrt(sphere, out=sphere)
+        sphere -= self._rhos[ids]
+        keep = sphere <= radius
+        ids, sphere = ids[keep], sphere[keep]
+        # then one matrix product (k, 16) @ (16, 4): height, beyond each edge line
+        p = np.zeros((16, 4))
+        for j in range(4):
+            p[4 * j:4 * j + 4, j] = c4
+        v = self._q[ids] @ p
+        beyond = np.maximum(np.maximum(v[:, 1], v[:, 2]), v[:, 3])
+        np.maximum(beyond, 0.0, out=beyond)
+        beyond *= beyond
+        bound = v[:, 0]
+        bound *= bound
+        bound += beyond
+        np.maximum(sphere, 0.0, out=sphere)
+        sphere *= sphere
+        np.maximum(bound, sphere, out=bound)
         sort = np.argsort(bound)
         bound = bound[sort]
         n = int(np.searchsorted(bound, radius * radius, side="right"))
@@ -623,9 +644,8 @@ class MeshShape(Shape):
         triangles meet (a uv-sphere's pole) this is what keeps a proxy held there cheap."""
         ax, ay, az, cos = self._vcone[vertex]
         if nx * ax + ny * ay + nz * az < cos:
-            ring = self._ring[vertex]
-            for k in range(0, len(ring), 3):
-                if nx * ring[k] + ny * ring[k + 1] + nz * ring[k + 2] > ABOVE_TOL:
+            for ex, ey, ez, _ in self._ring[vertex]:
+                if nx * ex + ny * ey + nz * ez > ABOVE_TOL:
                     return None
         key = ("v", vertex)
         memo = self._above.get(key)
@@ -640,6 +660,35 @@ class MeshShape(Shape):
             memo[0] = n
             return out
         return out[:bisect.bisect_left(out, n)] if out and out[-1] >= n else out
+
+    def _walk(self, hint, d2, qx, qy, qz, feature, x, y, z):
+        """From the hint's closest point to p on a vertex, step to a triangle on an edge leaving
+        the vertex that rises above the tangent plane there (it holds a nearer point), while
+        there is one (WALK_STEPS at most): then the vertex certificate, or the face's or the
+        edge's, holds. Returns (d2, qx, qy, qz, feature, hint)."""
+        tris, tv, rings, cones = self._tri, self._tv, self._ring, self._vcone
+        for _ in range(WALK_STEPS):
+            if feature < 4 or d2 <= 0.0:
+                break
+            v = tv[hint][feature - 4]
+            dist = math.sqrt(d2)
+            nx, ny, nz = (x - qx) / dist, (y - qy) / dist, (z - qz) / dist
+            ax, ay, az, cos = cones[v]
+            if nx * ax + ny * ay + nz * az >= cos:
+                break
+            step = -1
+            for ex, ey, ez, t in rings[v]:
+                if nx * ex + ny * ey + nz * ez > ABOVE_TOL:
+                    step = t
+                    break
+            if step < 0:
+                break
+            c = _closest(tris[step], x, y, z)
+            if c[0] >= d2:
+                break
+            d2, qx, qy, qz, feature = c
+            hint = step
+        return d2, qx, qy, qz, feature, hint
 
     @staticmethod
     def _merged(first: list, second: list) -> list:
@@ -722,6 +771,8 @@ class MeshShape(Shape):
                         d2, rx, ry, rz, f = _closest(tris[other], x, y, z)
                         if d2 < best2:
                             best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, other
+                if bf >= 4:
+                    best2, qx, qy, qz, bf, hint = self._walk(hint, best2, qx, qy, qz, bf, x, y, z)
                 bq, bi = (qx, qy, qz), hint
                 best = math.sqrt(best2)
                 n = bisect.bisect_left(cd, best + e)
@@ -803,6 +854,9 @@ class MeshShape(Shape):
         if hint >= 0:
             t = tris[hint]
             d2, qx, qy, qz, feature = _closest(t, ax, ay, az)
+            if feature >= 4:
+                d2, qx, qy, qz, feature, hint = self._walk(hint, d2, qx, qy, qz, feature, ax, ay, az)
+                t = tris[hint]
             if d2 <= reach * reach and d2 > 1e-24:
                 # touching the triangle it touched last: pressed into it, nothing can come
                 # earlier; moving along or away, it is no obstacle (the inflated triangle is
