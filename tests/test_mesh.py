@@ -653,3 +653,29 @@ def test_on_face_only_for_faces_held(tmp):
     hit = s.sweep(*(edge + 0.01 * out), *(-0.02 * out), 0.001)
     assert hit is not None
     assert not s.on_face(*hit[1:])
+
+
+def test_walk_from_a_vertex_finds_the_nearer_fan_triangle(tmp):
+    """The hint's nearest point is the pole, but the query lies over another triangle of the
+    fan: the walk (and the scan after) give the reference distance, for the sweep too."""
+    m, d, shapes = uv_sphere(tmp)
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    top = int(np.argmax(v[:, 2]))
+    fan = np.flatnonzero((f == top).any(axis=1))
+    rng = np.random.default_rng(11)
+    for k in range(40):
+        s._hint = int(fan[k % len(fan)])
+        s._dkey = None
+        a = rng.uniform(0.0, 2.0 * math.pi)
+        p = v[top] + np.array([0.002 * math.cos(a), 0.002 * math.sin(a), 0.004])
+        assert abs(s.distance(*p)[0] - reference_distance(p[None], v, f)[0]) < 1e-9
+        s._hint = int(fan[(k * 7) % len(fan)])
+        dvec = np.array([-math.cos(a), -math.sin(a), -1.0]) * 0.003
+        hit = s.sweep(*p, *dvec, 0.002)
+        t, along = distances_along(v, f, p, dvec, samples=60)
+        if hit is None:
+            assert along.min() >= 0.002 - 1e-9
+        else:
+            assert along[t < hit[0]].min(initial=math.inf) >= 0.002 - 1e-9
+            assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(0.002, abs=1e-9)
