@@ -33,8 +33,9 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    patch, the rising wall in a bowl. When the nearest point is a vertex, the vertex's own fan
    lies behind the tangent plane whenever every edge leaving the vertex does (one dot
    product against a precomputed cone, else one per edge): a proxy held on the pole of a
-   uv-sphere, where ~100 thin triangles meet, reads none of them. Scalar Python over the
-   few triangles that remain.
+   uv-sphere, where ~100 thin triangles meet, reads none of them. When an edge rises above
+   that plane, a triangle on it holds a nearer point: the query walks there first (the
+   face's or edge's certificate then holds). Scalar Python over the few triangles that remain.
 4. the last distance answer is kept (the god-object asks again about the point it holds),
    keyed by the point in the geom frame, so a new pose never returns a stale answer; and
    `on_face` names a face two sweeps stopped on at the same point, so a proxy held in a
