@@ -59,3 +59,18 @@ def test_tradeoff_bench(tmp_path):
     assert fid["sensing 100 Hz"]["sensing_location_max_m"] < 1e-6 and fid["sensing 100 Hz"]["sensing_refused"] == 0
     assert all(abs(f - 3.0) < 0.1 for f in fid["tactile 100 Hz"]["tactile_last_force_N"])  # the 3 N grip
     assert "fingertip sensors on two_finger_grasp" in text
+
+
+def test_godobject_bench_times_every_situation_without_penetration():
+    """`softproxy bench godobject` in miniature: every situation is timed, the proxy touches
+    what it should (free space never, the pressed ones always) and never goes inside."""
+    from benchmarks import godobject
+
+    result = godobject.measure(updates=40, warm=40)
+    rows = {r["situation"]: r for r in result["rows"]}
+    assert len(rows) == len(godobject.situations())
+    assert rows["free space"]["contact_fraction"] == 0.0
+    for name, row in rows.items():
+        assert row["p50_us"] > 0.0 and row["penetration_max_m"] <= 1e-6, name
+        if name != "free space":
+            assert row["contact_fraction"] == 1.0, name
