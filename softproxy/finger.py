@@ -153,12 +153,8 @@ class SoftFingerProxy:
         the finger then renders zero force and its proxy stays where it was.
         """
         self.dt = dt
-        tors = self.torsion
-        god = self.god
-        if self.body >= 0 and tors is not None and tors.in_contact:
-            # in contact last tick: the body it touches turns α_p with it (eqs 41–42)
-            wx, wy, wz, _, _, _ = god.shape.cvel.tolist()
-            tors.follow_object(wx * god.nx + wy * god.ny + wz * god.nz, dt)
+        if self.body >= 0:  # in contact last tick: the body it touches turns α_p with it
+            self._follow_body()
         if not self.placed:
             ok = self.place(x, y, z) and twist == twist and twist not in (math.inf, -math.inf)
             self.clear_output()
@@ -176,6 +172,7 @@ class SoftFingerProxy:
             self._rest()
             return False
         self._spike_run = 0
+        god = self.god
         if not god.update(xd, yd, zd) or twist != twist or twist in (math.inf, -math.inf):
             self.clear_output()
             return False
@@ -226,6 +223,7 @@ class SoftFingerProxy:
             self.max_force_seen = fmag
 
         # torsional DOF (eqs 38–40)
+        tors = self.torsion
         if tors is None:
             return True
         if not tors.in_contact:
