@@ -31,7 +31,9 @@ MAX_ADVANCE_STEPS = 32
 
 
 class Shape:
-    """One MuJoCo geom as seen by a proxy. Subclasses give the local signed distance."""
+    """One MuJoCo geom as seen by a proxy. Subclasses give the signed distance in the geom
+    frame (`local_distance`), or override `distance` whole where the world-frame form is
+    cheaper (plane, sphere, box: the shapes touched most)."""
 
     flat = False
     """True when every face is planar (the solver then needs no curvature refinement)."""
@@ -122,9 +124,6 @@ class PlaneShape(Shape):
     flat = True
     __slots__ = ()
 
-    def local_distance(self, x, y, z):
-        return (z, 0.0, 0.0, 1.0)
-
     def on_face(self, nx, ny, nz):
         return True
 
@@ -150,12 +149,6 @@ class SphereShape(Shape):
     def __init__(self, model, data, geom, static):
         self.radius = float(model.geom_size[geom][0])
         super().__init__(model, data, geom, static)
-
-    def local_distance(self, x, y, z):
-        n = math.sqrt(x * x + y * y + z * z)
-        if n == 0.0:
-            return (-self.radius, 0.0, 0.0, 1.0)
-        return (n - self.radius, x / n, y / n, z / n)
 
     def distance(self, x, y, z):
         # rotation-free: the centre is all that matters
@@ -252,23 +245,6 @@ class BoxShape(Shape):
         return (abs(self.r00 * nx + self.r10 * ny + self.r20 * nz) > FACE_PARALLEL
                 or abs(self.r01 * nx + self.r11 * ny + self.r21 * nz) > FACE_PARALLEL
                 or abs(self.r02 * nx + self.r12 * ny + self.r22 * nz) > FACE_PARALLEL)
-
-    def local_distance(self, x, y, z):
-        sx = 1.0 if x >= 0.0 else -1.0
-        sy = 1.0 if y >= 0.0 else -1.0
-        sz = 1.0 if z >= 0.0 else -1.0
-        qx, qy, qz = abs(x) - self.hx, abs(y) - self.hy, abs(z) - self.hz
-        if qx <= 0.0 and qy <= 0.0 and qz <= 0.0:  # inside: the nearest face
-            if qx >= qy and qx >= qz:
-                return (qx, sx, 0.0, 0.0)
-            if qy >= qz:
-                return (qy, 0.0, sy, 0.0)
-            return (qz, 0.0, 0.0, sz)
-        ox = qx if qx > 0.0 else 0.0
-        oy = qy if qy > 0.0 else 0.0
-        oz = qz if qz > 0.0 else 0.0
-        n = math.sqrt(ox * ox + oy * oy + oz * oz)
-        return (n, sx * ox / n, sy * oy / n, sz * oz / n)
 
 
 class EllipsoidShape(Shape):
