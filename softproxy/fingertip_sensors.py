@@ -121,43 +121,10 @@ def _positive(name: str, v, integer: bool = False):
 
 
 @dataclass(frozen=True)
-class TactileSpec:
-    """A finger's tactile channel (SI): frame rate (Hz), fingertip and sensor, pad frame."""
+class _ChannelSpec:
+    """What every channel has: frame rate (Hz), pad frame, frames of history kept."""
 
     rate_hz: float = DEFAULT_RATE_HZ
-    radius: float | None = None          # Inoue–Hirai fingertip radius r, m (None: the proxy radius)
-    side: float | None = None            # sensor side, m (None: 2 r)
-    cells: int = PAPER_CELLS
-    supersample: int = 2
-    youngs_modulus: float = PAPER_YOUNGS_MODULUS  # E, Pa
-    indentation: str = "force"
-    max_substeps: int = 10
-    pad: tuple | None = None
-    distal: tuple | None = None
-    history: int = DEFAULT_HISTORY
-
-    def __post_init__(self) -> None:
-        for name in ("rate_hz", "youngs_modulus"):
-            _positive(name, getattr(self, name))
-        for name in ("radius", "side"):
-            if getattr(self, name) is not None:
-                _positive(name, getattr(self, name))
-        for name in ("cells", "supersample", "max_substeps", "history"):
-            _positive(name, getattr(self, name), integer=True)
-        if self.indentation not in INDENTATION:
-            raise ValueError(f"indentation must be one of {', '.join(INDENTATION)}, got {self.indentation!r}")
-        object.__setattr__(self, "pad", _unit("pad", self.pad))
-        object.__setattr__(self, "distal", _unit("distal", self.distal))
-        _check_pad_distal(self.pad, self.distal)
-
-
-@dataclass(frozen=True)
-class SensingSpec:
-    """A finger's contact-sensing channel: frame rate (Hz), Nano17 noise model and seed, pad frame."""
-
-    rate_hz: float = DEFAULT_RATE_HZ
-    noise: str = "none"
-    seed: int = 0
     pad: tuple | None = None
     distal: tuple | None = None
     history: int = DEFAULT_HISTORY
@@ -165,13 +132,48 @@ class SensingSpec:
     def __post_init__(self) -> None:
         _positive("rate_hz", self.rate_hz)
         _positive("history", self.history, integer=True)
+        object.__setattr__(self, "pad", _unit("pad", self.pad))
+        object.__setattr__(self, "distal", _unit("distal", self.distal))
+        _check_pad_distal(self.pad, self.distal)
+
+
+@dataclass(frozen=True)
+class TactileSpec(_ChannelSpec):
+    """A finger's tactile channel (SI): frame rate (Hz), fingertip and sensor, pad frame."""
+
+    radius: float | None = None          # Inoue–Hirai fingertip radius r, m (None: the proxy radius)
+    side: float | None = None            # sensor side, m (None: 2 r)
+    cells: int = PAPER_CELLS
+    supersample: int = 2
+    youngs_modulus: float = PAPER_YOUNGS_MODULUS  # E, Pa
+    indentation: str = "force"
+    max_substeps: int = 10
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _positive("youngs_modulus", self.youngs_modulus)
+        for name in ("radius", "side"):
+            if getattr(self, name) is not None:
+                _positive(name, getattr(self, name))
+        for name in ("cells", "supersample", "max_substeps"):
+            _positive(name, getattr(self, name), integer=True)
+        if self.indentation not in INDENTATION:
+            raise ValueError(f"indentation must be one of {', '.join(INDENTATION)}, got {self.indentation!r}")
+
+
+@dataclass(frozen=True)
+class SensingSpec(_ChannelSpec):
+    """A finger's contact-sensing channel: frame rate (Hz), Nano17 noise model and seed, pad frame."""
+
+    noise: str = "none"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
         if self.noise not in NOISE:
             raise ValueError(f"noise must be one of {', '.join(NOISE)}, got {self.noise!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ValueError(f"seed must be an integer, got {self.seed!r}")
-        object.__setattr__(self, "pad", _unit("pad", self.pad))
-        object.__setattr__(self, "distal", _unit("distal", self.distal))
-        _check_pad_distal(self.pad, self.distal)
 
 
 def _check_pad_distal(pad, distal) -> None:
