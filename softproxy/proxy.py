@@ -16,17 +16,14 @@ from __future__ import annotations
 
 import math
 
-from softproxy.geometry import CONTACT_TOL, Shape
+from softproxy.geometry import CONTACT_TOL, GRAZE, Shape
 
 MAX_ITERATIONS = 10
 """Sweeps per solve: three for a corner, a few more to follow a curved surface."""
 LIFT_TOL = 1e-7
 """After sliding on a curved shape's tangent plane, re-follow the surface when the proxy has
-lifted more than this (m)."""
+lifted more than this (m); a proxy this far off a face no longer rests on it."""
 PARALLEL = 1.0 - 1e-9
-WARM_TOL = 1e-8
-"""A warm-started solve is kept when its end point touches every plane's real surface within
-this (m); farther, the proxy slid off a face's edge along the face's plane."""
 WORKSPACE_LIMIT = 1e3
 """A device position farther than this from the origin on any axis (m) is garbage, like NaN."""
 
@@ -102,6 +99,16 @@ def _project_by_enumeration(px: float, py: float, pz: float, planes: list) -> tu
             qz = (ax * (by * cc - cb * cy) - ay * (bx * cc - cb * cx) + ca * (bx * cy - by * cx)) / det
             return (qx, qy, qz)
     return None
+
+
+def _touched(planes: list, nx: float, ny: float, nz: float) -> Shape:
+    """The touched shape: the one whose active plane is most aligned with the force's n."""
+    best, best_dot = planes[0][4], -2.0
+    for px, py, pz, _, s in planes:
+        dot = px * nx + py * ny + pz * nz
+        if dot > best_dot:
+            best, best_dot = s, dot
+    return best
 
 
 def _corner(px: float, py: float, pz: float, planes: list) -> tuple[float, float, float] | None:
@@ -194,7 +201,7 @@ class GodObject:
         if self.sticking and self.x == x and self.y == y and self.z == z and self._still_stuck(xd, yd, zd):
             return True
         x, y, z = self.x, self.y, self.z
-        fx, fy, fz, first = self._solve(x, y, z, xd, yd, zd)
+        fx, fy, fz, first, straight = self._solve(x, y, z, xd, yd, zd)
         planes = self.planes
         if not planes:
             self.x, self.y, self.z = fx, fy, fz
@@ -211,12 +218,7 @@ class GodObject:
             nx, ny, nz = ex / depth, ey / depth, ez / depth
         else:
             nx, ny, nz = planes[-1][0], planes[-1][1], planes[-1][2]
-        # touched shape: the active plane most aligned with the constraint force
-        best, best_dot = planes[0][4], -2.0
-        for px_, py_, pz_, _, s in planes:
-            dot = px_ * nx + py_ * ny + pz_ * nz
-            if dot > best_dot:
-                best, best_dot = s, dot
+        best = _touched(planes, nx, ny, nz)
 
         # friction cone, tested from the first surface point the proxy reached this tick
         hx, hy, hz = first
@@ -225,12 +227,20 @@ class GodObject:
         sticking = slide <= self.mu_s * depth
         if sticking:
             fx, fy, fz = hx, hy, hz
+            if slide > 0.0:  # held back: keep the planes that reach back to h
+                self.planes = []
+                self._keep_resting(planes, hx, hy, hz)
         elif self.mu_d > 0.0 and slide > 0.0:
+            # back to the dynamic cone's edge: a point on the way from h to the frictionless
+            # proxy (back < 1 since slide > μ_s·depth ≥ μ_d·depth)
             back = self.mu_d * depth / slide
             tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
-            saved = self.planes
-            fx, fy, fz, _ = self._move(hx, hy, hz, tx, ty, tz)
-            self.planes = saved
+            if straight:  # h to f was one swept, clear segment: t lies on it, nothing to sweep
+                fx, fy, fz = tx, ty, tz
+            else:
+                saved = self.planes
+                fx, fy, fz, _, _ = self._move(hx, hy, hz, tx, ty, tz)
+                self._keep_resting(saved, fx, fy, fz)
         self.x, self.y, self.z = fx, fy, fz
         self.contact = True
         self.nx, self.ny, self.nz = nx, ny, nz
@@ -240,6 +250,23 @@ class GodObject:
         # remember the proxy in the touched geom's frame
         self.lx, self.ly, self.lz = best.to_local(fx, fy, fz)
         return True
+
+    def _keep_resting(self, planes: list, x: float, y: float, z: float) -> None:
+        """After friction held the proxy back from the frictionless end: the planes it rests on
+        at (x, y, z), those of the frictionless solve it still touches (on their real
+        surfaces, not past an edge) added to `self.planes` (those a slide itself ran into).
+        What the next tick's warm start builds on."""
+        r = self.radius
+        resting = self.planes
+        for p in planes:
+            if p[0] * x + p[1] * y + p[2] * z - p[3] > LIFT_TOL or p[4].distance(x, y, z)[0] - r > LIFT_TOL:
+                continue
+            for q in resting:
+                if q[4] is p[4] and q[0] * p[0] + q[1] * p[1] + q[2] * p[2] > PARALLEL:
+                    break
+            else:
+                resting.append(p)
+        self.planes = resting[-3:]
 
     def follow(self) -> None:
         """Without a device sample: the proxy stays on the body it touches and out of anything
@@ -272,14 +299,20 @@ class GodObject:
         return x, y, z
 
     def _still_stuck(self, xd: float, yd: float, zd: float) -> bool:
-        """Fast path of the hold: a proxy stuck on one flat face that stays inside the static cone.
+        """Fast path of the hold: a stuck proxy that stays stuck, on one flat face or pinned in
+        a corner of three static faces.
 
-        Exactly what the full solve would find: the proxy does not move, the frictionless
-        proxy is the device projected onto the face (checked to lie on the same face), and
-        the cone test passes. Costs two distance queries instead of a constrained sweep.
+        What the full solve would find, for a fraction of its cost. On a face: the proxy does
+        not move, the frictionless proxy f is the device projected onto the face (checked to
+        lie on the same face, the way there clear of every other shape), and the cone test
+        passes. In a corner: the device pushes into all three faces, so f is the corner,
+        where the proxy already is.
         """
+        planes = self.planes
+        if len(planes) == 3:
+            return self._still_in_corner(xd, yd, zd)
         shape = self.shape
-        if len(self.planes) != 1 or not shape.flat:
+        if len(planes) != 1 or not shape.flat:
             return False
         x, y, z, r = self.x, self.y, self.z, self.radius
         d, nx, ny, nz = shape.distance(x, y, z)
@@ -295,9 +328,36 @@ class GodObject:
         sx, sy, sz = x - fx, y - fy, z - fz
         if sx * sx + sy * sy + sz * sz > (self.mu_s * depth) ** 2:
             return False
+        for s in self.near:  # an obstacle on the face between the proxy and f changes f
+            if s is not shape and s.sweep(x, y, z, fx - x, fy - y, fz - z, r) is not None:
+                return False
         self.planes = [(nx, ny, nz, nx * x + ny * y + nz * z, shape)]
         self.nx, self.ny, self.nz = nx, ny, nz
         self.depth = depth
+        return True
+
+    def _still_in_corner(self, xd: float, yd: float, zd: float) -> bool:
+        """`_still_stuck` in a corner of three static faces: holds while projecting the device
+        onto the three planes gives the corner point, where the proxy is (every plane pushes)."""
+        planes = self.planes
+        for p in planes:
+            if not (p[4].static and p[4].on_face(p[0], p[1], p[2])):
+                return False
+        q = _corner(xd, yd, zd, planes)
+        x, y, z = self.x, self.y, self.z
+        if q is None or abs(q[0] - x) + abs(q[1] - y) + abs(q[2] - z) > 1e-12:
+            return False
+        ex, ey, ez = x - xd, y - yd, z - zd
+        depth = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if depth == 0.0:
+            return False
+        nx, ny, nz = ex / depth, ey / depth, ez / depth
+        best = _touched(planes, nx, ny, nz)
+        self.nx, self.ny, self.nz = nx, ny, nz
+        self.depth = depth
+        if best is not self.shape:
+            self.shape = best
+            self.lx, self.ly, self.lz = best.to_local(x, y, z)
         return True
 
     def _gather(self, x, y, z, xd, yd, zd) -> None:
@@ -353,7 +413,7 @@ class GodObject:
         A proxy resting on a face, an edge or a corner keeps resting on the same planes from
         tick to tick: starting from them saves a sweep per plane. A face plane extends past
         the face's edges, so the end point must still touch every plane's real surface; when
-        one does not (the proxy slid past an edge), the solve starts again from no planes.
+        one does not (the proxy slid past an edge), `_move` starts again from no planes.
         Never unsafe either way: every motion is still swept against every shape.
         """
         warm = self.planes
@@ -364,31 +424,36 @@ class GodObject:
                     warm = None
                     break
             if warm:
-                fx, fy, fz, first = self._move(x, y, z, gx, gy, gz, warm)
-                r = self.radius
-                for p in self.planes:
-                    if p[4].distance(fx, fy, fz)[0] - r > WARM_TOL:
-                        break
-                else:
-                    return fx, fy, fz, first
+                return self._move(x, y, z, gx, gy, gz, warm)
         return self._move(x, y, z, gx, gy, gz)
 
     def _move(self, x, y, z, gx, gy, gz, warm=None):
         """Constrained motion toward (gx, gy, gz). Leaves the tight planes in self.planes.
 
-        `warm`: planes the proxy rests on at (x, y, z) to start from. Returns the end point
-        and the first surface point reached (or the end point).
+        `warm`: planes the proxy rests on at (x, y, z) to start from. Returns the end point,
+        the first surface point reached (or the end point), and whether the way from that
+        first point to the end was one straight swept segment (any point on it is reachable).
         """
         planes: list = []
         first = None
+        straight = True
+        x0, y0, z0 = x, y, z
         tx, ty, tz = gx, gy, gz
         if warm:
             # through the proxy as it is now: it may sit up to 1e-7 m off a plane's old offset,
             # and a target on the old offset would then lie a hair inside the face
             warm = [(nx, ny, nz, nx * x + ny * y + nz * z, s) for nx, ny, nz, _, s in warm]
-            target = _project(gx, gy, gz, warm)
-            # only a device pressing into a plane keeps the proxy on it from the start
-            if target is not None and target != (gx, gy, gz):
+            # only a device pressing into a plane keeps the proxy on it from the start, by
+            # more than a graze of the motion, as a sweep would count it
+            ex, ey, ez = gx - x, gy - y, gz - z
+            graze = GRAZE * math.sqrt(ex * ex + ey * ey + ez * ez)
+            for nx, ny, nz, c, _ in warm:
+                if c - (nx * gx + ny * gy + nz * gz) > graze:
+                    target = _project(gx, gy, gz, warm)
+                    break
+            else:
+                target = None
+            if target is not None:
                 planes = warm
                 first = (x, y, z)
                 tx, ty, tz = target
@@ -409,6 +474,7 @@ class GodObject:
                 if curved is None or curved.distance(x, y, z)[0] - self.radius <= LIFT_TOL:
                     break
                 # slid off a curved surface along its tangent plane: follow it again
+                straight = False
                 planes = []
                 tx, ty, tz = gx, gy, gz
                 continue
@@ -416,6 +482,8 @@ class GodObject:
             x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
             if first is None:
                 first = (x, y, z)
+            else:
+                straight = False
             c = nx * x + ny * y + nz * z
             for i, p in enumerate(planes):
                 if p[4] is s and p[0] * nx + p[1] * ny + p[2] * nz > PARALLEL:
@@ -428,6 +496,18 @@ class GodObject:
             if target is None:
                 break
             tx, ty, tz = target
-        # keep only the planes the proxy still rests on
-        self.planes = [p for p in planes if p[0] * x + p[1] * y + p[2] * z - p[3] <= 1e-7]
-        return x, y, z, (first if first is not None else (x, y, z))
+        # keep only the planes the proxy still rests on; a face's plane runs on past the
+        # face's edge, so a proxy slid out over the edge no longer rests on the face
+        r = self.radius
+        resting = []
+        for p in planes:
+            if p[0] * x + p[1] * y + p[2] * z - p[3] > 1e-7:
+                continue
+            s = p[4]
+            if s.flat and s.on_face(p[0], p[1], p[2]) and s.distance(x, y, z)[0] - r > LIFT_TOL:
+                if warm:  # slid off a face it started on: solve again from no planes
+                    return self._move(x0, y0, z0, gx, gy, gz)
+                continue
+            resting.append(p)
+        self.planes = resting
+        return x, y, z, (first if first is not None else (x, y, z)), straight
