@@ -65,6 +65,9 @@ NEIGHBOURHOOD_SLACK = 0.0005
 """A query this far (m) from the neighbourhood's centre re-centres it when its scan would read
 more than DRIFT_SCAN triangles (the lower bounds loosen by the drift)."""
 DRIFT_SCAN = 24
+BATCH_MIN = 32
+"""A certificate's table is extended over more new neighbourhood positions than this in one
+batched numpy pass rather than in scalar Python (after a rebuild it may be asked for hundreds)."""
 VECTOR_MIN = 64
 """A scan of more triangles than this is narrowed first by one vectorised distance pass
 (a point far from a symmetric mesh is nearly as far from hundreds of triangles)."""
@@ -331,9 +334,9 @@ class MeshShape(Shape):
     flat = False
     __slots__ = (
         "mesh", "label", "signed", "shading", "defects", "triangles", "_tri", "_edges", "_pn", "_vn", "_adj", "_plane",
-        "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_sph", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
+        "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_abc", "_faces", "_sph", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
-        "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_hint", "rebuilds",
+        "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_vmemo", "_hint", "rebuilds",
         "_recent", "_dkey", "_dval",
     )
 
@@ -364,6 +367,7 @@ class MeshShape(Shape):
         self._cids = None
         self._cpos: dict = {}
         self._above: dict = {}
+        self._vmemo: dict = {}
         self._hint = -1
         self.rebuilds = 0  # how often the neighbourhood was rebuilt
         # the triangles sweeps last stopped on (RECENT_HITS at most, newest last): [triangle,
@@ -381,6 +385,8 @@ class MeshShape(Shape):
         aa, abac, cc = (ab * ab).sum(1), (ab * ac).sum(1), (ac * ac).sum(1)
         inv = 1.0 / (aa * cc - abac * abac)
         self._tri = [tuple(row) for row in np.column_stack([a, b, c, ab, ac, n, aa, abac, cc, inv]).tolist()]
+        self._abc = np.stack([a, b, c], axis=1)  # (faces, 3 vertices, 3): the certificates' batched tests
+        self._faces = f
         self._plane = [tuple(row) for row in np.column_stack([n, (n * a).sum(1)]).tolist()]
         # edges AB, BC, CA as (start, unit direction, length) for the swept cylinders
         starts = np.stack([a, b, c], axis=1)
@@ -500,6 +506,7 @@ class MeshShape(Shape):
         self.rebuilds += 1
         self._cx, self._cy, self._cz, self._cr, self._cslack = cx, cy, cz, radius, slack
         self._above = {}
+        self._vmemo = {}
         # the grid cells the ball (grown by the largest triangle) overlaps: one slice per column
         reach = radius + self._rho
         (lx, ly, lz), h, (nx, ny, nz) = self._grid_lo, self._grid_h, self._grid_dims
@@ -576,12 +583,17 @@ class MeshShape(Shape):
             if side < 0.0:
                 nx, ny, nz, off = -nx, -ny, -nz, -off
             off += ABOVE_TOL
-            tris, ci = self._tri, self._ci
-            for k in range(done, n):
-                t = tris[ci[k]]
-                if (nx * t[0] + ny * t[1] + nz * t[2] > off or nx * t[3] + ny * t[4] + nz * t[5] > off
-                        or nx * t[6] + ny * t[7] + nz * t[8] > off):
-                    out.append(k)
+            if n - done > BATCH_MIN:
+                # many positions at once (a new hint after a rebuild): one batched test
+                h = self._abc[self._cids[done:n]] @ np.array((nx, ny, nz))
+                out.extend((np.flatnonzero((h > off).any(axis=1)) + done).tolist())
+            else:
+                tris, ci = self._tri, self._ci
+                for k in range(done, n):
+                    t = tris[ci[k]]
+                    if (nx * t[0] + ny * t[1] + nz * t[2] > off or nx * t[3] + ny * t[4] + nz * t[5] > off
+                            or nx * t[6] + ny * t[7] + nz * t[8] > off):
+                        out.append(k)
             memo[0] = n
             return out
         return out[:bisect.bisect_left(out, n)] if out and out[-1] >= n else out
@@ -617,7 +629,7 @@ class MeshShape(Shape):
         if feature == 0:
             return self._above_list(hint, side0, n)
         if feature > 3:
-            return self._vertex_certified(self._tv[hint][feature - 4], nx, ny, nz, n)
+            return self._vertex_certified(hint, feature, nx, ny, nz, n)
         other = self._adj[hint][feature - 1]
         if other < 0 or other not in self._cpos:
             return None
@@ -637,30 +649,108 @@ class MeshShape(Shape):
             return None  # n outside the cone: a concave edge
         return self._merged(self._above_list(hint, side0, n), self._above_list(other, side1, n))
 
-    def _vertex_certified(self, vertex: int, nx: float, ny: float, nz: float, n: int):
-        """`_certified` when q is a vertex: the tangent plane there passes through the vertex,
-        and a fan triangle (the vertex's own) lies behind it when every edge leaving the vertex
-        does (n·e <= ABOVE_TOL; first by the precomputed cone, one dot product). Then the
-        positions below n of the triangles outside the fan are left, else None. Where 50 thin
-        triangles meet (a uv-sphere's pole) this is what keeps a proxy held there cheap."""
+    def _vertex_certified(self, hint: int, feature: int, nx: float, ny: float, nz: float, n: int):
+        """`_certified` when q is a vertex v of the hint: the tangent plane there passes through
+        v, and a fan triangle (v's own) lies behind it when every edge leaving v does
+        (n·e <= ABOVE_TOL; first by the precomputed cone, one dot product). Then the positions
+        below n of the triangles left to read, else None. Where 50 thin triangles meet (a
+        uv-sphere's pole) this is what keeps a proxy held there cheap.
+
+        A triangle off the fan lies behind the tangent plane too when each of its vertices w
+        does. An end of an edge leaving v does (the fan's own test). Any other w is far enough
+        below the cone's axis a: with β the angle of u = w - v below the plane normal to a
+        (sin β = -a·u / |u|, the least over the triangle's vertices off the ring) and α the
+        angle of n from a, the angle between n and u is at least 90° + β - α, so n·u <= 0
+        whenever β >= α. sin β depends on v and the triangle only: it is kept per vertex,
+        sorted, so a query reads off (one bisection on sin α) the few triangles that may rise
+        too close to the plane (on a convex patch of fairly even triangles, none) and tests
+        only their vertices against it."""
+        vertex = self._tv[hint][feature - 4]
         ax, ay, az, cos = self._vcone[vertex]
-        if nx * ax + ny * ay + nz * az < cos:
+        c = nx * ax + ny * ay + nz * az
+        if c < cos:
             for ex, ey, ez, _ in self._ring[vertex]:
                 if nx * ex + ny * ey + nz * ez > ABOVE_TOL:
                     return None
-        key = ("v", vertex)
-        memo = self._above.get(key)
+        memo = self._vmemo.get(vertex)
+        if memo is None or n > memo[0]:
+            memo = self._vertex_table(vertex, hint, feature, n, memo)
+        # the triangles with sin β < sin α (+ a rounding margin) may rise above the plane: at
+        # once none when sin α is below the least sin β (1 - c² < s0²), the common case
+        if c > 0.0 and c * c > memo[3]:
+            return []
+        sines = memo[1]
+        m = bisect.bisect_left(sines, math.sqrt(max(0.0, 1.0 - c * c)) + 1e-12) if c > 0.0 else len(sines)
+        if m == 0:
+            return []
+        t = self._tri[hint]
+        # those few: each vertex against the tangent plane itself
+        k3 = 3 * (feature - 4)
+        off = nx * t[k3] + ny * t[k3 + 1] + nz * t[k3 + 2] + ABOVE_TOL
+        tris, ci = self._tri, self._ci
+        keep = []
+        for k in memo[2][:m]:
+            if k < n:
+                u = tris[ci[k]]
+                if (nx * u[0] + ny * u[1] + nz * u[2] > off or nx * u[3] + ny * u[4] + nz * u[5] > off
+                        or nx * u[6] + ny * u[7] + nz * u[8] > off):
+                    keep.append(k)
+        if len(keep) > 1:
+            keep.sort()
+        return keep
+
+    def _vertex_table(self, vertex: int, hint: int, feature: int, n: int, memo):
+        """The vertex certificate's table over the neighbourhood positions below n, extended
+        from `memo` (positions already done): [done, sin β ascending, positions in that order,
+        1 - (least sin β - margin)² (2 when nothing is certified by angle alone)]."""
         if memo is None:
-            memo = self._above[key] = [0, []]
-        done, out = memo
-        if n > done:
-            fan, ci = self._fan[vertex], self._ci
+            memo = self._vmemo[vertex] = [0, [], [], 2.0]
+        done, sines, out = memo[0], memo[1], memo[2]
+        t = self._tri[hint]
+        k3 = 3 * (feature - 4)
+        vx, vy, vz = t[k3], t[k3 + 1], t[k3 + 2]
+        ax, ay, az, _ = self._vcone[vertex]
+        fan, ci, tris, tv = self._fan[vertex], self._ci, self._tri, self._tv
+        ring = set()
+        for i in fan:
+            ring.update(tv[i])
+        if n - done > BATCH_MIN:
+            # many positions at once (after a rebuild): batched, merged into the sorted table
+            ids = self._cids[done:n]
+            u = self._abc[ids] - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
+            norm = np.sqrt((u * u).sum(2))
+            sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
+            sb[np.isin(self._faces[ids], list(ring))] = 1.0  # v and the ends of its edges
+            least = sb.min(axis=1)
+            offfan = ~np.isin(ids, list(fan))
+            sines_all = np.concatenate([np.array(sines), least[offfan]])
+            out_all = np.concatenate([np.array(out, dtype=np.int64), np.flatnonzero(offfan) + done])
+            order = np.argsort(sines_all, kind="stable")
+            memo[1] = sines = sines_all[order].tolist()
+            memo[2] = out = out_all[order].tolist()
+        else:
             for k in range(done, n):
-                if ci[k] not in fan:
-                    out.append(k)
-            memo[0] = n
-            return out
-        return out[:bisect.bisect_left(out, n)] if out and out[-1] >= n else out
+                i = ci[k]
+                if i in fan:
+                    continue
+                u = tris[i]
+                least = 1.0
+                for j, w in enumerate(tv[i]):
+                    if w in ring:
+                        continue  # v or an end of an edge leaving v: behind the plane with the fan
+                    j *= 3
+                    wx, wy, wz = u[j] - vx, u[j + 1] - vy, u[j + 2] - vz
+                    norm = math.sqrt(wx * wx + wy * wy + wz * wz)
+                    sb = -(wx * ax + wy * ay + wz * az) / norm
+                    if sb < least:
+                        least = sb
+                at = bisect.bisect_left(sines, least)
+                sines.insert(at, least)
+                out.insert(at, k)
+        memo[0] = n
+        s0 = (sines[0] if sines else 1.0) - 1e-12
+        memo[3] = 1.0 - s0 * s0 if s0 > 0.0 else 2.0
+        return memo
 
     def _walk(self, hint, d2, qx, qy, qz, feature, x, y, z):
         """From the hint's closest point to p on a vertex, step to a triangle on an edge leaving
@@ -915,14 +1005,22 @@ class MeshShape(Shape):
             emax = eb
             n = bisect.bisect_right(self._cd, reach + emax)
             positions = self._certified(hint, feature, nx, ny, nz, n) if touching and hint in self._cpos else None
-        cd, ci = self._cd, self._ci
+        cd, ci, planes = self._cd, self._ci, self._plane
         limit = reach + emax
         positions = self._shortlist(positions, n, ax, ay, az, far)
+        slab = reach + 1e-12  # the plane test of _sweep_triangle, inline, rounding on the safe side
         for k in positions:
             if cd[k] > limit:
                 break
             i = ci[k]
             if i == hint:
+                continue
+            # a segment that stays more than r off the triangle's plane, on one side, never
+            # reaches it: most triangles of a concave neighbourhood end here, without a call
+            pnx, pny, pnz, off = planes[i]
+            h0 = pnx * ax + pny * ay + pnz * az - off
+            h1 = h0 + pnx * ux + pny * uy + pnz * uz
+            if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
                 continue
             hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
             if hit is not None and hit[0] < best_lam:

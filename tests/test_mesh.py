@@ -679,3 +679,89 @@ def test_walk_from_a_vertex_finds_the_nearer_fan_triangle(tmp):
         else:
             assert along[t < hit[0]].min(initial=math.inf) >= 0.002 - 1e-9
             assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(0.002, abs=1e-9)
+
+
+def test_vertex_certificate_off_the_fan(tmp_path, tmp):
+    """Over a vertex, triangles off its fan are left unread only when they lie behind the
+    tangent plane: a small box floating beside a vertex of a geodesic sphere is found (the
+    distance and the sweep agree with the reference), while over a vertex of the uv-sphere's
+    anisotropic rings, where no triangle rises above that plane, the hint alone is read."""
+    from softproxy import mesh as mesh_module
+
+    ball = geodesic_sphere(10, 0.05)
+    v0 = ball.vertices
+    top = int(np.argmax(v0 @ np.array([0.3, 0.2, 0.93])))
+    a = v0[top] / np.linalg.norm(v0[top])
+    side = np.cross(a, (0.0, 0.0, 1.0))
+    side /= np.linalg.norm(side)
+    box = trimesh.creation.box(extents=(0.002, 0.002, 0.002))
+    box.apply_translation(v0[top] + 0.004 * a + 0.003 * side)
+    m, d, shapes = mesh_model(tmp_path / "ball_box.obj", trimesh.util.concatenate([ball, box]))
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    # the chosen vertex as compiled (MuJoCo moves the mesh into its own frame; the ball's
+    # faces come first): the farthest along the same direction from the ball's centre
+    centre = v[f[:len(ball.faces)]].reshape(-1, 3).mean(0)
+    vertex = int(f[:len(ball.faces)].reshape(-1)[np.argmax((v[f[:len(ball.faces)]].reshape(-1, 3) - centre) @ a)])
+    fan = np.flatnonzero((f == vertex).any(axis=1))
+    out = (v[vertex] - centre) / np.linalg.norm(v[vertex] - centre)
+    assert out @ a > 1.0 - 1e-9
+    tables = 0
+    table = MeshShape._vertex_table
+
+    def counted(self, *args):
+        nonlocal tables
+        tables += 1
+        return table(self, *args)
+
+    rng = np.random.default_rng(5)
+    MeshShape._vertex_table = counted
+    try:
+        for k in range(60):
+            p = v[vertex] + rng.uniform(0.001, 0.007) * out + rng.normal(scale=2e-4, size=3)
+            s._hint = int(fan[k % len(fan)])
+            s._dkey = None
+            assert abs(s.distance(*p)[0] - reference_distance(p[None], v, f)[0]) < 1e-9
+            s._hint = int(fan[(k * 3) % len(fan)])
+            dvec = rng.normal(scale=0.002, size=3)
+            r = 0.001
+            hit = s.sweep(*p, *dvec, r)
+            t, along = distances_along(v, f, p, dvec, samples=60)
+            if along[0] < r:
+                continue
+            if hit is None:
+                assert along.min() >= r - 1e-9
+            else:
+                assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
+                assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+    finally:
+        MeshShape._vertex_table = table
+    assert tables > 0
+
+    # the uv-sphere: a ring vertex ~25° from the pole, its edges 0.9 mm along the ring, 3 mm across
+    m, d, shapes = uv_sphere(tmp)
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    vertex = int(np.argmin(np.linalg.norm(v - 0.05 * np.array([math.sin(0.44), 0.0, math.cos(0.44)]), axis=1)))
+    fan = np.flatnonzero((f == vertex).any(axis=1))
+    out = v[vertex] / np.linalg.norm(v[vertex])
+    pts = v[vertex] + 0.005 * out + rng.normal(scale=3e-6, size=(30, 3))
+    dist = reference_distance(pts, v, f)
+    s.distance(*pts[0])  # the neighbourhood and the vertex's table, built once
+    calls = 0
+    closest = mesh_module._closest
+
+    def counted_closest(*args):
+        nonlocal calls
+        calls += 1
+        return closest(*args)
+
+    mesh_module._closest = counted_closest
+    try:
+        for p, dd in zip(pts, dist):
+            s._hint = int(fan[0])
+            s._dkey = None
+            assert abs(s.distance(*p)[0] - dd) < 1e-9
+    finally:
+        mesh_module._closest = closest
+    assert calls <= 3 * len(pts)
