@@ -23,8 +23,9 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    bound on its distance from c (one matrix product: the plane and edge lines, and the
    triangle's bounding sphere, tight where a thin triangle points at c). A query within e
    of c reads only the triangles whose bound minus e is within its reach, a short prefix;
-   the neighbourhood is rebuilt when a query leaves it or drifted far enough that its
-   prefix grew long;
+   the neighbourhood is rebuilt when a query leaves it, or drifted far enough that its
+   prefix grew long once the scans since the last rebuild have read about a rebuild's worth
+   of triangles (REBUILD_WORK);
 3. the hint, the triangle touched or nearest last, is tested first: pressed into it, the
    sweep ends at once. Its tangent plane at the nearest point is a certificate: a triangle
    lying wholly behind the hint's plane (behind both faces' planes at a convex edge) is at
@@ -33,7 +34,10 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    patch, the rising wall in a bowl. When the nearest point is a vertex, the vertex's own fan
    lies behind the tangent plane whenever every edge leaving the vertex does (one dot
    product against a precomputed cone, else one per edge): a proxy held on the pole of a
-   uv-sphere, where ~100 thin triangles meet, reads none of them. When an edge rises above
+   uv-sphere, where ~100 thin triangles meet, reads none of them. A triangle off the fan is
+   behind it too when its far vertices lie far enough below the cone's axis (a per-vertex
+   table sorted by that angle, one bisection per query), so on a convex patch none is read
+   whatever the triangles' shape. When an edge rises above
    that plane, a triangle on it holds a nearer point: the query walks there first (the
    face's or edge's certificate then holds). Scalar Python over the few triangles that remain.
 4. the last distance answer is kept (the god-object asks again about the point it holds),
@@ -65,6 +69,10 @@ NEIGHBOURHOOD_SLACK = 0.0005
 """A query this far (m) from the neighbourhood's centre re-centres it when its scan would read
 more than DRIFT_SCAN triangles (the lower bounds loosen by the drift)."""
 DRIFT_SCAN = 24
+REBUILD_WORK = 400
+"""A drifted neighbourhood is re-centred only once the scans since it was built have read more
+positions than this (in all): a rebuild costs about as much as that many scalar reads, so
+re-centring then at most doubles the work, and a slow drift with short scans never pays it."""
 BATCH_MIN = 32
 """A certificate's table is extended over more new neighbourhood positions than this in one
 batched numpy pass rather than in scalar Python (after a rebuild it may be asked for hundreds)."""
@@ -336,7 +344,7 @@ class MeshShape(Shape):
         "mesh", "label", "signed", "shading", "defects", "triangles", "_tri", "_edges", "_pn", "_vn", "_adj", "_plane",
         "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_abc", "_faces", "_sph", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
-        "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_vmemo", "_hint", "rebuilds",
+        "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_vmemo", "_work", "_hint", "rebuilds",
         "_recent", "_dkey", "_dval",
     )
 
@@ -368,6 +376,7 @@ class MeshShape(Shape):
         self._cpos: dict = {}
         self._above: dict = {}
         self._vmemo: dict = {}
+        self._work = 0
         self._hint = -1
         self.rebuilds = 0  # how often the neighbourhood was rebuilt
         # the triangles sweeps last stopped on (RECENT_HITS at most, newest last): [triangle,
@@ -507,6 +516,7 @@ class MeshShape(Shape):
         self._cx, self._cy, self._cz, self._cr, self._cslack = cx, cy, cz, radius, slack
         self._above = {}
         self._vmemo = {}
+        self._work = 0
         # the grid cells the ball (grown by the largest triangle) overlaps: one slice per column
         reach = radius + self._rho
         (lx, ly, lz), h, (nx, ny, nz) = self._grid_lo, self._grid_h, self._grid_dims
@@ -872,7 +882,9 @@ class MeshShape(Shape):
                     # triangle behind it is at least as far
                     positions = self._certified(hint, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, n)
             best = math.sqrt(best2)
-            if drifted and best + e < self._cr and (n if positions is None else len(positions)) > DRIFT_SCAN:
+            scan = n if positions is None else len(positions)
+            self._work += scan
+            if drifted and best + e < self._cr and scan > DRIFT_SCAN and self._work > REBUILD_WORK:
                 # a neighbourhood centred here is cheaper to scan (radius kept)
                 self._neighbourhood(x, y, z, max(self._cr - e, best + self._cslack), self._cslack)
                 e = 0.0
@@ -994,7 +1006,9 @@ class MeshShape(Shape):
             _, nx, ny, nz, feature = hint_hit
             touching = True
         positions = self._certified(hint, feature, nx, ny, nz, n) if touching and hint in self._cpos else None
-        if not rebuilt and ea > self._slack and (n if positions is None else len(positions)) > DRIFT_SCAN:
+        scan = n if positions is None else len(positions)
+        self._work += scan
+        if not rebuilt and ea > self._slack and scan > DRIFT_SCAN and self._work > REBUILD_WORK:
             # drifted: re-centred, the scan reads fewer triangles
             self._neighbourhood(ax, ay, az, length + reach + NEIGHBOURHOOD_RADIUS, self._slack)
             ea = 0.0
