@@ -218,6 +218,21 @@ SCENERY = (
 )
 
 
+CURVED = (  # apart: no crease of two curved surfaces, where the solver converges to ~1e-5 m
+    '<geom type="sphere" size=".03" pos="-.03 0 0"/>'
+    '<geom type="capsule" size=".015 .03" pos=".04 .01 0" quat="0.7071 0.7071 0 0"/>'
+)
+
+
+def _in_small_steps(god, path):
+    """Device positions: each point of `path` reached in five steps from wherever `god`'s
+    proxy is then, so faces are held and slid on, not only jumped at."""
+    for p in path:
+        sx, sy, sz = god.x, god.y, god.z
+        for k in range(1, 6):
+            yield tuple(a + (b - a) * k / 5 for a, b in zip((sx, sy, sz), p))
+
+
 # Derandomized: the same examples on every run. In a crease of a face and a box's rounded
 # edge the solver converges within MAX_ITERATIONS to ~1e-5 m, and a warm start, one sweep
 # ahead, can end there differently (seen once in 1500 random examples): a known limit of
@@ -226,54 +241,27 @@ SCENERY = (
 @settings(max_examples=40, deadline=None, derandomize=True)
 @given(st.lists(st.tuples(st.floats(-0.06, 0.06), st.floats(-0.06, 0.06), st.floats(-0.02, 0.08)),
                 min_size=2, max_size=30), st.floats(0.0, 1.0), st.floats(0.001, 0.01))
-def test_warm_start_finds_what_a_cold_solve_finds(path, mu, radius):
-    """Starting from last tick's face planes (GodObject._solve) ends where solving from no
-    planes ends, on faces, creases, corners and past edges, and never inside."""
-    _, _, shapes = world(SCENERY)
-    warm = GodObject(shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
-    cold = _ColdGodObject(shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
-    for p in path:
-        # small steps between the random points: faces held and slid on, not only jumps
-        sx, sy, sz = warm.x, warm.y, warm.z
-        for k in range(1, 6):
-            q = tuple(a + (b - a) * k / 5 for a, b in zip((sx, sy, sz), p))
-            warm.update(*q)
-            cold.update(*q)
-            assert deepest(warm) <= TOL
-            assert math.dist((warm.x, warm.y, warm.z), (cold.x, cold.y, cold.z)) < TOL
-            assert warm.contact == cold.contact
-
-
-CURVED = (  # apart: no crease of two curved surfaces, where the solver converges to ~1e-5 m
-    '<geom type="sphere" size=".03" pos="-.03 0 0"/>'
-    '<geom type="capsule" size=".015 .03" pos=".04 .01 0" quat="0.7071 0.7071 0 0"/>'
-)
-
-
-@settings(max_examples=40, deadline=None, derandomize=True)
-@given(st.lists(st.tuples(st.floats(-0.06, 0.06), st.floats(-0.06, 0.06), st.floats(-0.02, 0.08)),
-                min_size=2, max_size=30), st.floats(0.0, 1.0), st.floats(0.001, 0.01))
 @pytest.mark.parametrize("scenery", [SCENERY, CURVED], ids=["planar", "curved"])
-def test_hold_and_slide_shortcuts_change_nothing(scenery, path, mu, radius):
-    """The hold fast path on a face and in a corner (`_still_stuck`) and the friction slide
-    kept on the segment already swept end where the unhurried solver ends, with the same
-    force direction and depth, and never inside."""
+@pytest.mark.parametrize("reference", [_ColdGodObject, _UnhurriedGodObject], ids=["cold", "unhurried"])
+def test_shortcuts_end_where_the_full_solve_ends(reference, scenery, path, mu, radius):
+    """The solver's shortcuts end where solving without them ends, with the same force
+    direction and depth, on faces, creases, corners, past edges and on curved shapes, and
+    never inside: starting from last tick's face planes (`_solve`, against a cold solve);
+    the hold on a face and in a corner (`_still_stuck`) and the friction slide kept on the
+    segment already swept (against the unhurried solver)."""
     _, _, shapes = world(scenery)
     fast = GodObject(shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
-    slow = _UnhurriedGodObject(shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
-    for p in path:
-        sx, sy, sz = fast.x, fast.y, fast.z
-        for k in range(1, 6):
-            q = tuple(a + (b - a) * k / 5 for a, b in zip((sx, sy, sz), p))
-            fast.update(*q)
-            slow.update(*q)
-            assert deepest(fast) <= TOL
-            assert math.dist((fast.x, fast.y, fast.z), (slow.x, slow.y, slow.z)) < TOL
-            assert fast.contact == slow.contact
-            if fast.contact:  # the force the finger feels: depth along n
-                assert fast.depth == pytest.approx(slow.depth, abs=TOL)
-                if slow.depth > 1e-4:
-                    assert math.dist((fast.nx, fast.ny, fast.nz), (slow.nx, slow.ny, slow.nz)) < 1e-3
+    slow = reference(shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
+    for q in _in_small_steps(fast, path):
+        fast.update(*q)
+        slow.update(*q)
+        assert deepest(fast) <= TOL
+        assert math.dist((fast.x, fast.y, fast.z), (slow.x, slow.y, slow.z)) < TOL
+        assert fast.contact == slow.contact
+        if fast.contact:  # the force the finger feels: depth along n
+            assert fast.depth == pytest.approx(slow.depth, abs=TOL)
+            if slow.depth > 1e-4:
+                assert math.dist((fast.nx, fast.ny, fast.nz), (slow.nx, slow.ny, slow.nz)) < 1e-3
 
 
 def test_hold_in_a_corner_takes_the_fast_path():
