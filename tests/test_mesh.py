@@ -1,5 +1,6 @@
 """Triangle-mesh contact: exact distance and sweep, the proxy never inside, the bowl's dent, validation."""
 
+import contextlib
 import functools
 import math
 import warnings
@@ -600,12 +601,30 @@ def uv_sphere(tmp: str):
     return mesh_model(Path(tmp) / "uv.obj", mesh)
 
 
+@contextlib.contextmanager
+def counting_closest_calls():
+    """Count, in the list's one item, the exact point-triangle queries (`mesh._closest`) the
+    block makes: how many triangles a query really read."""
+    from softproxy import mesh as mesh_module
+
+    closest = mesh_module._closest
+    calls = [0]
+
+    def counted(*args):
+        calls[0] += 1
+        return closest(*args)
+
+    mesh_module._closest = counted
+    try:
+        yield calls
+    finally:
+        mesh_module._closest = closest
+
+
 def test_held_on_a_pole_is_exact_and_cheap(tmp):
     """A proxy pressed onto the pole vertex of a uv-sphere: the vertex certificate skips the
     fan, and the answers agree with the reference, for points about the pole and sweeps from
     there in every direction."""
-    from softproxy import mesh as mesh_module
-
     m, d, shapes = uv_sphere(tmp)
     s = mesh_shape(shapes)
     v, f = world_mesh(m, d)
@@ -619,21 +638,10 @@ def test_held_on_a_pole_is_exact_and_cheap(tmp):
     rng = np.random.default_rng(7)
     pts = pole + np.array([0.0, 0.0, r]) + rng.normal(scale=2e-5, size=(30, 3))
     dist = reference_distance(pts, v, f)
-    calls = 0
-    closest = mesh_module._closest
-
-    def counted(*a):
-        nonlocal calls
-        calls += 1
-        return closest(*a)
-
-    mesh_module._closest = counted
-    try:
+    with counting_closest_calls() as calls:
         for p, dd in zip(pts, dist):
             assert abs(s.distance(*p)[0] - dd) < 1e-9
-    finally:
-        mesh_module._closest = closest
-    assert calls <= 3 * len(pts)  # the hint (and its neighbour), not the ~100 triangles of the fan
+    assert calls[0] <= 3 * len(pts)  # the hint (and its neighbour), not the ~100 triangles of the fan
     start = np.array((god.x, god.y, god.z))
     for u in rng.normal(size=(20, 3)):
         dvec = u / np.linalg.norm(u) * 2e-4
@@ -729,8 +737,6 @@ def test_vertex_certificate_off_the_fan(tmp_path, tmp):
     tangent plane: a small box floating beside a vertex of a geodesic sphere is found (the
     distance and the sweep agree with the reference), while over a vertex of the uv-sphere's
     anisotropic rings, where no triangle rises above that plane, the hint alone is read."""
-    from softproxy import mesh as mesh_module
-
     ball = geodesic_sphere(10, 0.05)
     v0 = ball.vertices
     top = int(np.argmax(v0 @ np.array([0.3, 0.2, 0.93])))
@@ -791,20 +797,9 @@ def test_vertex_certificate_off_the_fan(tmp_path, tmp):
     pts = v[vertex] + 0.005 * out + rng.normal(scale=3e-6, size=(30, 3))
     dist = reference_distance(pts, v, f)
     s.distance(*pts[0])  # the neighbourhood and the vertex's table, built once
-    calls = 0
-    closest = mesh_module._closest
-
-    def counted_closest(*args):
-        nonlocal calls
-        calls += 1
-        return closest(*args)
-
-    mesh_module._closest = counted_closest
-    try:
+    with counting_closest_calls() as calls:
         for p, dd in zip(pts, dist):
             s._hint = int(fan[0])
             s._dkey = None
             assert abs(s.distance(*p)[0] - dd) < 1e-9
-    finally:
-        mesh_module._closest = closest
-    assert calls <= 3 * len(pts)
+    assert calls[0] <= 3 * len(pts)
