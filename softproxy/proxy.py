@@ -101,6 +101,16 @@ def _project_by_enumeration(px: float, py: float, pz: float, planes: list) -> tu
     return None
 
 
+def _on_static_faces(planes: list) -> bool:
+    """True when every plane is a planar face of a shape that never moves: such a plane
+    holds from tick to tick for as long as the proxy touches the face."""
+    for p in planes:
+        s = p[4]
+        if not (s.static and s.on_face(p[0], p[1], p[2])):
+            return False
+    return True
+
+
 def _touched(planes: list, nx: float, ny: float, nz: float) -> Shape:
     """The touched shape: the one whose active plane is most aligned with the force's n."""
     best, best_dot = planes[0][4], -2.0
@@ -340,9 +350,8 @@ class GodObject:
         """`_still_stuck` in a corner of three static faces: holds while projecting the device
         onto the three planes gives the corner point, where the proxy is (every plane pushes)."""
         planes = self.planes
-        for p in planes:
-            if not (p[4].static and p[4].on_face(p[0], p[1], p[2])):
-                return False
+        if not _on_static_faces(planes):
+            return False
         q = _corner(xd, yd, zd, planes)
         x, y, z = self.x, self.y, self.z
         if q is None or abs(q[0] - x) + abs(q[1] - y) + abs(q[2] - z) > 1e-12:
@@ -417,14 +426,8 @@ class GodObject:
         Never unsafe either way: every motion is still swept against every shape.
         """
         warm = self.planes
-        if warm:
-            for p in warm:
-                s = p[4]
-                if not (s.static and s.on_face(p[0], p[1], p[2])):
-                    warm = None
-                    break
-            if warm:
-                return self._move(x, y, z, gx, gy, gz, warm)
+        if warm and _on_static_faces(warm):
+            return self._move(x, y, z, gx, gy, gz, warm)
         return self._move(x, y, z, gx, gy, gz)
 
     def _move(self, x, y, z, gx, gy, gz, warm=None):
@@ -501,7 +504,7 @@ class GodObject:
         r = self.radius
         resting = []
         for p in planes:
-            if p[0] * x + p[1] * y + p[2] * z - p[3] > 1e-7:
+            if p[0] * x + p[1] * y + p[2] * z - p[3] > LIFT_TOL:
                 continue
             s = p[4]
             if s.flat and s.on_face(p[0], p[1], p[2]) and s.distance(x, y, z)[0] - r > LIFT_TOL:
