@@ -81,6 +81,7 @@ class ServoLoop:
         self.period = 1.0 / self.rate_hz
         world.timestep = self.period
         self.samples = [DeviceSample() for _ in range(device.fingers)]
+        self._pairs = [(f, self.samples[f.params.device_finger]) for f in fingers]  # each finger's sample
         self.stats = TickStats(stats_capacity)
         self.faults = dict.fromkeys(FAULTS, 0)
         self.overrun_limit = overrun_factor * self.period
@@ -129,8 +130,7 @@ class ServoLoop:
         safe = self._safe_next
         self._safe_next = False
         world.begin_step()
-        for f in self.fingers:
-            s = samples[f.params.device_finger]
+        for f, s in self._pairs:
             if not ok or not s.valid or not s.is_finite():
                 if ok:
                     self.faults["invalid_sample"] += 1

@@ -38,7 +38,10 @@ class World:
         self._xfrc = self.data.xfrc_applied
         self._xipos = self.data.xipos
         self._pushed: list[int] = []  # bodies with a wrench from last tick
-        self._wrench: dict[int, list[float]] = {}
+        # this tick's wrench per body: force (N) and moment about the world origin (N·m), so a
+        # push needs no body position; end_step moves the moment to the body's centre of mass
+        self._wrench: list[list[float]] = [[0.0] * 6 for _ in range(model.nbody)]
+        self._touched: list[int] = []
         # bodies welded to the world never move: a finger pushing on them moves nothing
         self._fixed = [int(w) == 0 for w in model.body_weldid]
 
@@ -62,33 +65,40 @@ class World:
         """Add force (N) at world point p (m) plus a pure torque (N·m) on `body` for this tick."""
         if self._fixed[body]:
             return
-        cx, cy, cz = self._xipos[body].tolist()
-        rx, ry, rz = px - cx, py - cy, pz - cz
-        w = self._wrench.get(body)
-        if w is None:
-            w = self._wrench[body] = [0.0] * 6
+        if body not in self._touched:
+            self._touched.append(body)
+        w = self._wrench[body]
         w[0] += fx
         w[1] += fy
         w[2] += fz
-        w[3] += ry * fz - rz * fy + tx
-        w[4] += rz * fx - rx * fz + ty
-        w[5] += rx * fy - ry * fx + tz
+        w[3] += py * fz - pz * fy + tx
+        w[4] += pz * fx - px * fz + ty
+        w[5] += px * fy - py * fx + tz
 
     def end_step(self) -> None:
         """Write this tick's wrenches (and clear last tick's) and run the second half of mj_step."""
         xfrc = self._xfrc
+        touched = self._touched
         for body in self._pushed:
-            if body not in self._wrench:
+            if body not in touched:
                 xfrc[body] = 0.0
-        self._pushed = list(self._wrench)
-        for body, w in self._wrench.items():
-            xfrc[body] = w
-        self._wrench.clear()
+        for body in touched:
+            w = self._wrench[body]
+            fx, fy, fz, mx, my, mz = w
+            cx, cy, cz = self._xipos[body].tolist()
+            # moment about the centre of mass: M_origin - c × F
+            xfrc[body] = (fx, fy, fz, mx - (cy * fz - cz * fy), my - (cz * fx - cx * fz), mz - (cx * fy - cy * fx))
+            w[0] = w[1] = w[2] = w[3] = w[4] = w[5] = 0.0
+        self._pushed = touched
+        self._touched = []
         mujoco.mj_step2(self.model, self.data)
 
     def clear_wrenches(self) -> None:
         """Remove every wrench the fingers put on the bodies (the safe state)."""
-        self._wrench.clear()
+        for body in self._touched:
+            w = self._wrench[body]
+            w[0] = w[1] = w[2] = w[3] = w[4] = w[5] = 0.0
+        self._touched = []
         for body in self._pushed:
             self._xfrc[body] = 0.0
         self._pushed = []

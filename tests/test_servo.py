@@ -102,6 +102,44 @@ def test_equal_and_opposite_wrench():
         assert 0.2 * v[i] == pytest.approx(impulse[i], rel=1e-6, abs=1e-9)
 
 
+def test_pushed_wrenches_reach_the_body_about_its_centre_of_mass():
+    """World.push: forces at points add up, their moment is taken about the body's centre of
+    mass (off the geom here), a body pushed last tick and not this one is cleared, and a
+    body welded to the world gets nothing."""
+    xml = """<mujoco><option gravity="0 0 0"/><worldbody>
+      <geom name="wall" type="box" pos="0 0.5 0" size=".1 .1 .1"/>
+      <body name="b" pos="0.1 0.2 0.3"><freejoint/>
+        <geom type="box" size=".02 .02 .02" mass="0.2"/><geom type="sphere" pos="0.05 0 0" size="0.01" mass="0.1"/>
+      </body></worldbody></mujoco>"""
+    world = World(mujoco.MjModel.from_xml_string(xml))
+    body = world.body_id("b")
+    world.begin_step()
+    c = world.data.xipos[body].copy()
+    assert abs(c[0] - 0.1) > 1e-3, "centre of mass off the body origin"
+    pushes = [((1.0, -2.0, 0.5), (0.12, 0.21, 0.28), (0.01, 0.0, -0.02)),
+              ((-0.3, 0.4, 2.0), (0.08, 0.19, 0.33), (0.0, 0.005, 0.0))]
+    force, moment = [0.0] * 3, [0.0] * 3
+    for f, p, t in pushes:
+        world.push(body, *f, *p, *t)
+        world.push(0, *f, *p, *t)  # the world body: ignored
+        r = [p[i] - c[i] for i in range(3)]
+        cross = (r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0])
+        for i in range(3):
+            force[i] += f[i]
+            moment[i] += cross[i] + t[i]
+    world.end_step()
+    assert world.data.xfrc_applied[body].tolist() == pytest.approx(force + moment, abs=1e-12)
+    assert not world.data.xfrc_applied[0].any()
+    world.begin_step()
+    world.end_step()  # nothing pushed this tick
+    assert not world.data.xfrc_applied.any()
+    world.begin_step()
+    world.push(body, 1.0, 0.0, 0.0, *c, 0.0, 0.0, 0.0)
+    world.end_step()
+    world.clear_wrenches()
+    assert not world.data.xfrc_applied.any()
+
+
 def test_lockstep_is_deterministic():
     a = run("two_finger_grasp", duration_s=1.0)
     b = run("two_finger_grasp", duration_s=1.0)
