@@ -41,7 +41,9 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    that plane, a triangle on it holds a nearer point: the query walks there first (the
    face's or edge's certificate then holds). Scalar Python over the few triangles that remain.
 4. the last distance answer is kept (the god-object asks again about the point it holds),
-   keyed by the point in the geom frame, so a new pose never returns a stale answer; and
+   and so is a sweep's start point whose nearest point the hint's certificate proved (the
+   proxy that slid or pressed from there is asked about again), both keyed by the point in
+   the geom frame, so a new pose never returns a stale answer; and
    `on_face` names a face two sweeps stopped on at the same point, so a proxy held in a
    concave corner of the mesh warm-starts from its planes instead of sweeping into each.
 """
@@ -345,7 +347,7 @@ class MeshShape(Shape):
         "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_abc", "_faces", "_sph", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
         "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_vmemo", "_work", "_hint", "rebuilds",
-        "_recent", "_dkey", "_dval",
+        "_recent", "_dkey", "_dval", "_skey", "_sval",
     )
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
@@ -384,6 +386,8 @@ class MeshShape(Shape):
         self._recent: list = []
         self._dkey = None  # the last distance query (geom frame) and its answer
         self._dval = None
+        self._skey = None  # a sweep's start point (geom frame) and its certified nearest point
+        self._sval = None
 
     # -- load-time tables ---------------------------------------------------------------
     def _build(self, v: np.ndarray, f: np.ndarray) -> None:
@@ -819,21 +823,42 @@ class MeshShape(Shape):
                     return True
         return False
 
-    def local_distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
-        """Signed distance (m) to the nearest triangle and the outward unit normal, geom frame.
+    def distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
+        """Signed distance (m) to the nearest triangle and the outward unit normal, world frame.
 
-        The last answer is kept: the god-object asks again about the point it holds (once per
-        constraint plane). The key is the point in the geom frame, where the triangles never
-        move, so a new pose (`refresh`) changes the key, never the answer to it."""
+        `Shape.distance` inlined (the god-object asks this several times a tick). The last
+        answer is kept (the god-object asks again about the point it holds), and so is the
+        answer a sweep certified for its start point (the god-object then asks about that
+        point, where the proxy stayed); both keyed by the point in the geom frame, where the
+        triangles never move, so a new pose (`refresh`) changes the key, never the answer."""
+        dx, dy, dz = x - self.px, y - self.py, z - self.pz
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = (self.r00, self.r01, self.r02, self.r10, self.r11,
+                                                       self.r12, self.r20, self.r21, self.r22)
+        key = (r00 * dx + r10 * dy + r20 * dz, r01 * dx + r11 * dy + r21 * dz, r02 * dx + r12 * dy + r22 * dz)
+        if key == self._dkey:
+            d, nx, ny, nz = self._dval
+        else:
+            if key == self._skey:
+                d, nx, ny, nz = self._answer(*key, *self._sval)
+            else:
+                d, nx, ny, nz = self._answer(*key, *self._nearest(*key))
+            self._dkey = key
+            self._dval = (d, nx, ny, nz)
+        return (d, r00 * nx + r01 * ny + r02 * nz, r10 * nx + r11 * ny + r12 * nz, r20 * nx + r21 * ny + r22 * nz)
+
+    def local_distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
+        """`distance` in the geom frame: signed distance (m) and outward unit normal."""
         key = (x, y, z)
         if key == self._dkey:
             return self._dval
+        value = self._answer(x, y, z, *(self._sval if key == self._skey else self._nearest(x, y, z)))
         self._dkey = key
-        self._dval = value = self._local_distance(x, y, z)
+        self._dval = value
         return value
 
-    def _local_distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
-        best, qx, qy, qz, feature, tri = self._nearest(x, y, z)
+    def _answer(self, x, y, z, best, qx, qy, qz, feature, tri) -> tuple[float, float, float, float]:
+        """The signed distance and outward normal at p (geom frame) from its nearest point q
+        (at distance `best`, m) on `feature` of triangle `tri`."""
         if best > 0.0:
             nx, ny, nz = (x - qx) / best, (y - qy) / best, (z - qz) / best
         else:
@@ -953,6 +978,7 @@ class MeshShape(Shape):
         hint = self._hint
         hint_hit = None
         touching = False
+        start = None
         feature = nx = ny = nz = 0
         if hint >= 0:
             t = tris[hint]
@@ -972,6 +998,7 @@ class MeshShape(Shape):
                 # the segment stays r above the hint's tangent plane: only triangles reaching
                 # above it need reading
                 touching = dist + into >= r - CONTACT_TOL
+                start = (dist, qx, qy, qz, feature, hint)
             else:
                 hint_hit = _sweep_triangle(t, edges[hint], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
                 if hint_hit is not None and hint_hit[0] == 0.0:
@@ -1019,6 +1046,11 @@ class MeshShape(Shape):
             emax = eb
             n = bisect.bisect_right(self._cd, reach + emax)
             positions = self._certified(hint, feature, nx, ny, nz, n) if touching and hint in self._cpos else None
+        if start is not None and positions is not None and not positions:
+            # every triangle within reach of the start lies behind the tangent plane at the
+            # hint's nearest point: that is the start's nearest point, kept for `distance`
+            self._skey = (ax, ay, az)
+            self._sval = start
         cd, ci, planes = self._cd, self._ci, self._plane
         limit = reach + emax
         positions = self._shortlist(positions, n, ax, ay, az, far)
