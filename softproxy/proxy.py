@@ -21,8 +21,9 @@ from softproxy.geometry import CONTACT_TOL, GRAZE, Shape
 MAX_ITERATIONS = 10
 """Sweeps per solve: three for a corner, a few more to follow a curved surface."""
 LIFT_TOL = 1e-7
-"""After sliding on a curved shape's tangent plane, re-follow the surface when the proxy has
-lifted more than this (m); a proxy this far off a face no longer rests on it."""
+"""After sliding along a constraint plane (a curved shape's or a rounded edge's tangent plane,
+a face's plane past the face's edge), re-follow the surface when the proxy has lifted off
+the real shape by more than this (m); a proxy this far off a plane no longer rests on it."""
 PARALLEL = 1.0 - 1e-9
 WORKSPACE_LIMIT = 1e3
 """A device position farther than this from the origin on any axis (m) is garbage, like NaN."""
@@ -266,10 +267,9 @@ class GodObject:
         at (x, y, z), those of the frictionless solve it still touches (on their real
         surfaces, not past an edge) added to `self.planes` (those a slide itself ran into).
         What the next tick's warm start builds on."""
-        r = self.radius
         resting = self.planes
         for p in planes:
-            if p[0] * x + p[1] * y + p[2] * z - p[3] > LIFT_TOL or p[4].distance(x, y, z)[0] - r > LIFT_TOL:
+            if not self._rests_on(p, x, y, z):
                 continue
             for q in resting:
                 if q[4] is p[4] and q[0] * p[0] + q[1] * p[1] + q[2] * p[2] > PARALLEL:
@@ -277,6 +277,16 @@ class GodObject:
             else:
                 resting.append(p)
         self.planes = resting[-3:]
+
+    def _rests_on(self, plane: tuple, x: float, y: float, z: float, on_surface: bool = False) -> bool:
+        """True when the proxy at (x, y, z) still rests on this constraint plane and on its
+        shape's real surface, both within LIFT_TOL (m): a plane runs on past a face's edge, a
+        curved shape falls away from its tangent plane, and a point friction held back short
+        of the plane (on a rounded edge below a face's plane) does not rest on it.
+        `on_surface`: the shape's surface is known to be under the proxy already."""
+        nx, ny, nz, c, s = plane
+        return abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL and (
+            on_surface or s.distance(x, y, z)[0] - self.radius <= LIFT_TOL)
 
     def follow(self) -> None:
         """Without a device sample: the proxy stays on the body it touches and out of anything
@@ -440,6 +450,8 @@ class GodObject:
         planes: list = []
         first = None
         straight = True
+        on_surfaces = False
+        r = self.radius
         x0, y0, z0 = x, y, z
         tx, ty, tz = gx, gy, gz
         if warm:
@@ -469,14 +481,16 @@ class GodObject:
                 x, y, z = tx, ty, tz
                 if not planes or (tx == gx and ty == gy and tz == gz):
                     break
-                curved = None
                 for p in planes:
-                    if not p[4].flat:
-                        curved = p[4]
+                    if p[4].distance(x, y, z)[0] - r > LIFT_TOL:
                         break
-                if curved is None or curved.distance(x, y, z)[0] - self.radius <= LIFT_TOL:
+                else:
+                    on_surfaces = True  # every plane's real surface is under the proxy
                     break
-                # slid off a curved surface along its tangent plane: follow it again
+                # slid off the real surface along a plane: a curved shape's tangent plane, a
+                # box's rounded edge, or a face's plane run on past the face's edge
+                if warm:  # what the warm start assumed no longer holds: solve cold
+                    return self._move(x0, y0, z0, gx, gy, gz)
                 straight = False
                 planes = []
                 tx, ty, tz = gx, gy, gz
@@ -499,18 +513,13 @@ class GodObject:
             if target is None:
                 break
             tx, ty, tz = target
-        # keep only the planes the proxy still rests on; a face's plane runs on past the
-        # face's edge, so a proxy slid out over the edge no longer rests on the face
-        r = self.radius
+        # keep only the planes the proxy still rests on (the loop may end before it checked)
         resting = []
         for p in planes:
-            if p[0] * x + p[1] * y + p[2] * z - p[3] > LIFT_TOL:
-                continue
-            s = p[4]
-            if s.flat and s.on_face(p[0], p[1], p[2]) and s.distance(x, y, z)[0] - r > LIFT_TOL:
-                if warm:  # slid off a face it started on: solve again from no planes
-                    return self._move(x0, y0, z0, gx, gy, gz)
-                continue
-            resting.append(p)
+            if self._rests_on(p, x, y, z, on_surfaces):
+                resting.append(p)
+            elif warm and abs(p[0] * x + p[1] * y + p[2] * z - p[3]) <= LIFT_TOL:
+                # on a plane, off its shape: solve again from no planes, as above
+                return self._move(x0, y0, z0, gx, gy, gz)
         self.planes = resting
         return x, y, z, (first if first is not None else (x, y, z)), straight

@@ -314,3 +314,19 @@ def test_corner_shortcut_is_the_projection(raw, p):
         return
     full = proxy_module._project_by_enumeration(*p, planes)
     assert full is not None and math.dist(corner, full) < 1e-9
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_rolls_round_a_rounded_edge_to_a_free_device(mu):
+    """A device moving from a box's edge into the edge's tangent half-space, yet clear of the
+    box, is free: the proxy rolls round the rounded edge and reaches it in the same tick,
+    with no force, instead of stopping on the edge's tangent plane."""
+    _, _, shapes = world('<geom type="box" size=".02 .02 .02"/>')
+    r = 0.005
+    e = 0.02 + r / math.sqrt(2.0)
+    god = GodObject(shapes, r, mu, 0.8 * mu, (e, e, 0.0))
+    assert god.shapes[0].distance(e, e, 0.0)[0] == pytest.approx(r, abs=1e-12)  # on the edge
+    god.update(0.005, 0.03, 0.0)  # into the edge's tangent plane, 5 mm clear of the +y face
+    assert not god.contact
+    assert (god.x, god.y, god.z) == pytest.approx((0.005, 0.03, 0.0), abs=1e-9)
+    assert deepest(god) <= TOL
