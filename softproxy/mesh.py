@@ -229,12 +229,12 @@ def _closest(t, px, py, pz):
     return (h * h, px - h * nx, py - h * ny, pz - h * nz, 0)
 
 
-def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
+def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=None):
     """First touch of a sphere (radius r) from a moving by d into triangle t, in the geom frame.
 
     Returns (lam, nx, ny, nz, feature) with lam in [0, 1), n the unit normal of the inflated
     triangle at the touch (out of it, against the motion) and the feature touched, or None. `dd` = |d|², `far2` =
-    (r + |d| + CONTACT_TOL)², `graze` = GRAZE |d|.
+    (r + |d| + CONTACT_TOL)², `graze` = GRAZE |d|; `close`: `_closest(t, a)` when the caller has it.
     """
     nx, ny, nz = t[15], t[16], t[17]
     h0 = nx * (ax - t[0]) + ny * (ay - t[1]) + nz * (az - t[2])
@@ -243,7 +243,7 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     reach = r + CONTACT_TOL
     if (h0 > reach and h1 > reach) or (h0 < -reach and h1 < -reach):
         return None  # the segment never comes within r of the triangle's plane
-    d2, qx, qy, qz, feature = _closest(t, ax, ay, az)
+    d2, qx, qy, qz, feature = _closest(t, ax, ay, az) if close is None else close
     if d2 > far2:
         return None  # farther than the sphere can reach on this segment
     if d2 <= reach * reach:
@@ -640,7 +640,12 @@ class MeshShape(Shape):
         t = self._tri[hint]
         dot0 = nx * t[15] + ny * t[16] + nz * t[17]
         side0 = 1.0 if dot0 >= 0.0 else -1.0
+        above = self._above
         if feature == 0:
+            memo = above.get(hint if side0 > 0.0 else -1 - hint)
+            if memo is not None and memo[0] >= n:  # `_above_list` without the call
+                out = memo[1]
+                return out if not out or out[-1] < n else out[:bisect.bisect_left(out, n)]
             return self._above_list(hint, side0, n)
         if feature > 3:
             return self._vertex_certified(hint, feature, nx, ny, nz, n)
@@ -661,6 +666,10 @@ class MeshShape(Shape):
             return None
         if a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
             return None  # n outside the cone: a concave edge
+        memo = above.get(hint if side0 > 0.0 else -1 - hint)
+        memo1 = above.get(other if side1 > 0.0 else -1 - other)
+        if memo is not None and memo1 is not None and memo[0] >= n and memo1[0] >= n and not memo[1] and not memo1[1]:
+            return []  # both faces certified clear as far as n, the common case on a convex patch
         return self._merged(self._above_list(hint, side0, n), self._above_list(other, side1, n))
 
     def _vertex_certified(self, hint: int, feature: int, nx: float, ny: float, nz: float, n: int):
@@ -916,7 +925,8 @@ class MeshShape(Shape):
                 drifted = False
                 continue
             if e < self._cr:
-                positions = self._shortlist(positions, n, x, y, z, best)
+                if positions is None or len(positions) > VECTOR_MIN:  # a certificate's list is cut at n
+                    positions = self._shortlist(positions, n, x, y, z, best)
                 for k in positions:
                     if cd[k] - e >= best:
                         break
@@ -1000,7 +1010,8 @@ class MeshShape(Shape):
                 touching = dist + into >= r - CONTACT_TOL
                 start = (dist, qx, qy, qz, feature, hint)
             else:
-                hint_hit = _sweep_triangle(t, edges[hint], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                hint_hit = _sweep_triangle(t, edges[hint], ax, ay, az, ux, uy, uz, r, dd, far2, graze,
+                                           (d2, qx, qy, qz, feature))
                 if hint_hit is not None and hint_hit[0] == 0.0:
                     return self._world_hit(hint, hint_hit, ax, ay, az, ux, uy, uz, r, graze)
         # the neighbourhood must hold every triangle within r of the segment
@@ -1046,14 +1057,14 @@ class MeshShape(Shape):
             emax = eb
             n = bisect.bisect_right(self._cd, reach + emax)
             positions = self._certified(hint, feature, nx, ny, nz, n) if touching and hint in self._cpos else None
-        if start is not None and positions is not None and not positions:
-            # every triangle within reach of the start lies behind the tangent plane at the
-            # hint's nearest point: that is the start's nearest point, kept for `distance`
-            self._skey = (ax, ay, az)
-            self._sval = start
+        # a start within reach of the hint: every triangle nearer the start than the hint is
+        # within reach of the segment, so the scan reads it (or the certificate proved it
+        # behind the tangent plane, no nearer): the nearest point is found on the way
+        sbest2 = start[0] * start[0] if start is not None else -1.0
         cd, ci, planes = self._cd, self._ci, self._plane
         limit = reach + emax
-        positions = self._shortlist(positions, n, ax, ay, az, far)
+        if positions is None or len(positions) > VECTOR_MIN:  # a certificate's list is cut at n
+            positions = self._shortlist(positions, n, ax, ay, az, far)
         slab = reach + 1e-12  # the plane test of _sweep_triangle, inline, rounding on the safe side
         for k in positions:
             if cd[k] > limit:
@@ -1068,10 +1079,18 @@ class MeshShape(Shape):
             h1 = h0 + pnx * ux + pny * uy + pnz * uz
             if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
                 continue
-            hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+            if sbest2 >= 0.0:
+                close = _closest(tris[i], ax, ay, az)
+                if close[0] < sbest2:
+                    sbest2 = close[0]
+                    start = (math.sqrt(sbest2), close[1], close[2], close[3], close[4], i)
+                hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze, close)
+            else:
+                hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
             if hit is not None and hit[0] < best_lam:
                 best, best_lam, best_tri = hit, hit[0], i
                 if best_lam == 0.0:
+                    sbest2 = -1.0  # the scan stops here: the start's nearest point is not known
                     break
                 # only the part of the segment before this hit matters now
                 ex = ax + best_lam * ux - self._cx
@@ -1081,6 +1100,9 @@ class MeshShape(Shape):
                 limit = reach + (ea if ea > eb else eb)
                 far = reach + best_lam * length
                 far2 = far * far
+        if sbest2 >= 0.0:
+            self._skey = (ax, ay, az)
+            self._sval = start
         if best is None:
             return None
         return self._world_hit(best_tri, best, ax, ay, az, ux, uy, uz, r, graze)
