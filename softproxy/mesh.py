@@ -40,6 +40,13 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    whatever the triangles' shape. When an edge rises above
    that plane, a triangle on it holds a nearer point: the query walks there first (the
    face's or edge's certificate then holds). Scalar Python over the few triangles that remain.
+   The same certificates are also kept for the mesh's lifetime, independent of any
+   neighbourhood: per face and side, the few triangles (STATIC_ABOVE at most, e.g. a coplanar
+   neighbour a rounding above) within twice a query's reach that rise above its plane, and per
+   vertex the least sin β over that reach, each found once with numpy. When they hold (a
+   convex patch), a distance query or a sweep reads the hint, its neighbour across an edge and
+   those few, and no neighbourhood: sliding over a convex mesh rarely rebuilds one. A point at
+   distance d needs a reach of 2d, a sphere of radius r sliding by L one of 2r + L.
 4. the last distance answer is kept (the god-object asks again about the point it holds),
    and so is a sweep's start point whose nearest point the hint's certificate proved (the
    proxy that slid or pressed from there is asked about again), both keyed by the point in
@@ -78,6 +85,13 @@ re-centring then at most doubles the work, and a slow drift with short scans nev
 BATCH_MIN = 32
 """A certificate's table is extended over more new neighbourhood positions than this in one
 batched numpy pass rather than in scalar Python (after a rebuild it may be asked for hundreds)."""
+STATIC_REACH = 0.004
+"""Least radius (m) over which a kept certificate (`_face_clear`, `_vertex_clear`) is checked."""
+STATIC_ABOVE = 4
+"""Most triangles reaching above a face's plane that its kept certificate lists (and a query
+then reads); more, and the face is on a concave patch: the neighbourhood's lists serve it."""
+STATIC_RISE = 1e-7
+"""A neighbour this far (m) above a face's plane marks the face concave at once (no numpy pass)."""
 VECTOR_MIN = 64
 """A scan of more triangles than this is narrowed first by one vectorised distance pass
 (a point far from a symmetric mesh is nearly as far from hundreds of triangles)."""
@@ -347,7 +361,7 @@ class MeshShape(Shape):
         "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_abc", "_faces", "_sph", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
         "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_vmemo", "_work", "_hint", "rebuilds",
-        "_recent", "_dkey", "_dval", "_skey", "_sval",
+        "_recent", "_dkey", "_dval", "_skey", "_sval", "_clear", "_vclear",
     )
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
@@ -388,6 +402,8 @@ class MeshShape(Shape):
         self._dval = None
         self._skey = None  # a sweep's start point (geom frame) and its certified nearest point
         self._sval = None
+        self._clear: dict = {}   # face (i, or -1 - i for its back) -> radius checked clear (m), or -1
+        self._vclear: dict = {}  # vertex -> (radius checked (m), threshold on c²)
 
     # -- load-time tables ---------------------------------------------------------------
     def _build(self, v: np.ndarray, f: np.ndarray) -> None:
@@ -510,6 +526,144 @@ class MeshShape(Shape):
         self._slack = max(NEIGHBOURHOOD_SLACK, 0.1 * mean_edge)
 
     # -- the neighbourhood ------------------------------------------------------------------
+    def _cells(self, cx: float, cy: float, cz: float, radius: float):
+        """Ids (numpy) of the triangles in the grid cells a ball about c (m) overlaps, grown by
+        the largest triangle: every triangle that may come within `radius` of c; None if none."""
+        reach = radius + self._rho
+        (lx, ly, lz), h, (nx, ny, nz) = self._grid_lo, self._grid_h, self._grid_dims
+        x0, x1 = max(0, int((cx - reach - lx) // h)), min(nx - 1, int((cx + reach - lx) // h))
+        y0, y1 = max(0, int((cy - reach - ly) // h)), min(ny - 1, int((cy + reach - ly) // h))
+        z0, z1 = max(0, int((cz - reach - lz) // h)), min(nz - 1, int((cz + reach - lz) // h))
+        start, order = self._grid_start, self._grid_order
+        chunks = []
+        if z0 <= z1:  # one slice per column
+            for ix in range(x0, x1 + 1):
+                for iy in range(y0, y1 + 1):
+                    row = (ix * ny + iy) * nz
+                    s, e = start[row + z0], start[row + z1 + 1]
+                    if e > s:
+                        chunks.append(order[s:e])
+        if not chunks:
+            return None
+        return np.concatenate(chunks) if len(chunks) > 1 else chunks[0]
+
+    def _region(self, cx: float, cy: float, cz: float, radius: float):
+        """Ids (numpy) of the triangles whose bounding sphere meets the ball of `radius` (m) about c."""
+        ids = self._cells(cx, cy, cz, radius)
+        if ids is None:
+            return np.zeros(0, dtype=np.int64)
+        c = self._centre[ids] - np.array((cx, cy, cz))
+        return ids[np.sqrt(np.einsum("ij,ij->i", c, c)) - self._rhos[ids] <= radius]
+
+    # -- certificates kept for the mesh's lifetime ------------------------------------------------
+    def _face_clear(self, i: int, side: float, need: float):
+        """The triangles within `need` (m) of triangle i that reach above its plane on `side` (a
+        vertex higher than ABOVE_TOL), as a tuple of at most STATIC_ABOVE ids (a coplanar
+        neighbour a rounding above it), or None when there are more (a concave patch): every
+        other triangle that near lies behind the tangent plane. Found once per face and side,
+        over twice the reach asked (numpy), and kept across neighbourhood rebuilds."""
+        key = i if side > 0.0 else -1 - i
+        got = self._clear.get(key)
+        if got is not None and (got[0] < 0.0 or got[0] >= need):
+            return got[1]
+        nx, ny, nz, off = self._plane[i]
+        if side < 0.0:
+            nx, ny, nz, off = -nx, -ny, -nz, -off
+        off += ABOVE_TOL
+        if got is None:
+            tris, above = self._tri, 0
+            for j in self._adj[i]:
+                if j >= 0:
+                    u = tris[j]
+                    if (nx * u[0] + ny * u[1] + nz * u[2] > off + STATIC_RISE or nx * u[3] + ny * u[4] + nz * u[5] > off + STATIC_RISE
+                            or nx * u[6] + ny * u[7] + nz * u[8] > off + STATIC_RISE):
+                        self._clear[key] = (-1.0, None)  # a neighbour rises well above the plane: concave
+                        return None
+        radius = max(2.0 * need, STATIC_REACH)
+        rho = float(self._rhos[i])
+        cx, cy, cz = self._centre[i].tolist()
+        ids = self._region(cx, cy, cz, radius + rho)
+        rising = ids[(self._abc[ids] @ np.array((nx, ny, nz)) > off).any(axis=1)]
+        out = tuple(rising.tolist()) if len(rising) <= STATIC_ABOVE else None
+        self._clear[key] = (radius if out is not None else -1.0, out)
+        return out
+
+    def _vertex_clear(self, vertex: int, hint: int, feature: int, need: float) -> float:
+        """The vertex certificate's threshold over every triangle within `need` (m) of the vertex,
+        kept for the mesh's lifetime: a tangent plane with the fan behind it, at cosine c from the
+        cone's axis, has every such triangle behind it when c > 0 and c² > the threshold (2.0
+        when none is certified by angle alone; see `_vertex_certified`)."""
+        got = self._vclear.get(vertex)
+        if got is not None and got[0] >= need:
+            return got[1]
+        t = self._tri[hint]
+        k3 = 3 * (feature - 4)
+        vx, vy, vz = t[k3], t[k3 + 1], t[k3 + 2]
+        ax, ay, az, _ = self._vcone[vertex]
+        radius = max(2.0 * need, STATIC_REACH)
+        ids = self._region(vx, vy, vz, radius)
+        ids = ids[~np.isin(ids, list(self._fan[vertex]))]
+        if len(ids):
+            ring = set()
+            for i in self._fan[vertex]:
+                ring.update(self._tv[i])
+            u = self._abc[ids] - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
+            norm = np.sqrt((u * u).sum(2))
+            sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
+            sb[np.isin(self._faces[ids], list(ring))] = 1.0  # v and the ends of its edges
+            s0 = float(sb.min()) - 1e-12
+        else:
+            s0 = 1.0
+        threshold = 1.0 - s0 * s0 if s0 > 0.0 else 2.0
+        self._vclear[vertex] = (radius, threshold)
+        return threshold
+
+    def _static_clear(self, hint: int, feature: int, nx: float, ny: float, nz: float, need: float):
+        """The few triangles within `need` (m) of the hint's nearest point q that may reach above
+        the tangent plane there (normal n, out of the hint), as a tuple, by the certificates kept
+        for the mesh's lifetime (`_face_clear`, `_vertex_clear`); every other triangle that near
+        lies behind the plane, and no neighbourhood is needed. None when they do not hold. A point
+        p at distance d from q has no nearer triangle off the tuple when need >= 2d; a sphere of
+        radius r touching at p and sliding by L on or above that plane enters none when
+        need >= 2r + L."""
+        t = self._tri[hint]
+        dot0 = nx * t[15] + ny * t[16] + nz * t[17]
+        side0 = 1.0 if dot0 >= 0.0 else -1.0
+        if feature == 0:
+            return self._face_clear(hint, side0, need)
+        if feature > 3:
+            vertex = self._tv[hint][feature - 4]
+            ax, ay, az, cos = self._vcone[vertex]
+            c = nx * ax + ny * ay + nz * az
+            if c <= 0.0:
+                return None
+            if c < cos:
+                for ex, ey, ez, _ in self._ring[vertex]:
+                    if nx * ex + ny * ey + nz * ez > ABOVE_TOL:
+                        return None
+            return () if c * c > self._vertex_clear(vertex, hint, feature, need) else None
+        other = self._adj[hint][feature - 1]
+        if other < 0:
+            return None
+        u = self._tri[other]
+        dot1 = nx * u[15] + ny * u[16] + nz * u[17]
+        side1 = 1.0 if dot1 >= 0.0 else -1.0
+        g = side0 * side1 * (t[15] * u[15] + t[16] * u[16] + t[17] * u[17])
+        det = 1.0 - g * g
+        a0, a1 = side0 * dot0, side1 * dot1
+        if det < 1e-12:
+            if not (g > 0.0 and a0 > 1.0 - 1e-9):
+                return None
+        elif a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
+            return None  # n outside the cone: a concave edge
+        first = self._face_clear(hint, side0, need)
+        if first is None:
+            return None
+        second = self._face_clear(other, side1, need)
+        if second is None:
+            return None
+        return first + second if second else first
+
     def _neighbourhood(self, cx: float, cy: float, cz: float, radius: float, slack: float) -> None:
         """Cache the triangles that may lie within `radius` (m) of c, sorted by a lower bound on
         their distance: the larger of sqrt(h² + b²), h the height over the plane, b how far c
@@ -521,25 +675,10 @@ class MeshShape(Shape):
         self._above = {}
         self._vmemo = {}
         self._work = 0
-        # the grid cells the ball (grown by the largest triangle) overlaps: one slice per column
-        reach = radius + self._rho
-        (lx, ly, lz), h, (nx, ny, nz) = self._grid_lo, self._grid_h, self._grid_dims
-        x0, x1 = max(0, int((cx - reach - lx) // h)), min(nx - 1, int((cx + reach - lx) // h))
-        y0, y1 = max(0, int((cy - reach - ly) // h)), min(ny - 1, int((cy + reach - ly) // h))
-        z0, z1 = max(0, int((cz - reach - lz) // h)), min(nz - 1, int((cz + reach - lz) // h))
-        start, order = self._grid_start, self._grid_order
-        chunks = []
-        if z0 <= z1:
-            for ix in range(x0, x1 + 1):
-                for iy in range(y0, y1 + 1):
-                    row = (ix * ny + iy) * nz
-                    s, e = start[row + z0], start[row + z1 + 1]
-                    if e > s:
-                        chunks.append(order[s:e])
-        if not chunks:
+        ids = self._cells(cx, cy, cz, radius)
+        if ids is None:
             self._cd, self._ci, self._cids, self._cpos = [], [], None, {}
             return
-        ids = np.concatenate(chunks) if len(chunks) > 1 else chunks[0]
         # the bounding spheres first: only the triangles whose sphere meets the ball go on
         c4 = np.array((cx, cy, cz, 1.0))
         sphere = self._sph[ids] @ c4
@@ -888,6 +1027,34 @@ class MeshShape(Shape):
     def _nearest(self, x: float, y: float, z: float):
         """(distance, closest point, feature, triangle) of the nearest triangle, geom frame."""
         tris, planes = self._tri, self._plane
+        hint0 = self._hint
+        near = None
+        if hint0 >= 0:
+            # the hint's nearest point, and the certificates kept for the mesh's lifetime: on a
+            # convex patch they prove it the nearest, with no neighbourhood
+            hint = hint0
+            best2, qx, qy, qz, bf = _closest(tris[hint], x, y, z)
+            if 1 <= bf <= 3:
+                # nearest on an edge: the point may lie over the neighbour's face instead
+                other = self._adj[hint][bf - 1]
+                if other >= 0:
+                    d2, rx, ry, rz, f = _closest(tris[other], x, y, z)
+                    if d2 < best2:
+                        best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, other
+            if bf >= 4:
+                best2, qx, qy, qz, bf, hint = self._walk(hint, best2, qx, qy, qz, bf, x, y, z)
+            if best2 > 0.0:
+                best = math.sqrt(best2)
+                few = self._static_clear(hint, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, 2.0 * best)
+                if few is not None:
+                    for i in few:  # the few that may rise above the tangent plane: read them
+                        if i != hint:
+                            d2, rx, ry, rz, f = _closest(tris[i], x, y, z)
+                            if d2 < best2:
+                                best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, i
+                    self._hint = hint
+                    return (math.sqrt(best2), qx, qy, qz, bf, hint)
+            near = (best2, qx, qy, qz, bf, hint)
         ex, ey, ez = x - self._cx, y - self._cy, z - self._cz
         e = math.sqrt(ex * ex + ey * ey + ez * ez)
         drifted = e > self._cslack
@@ -895,19 +1062,10 @@ class MeshShape(Shape):
             cd, ci = self._cd, self._ci
             best2, bq, bf, bi = math.inf, (0.0, 0.0, 0.0), 0, -1
             positions = None
-            hint = self._hint
             n = len(cd)
-            if e < self._cr and hint in self._cpos:
-                best2, qx, qy, qz, bf = _closest(tris[hint], x, y, z)
-                if 1 <= bf <= 3:
-                    # nearest on an edge: the point may lie over the neighbour's face instead
-                    other = self._adj[hint][bf - 1]
-                    if other >= 0 and other in self._cpos:
-                        d2, rx, ry, rz, f = _closest(tris[other], x, y, z)
-                        if d2 < best2:
-                            best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, other
-                if bf >= 4:
-                    best2, qx, qy, qz, bf, hint = self._walk(hint, best2, qx, qy, qz, bf, x, y, z)
+            hint = hint0
+            if e < self._cr and near is not None and hint0 in self._cpos:
+                best2, qx, qy, qz, bf, hint = near
                 bq, bi = (qx, qy, qz), hint
                 best = math.sqrt(best2)
                 n = bisect.bisect_left(cd, best + e)
@@ -993,6 +1151,15 @@ class MeshShape(Shape):
         if hint >= 0:
             t = tris[hint]
             d2, qx, qy, qz, feature = _closest(t, ax, ay, az)
+            if 1 <= feature <= 3:
+                # nearest on an edge: the start may lie over the neighbour's face instead
+                other = self._adj[hint][feature - 1]
+                if other >= 0:
+                    c = _closest(tris[other], ax, ay, az)
+                    if c[0] < d2:
+                        d2, qx, qy, qz, feature = c
+                        hint = other
+                        t = tris[hint]
             if feature >= 4:
                 d2, qx, qy, qz, feature, hint = self._walk(hint, d2, qx, qy, qz, feature, ax, ay, az)
                 t = tris[hint]
@@ -1009,11 +1176,43 @@ class MeshShape(Shape):
                 # above it need reading
                 touching = dist + into >= r - CONTACT_TOL
                 start = (dist, qx, qy, qz, feature, hint)
+                few = self._static_clear(hint, feature, nx, ny, nz, 2.0 * reach + length) if touching else None
+                if few is not None:
+                    # every triangle within reach of the segment but these few lies behind the
+                    # tangent plane (certificates kept for the mesh's lifetime): the few are
+                    # swept, and the start's nearest point is among them or q
+                    return self._sweep_few(few, hint, start, ax, ay, az, ux, uy, uz, r, dd, far2, graze, 1.0)
             else:
                 hint_hit = _sweep_triangle(t, edges[hint], ax, ay, az, ux, uy, uz, r, dd, far2, graze,
                                            (d2, qx, qy, qz, feature))
-                if hint_hit is not None and hint_hit[0] == 0.0:
-                    return self._world_hit(hint, hint_hit, ax, ay, az, ux, uy, uz, r, graze)
+                if hint_hit is not None and 1 <= hint_hit[4] <= 3:
+                    # touched on an edge: the neighbour across it may be touched first
+                    other = self._adj[hint][hint_hit[4] - 1]
+                    if other >= 0:
+                        hit = _sweep_triangle(tris[other], edges[other], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                        if hit is not None and hit[0] < hint_hit[0]:
+                            hint, hint_hit = other, hit
+                elif hint_hit is not None and hint_hit[4] >= 4 and hint_hit[0] > 0.0:
+                    # touched on a vertex: a fan triangle on an edge rising above the tangent
+                    # plane there holds a nearer point, so it was touched first
+                    lam = hint_hit[0]
+                    sx, sy, sz = ax + lam * ux, ay + lam * uy, az + lam * uz
+                    c = _closest(t, sx, sy, sz)
+                    if c[4] >= 4:
+                        walked = self._walk(hint, *c, sx, sy, sz)[5]
+                        if walked != hint:
+                            hit = _sweep_triangle(tris[walked], edges[walked], ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                            if hit is not None and hit[0] < lam:
+                                hint, hint_hit = walked, hit
+                if hint_hit is not None:
+                    if hint_hit[0] == 0.0:
+                        return self._world_hit(hint, hint_hit, ax, ay, az, ux, uy, uz, r, graze)
+                    # the segment up to the touch stays r above the tangent plane there, behind
+                    # which lies every triangle within reach of it but a few
+                    few = self._static_clear(hint, hint_hit[4], hint_hit[1], hint_hit[2], hint_hit[3],
+                                             2.0 * reach + hint_hit[0] * length)
+                    if few is not None:
+                        return self._sweep_few(few, hint, None, ax, ay, az, ux, uy, uz, r, dd, far2, graze, hint_hit)
         # the neighbourhood must hold every triangle within r of the segment
         ex, ey, ez = ax - self._cx, ay - self._cy, az - self._cz
         ea = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -1101,6 +1300,35 @@ class MeshShape(Shape):
                 far = reach + best_lam * length
                 far2 = far * far
         if sbest2 >= 0.0:
+            self._skey = (ax, ay, az)
+            self._sval = start
+        if best is None:
+            return None
+        return self._world_hit(best_tri, best, ax, ay, az, ux, uy, uz, r, graze)
+
+    def _sweep_few(self, few, hint, start, ax, ay, az, ux, uy, uz, r, dd, far2, graze, hint_hit):
+        """End of `sweep` when a kept certificate left only `few` triangles to read: the earliest
+        hit among them and `hint_hit` (the hint's, or 1.0 for none), and, when `start` is the
+        hint's nearest point to the start, the start's nearest point kept for `distance`."""
+        best, best_tri = (hint_hit, hint) if hint_hit != 1.0 else (None, -1)
+        best_lam = 1.0 if best is None else best[0]
+        tris, edges, planes = self._tri, self._edges, self._plane
+        slab = r + CONTACT_TOL + 1e-12
+        for i in few:
+            if i == hint:
+                continue
+            pnx, pny, pnz, off = planes[i]
+            h0 = pnx * ax + pny * ay + pnz * az - off
+            h1 = h0 + pnx * ux + pny * uy + pnz * uz
+            if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
+                continue
+            close = _closest(tris[i], ax, ay, az)
+            if start is not None and close[0] < start[0] * start[0]:
+                start = (math.sqrt(close[0]), close[1], close[2], close[3], close[4], i)
+            hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze, close)
+            if hit is not None and hit[0] < best_lam:
+                best, best_lam, best_tri = hit, hit[0], i
+        if start is not None:
             self._skey = (ax, ay, az)
             self._sval = start
         if best is None:
