@@ -481,19 +481,35 @@ class GodObject:
                 x, y, z = tx, ty, tz
                 if not planes or (tx == gx and ty == gy and tz == gz):
                     break
+                # a plane whose shape fell away under the proxy (a curved shape's tangent
+                # plane, a rounded edge's, a face's plane past the face's edge) is replaced by
+                # the shape's tangent plane below the proxy now: its linearisation where the
+                # proxy is, so a crease of a face and a curved shape converges quadratically
+                kept = []
+                lifted = False
                 for p in planes:
-                    if p[4].distance(x, y, z)[0] - r > LIFT_TOL:
-                        break
-                else:
+                    s = p[4]
+                    d, nx, ny, nz = s.distance(x, y, z)
+                    if d - r <= LIFT_TOL:
+                        kept.append(p)
+                        continue
+                    lifted = True
+                    for q in kept:
+                        if q[4] is s:
+                            break
+                    else:
+                        kept.append((nx, ny, nz, nx * x + ny * y + nz * z - (d - r), s))
+                if not lifted:
                     on_surfaces = True  # every plane's real surface is under the proxy
                     break
-                # slid off the real surface along a plane: a curved shape's tangent plane, a
-                # box's rounded edge, or a face's plane run on past the face's edge
                 if warm:  # what the warm start assumed no longer holds: solve cold
                     return self._move(x0, y0, z0, gx, gy, gz)
                 straight = False
-                planes = []
-                tx, ty, tz = gx, gy, gz
+                planes = kept
+                target = _project(gx, gy, gz, planes)
+                if target is None:
+                    break
+                tx, ty, tz = target
                 continue
             lam, nx, ny, nz, s = hit
             x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
