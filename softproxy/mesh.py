@@ -1181,7 +1181,7 @@ class MeshShape(Shape):
                     # every triangle within reach of the segment but these few lies behind the
                     # tangent plane (certificates kept for the mesh's lifetime): the few are
                     # swept, and the start's nearest point is among them or q
-                    return self._sweep_few(few, hint, start, ax, ay, az, ux, uy, uz, r, dd, far2, graze, 1.0)
+                    return self._sweep_few(few, hint, start, ax, ay, az, ux, uy, uz, r, dd, far2, graze, None)
             else:
                 hint_hit = _sweep_triangle(t, edges[hint], ax, ay, az, ux, uy, uz, r, dd, far2, graze,
                                            (d2, qx, qy, qz, feature))
@@ -1213,6 +1213,17 @@ class MeshShape(Shape):
                                              2.0 * reach + hint_hit[0] * length)
                     if few is not None:
                         return self._sweep_few(few, hint, None, ax, ay, az, ux, uy, uz, r, dd, far2, graze, hint_hit)
+                elif d2 > 1e-24 and d2 <= (reach + length) * (reach + length):
+                    # near the hint, not touching it and not moving into it (a proxy lifted off a
+                    # curved mesh): when the segment stays r above the tangent plane at q, only
+                    # the few that rise above it can be touched
+                    dist = math.sqrt(d2)
+                    nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
+                    if dist + nx * ux + ny * uy + nz * uz >= r - CONTACT_TOL:
+                        few = self._static_clear(hint, feature, nx, ny, nz, dist + reach + length)
+                        if few is not None:
+                            start = (dist, qx, qy, qz, feature, hint) if dist <= reach + length else None
+                            return self._sweep_few(few, hint, start, ax, ay, az, ux, uy, uz, r, dd, far2, graze, None)
         # the neighbourhood must hold every triangle within r of the segment
         ex, ey, ez = ax - self._cx, ay - self._cy, az - self._cz
         ea = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -1308,9 +1319,9 @@ class MeshShape(Shape):
 
     def _sweep_few(self, few, hint, start, ax, ay, az, ux, uy, uz, r, dd, far2, graze, hint_hit):
         """End of `sweep` when a kept certificate left only `few` triangles to read: the earliest
-        hit among them and `hint_hit` (the hint's, or 1.0 for none), and, when `start` is the
-        hint's nearest point to the start, the start's nearest point kept for `distance`."""
-        best, best_tri = (hint_hit, hint) if hint_hit != 1.0 else (None, -1)
+        hit among them and `hint_hit` (the hint's, or None), and, when `start` is the hint's
+        nearest point to the start, the start's nearest point kept for `distance`."""
+        best, best_tri = (hint_hit, hint) if hint_hit is not None else (None, -1)
         best_lam = 1.0 if best is None else best[0]
         tris, edges, planes = self._tri, self._edges, self._plane
         slab = r + CONTACT_TOL + 1e-12

@@ -802,3 +802,90 @@ def test_vertex_certificate_off_the_fan(tmp_path, tmp):
             s._dkey = None
             assert abs(s.distance(*p)[0] - dd) < 1e-9
     assert calls[0] <= 3 * len(pts)
+
+
+def test_kept_certificate_reads_the_few_triangles_above_a_face(tmp_path):
+    """A tetrahedron (4 triangles) floating 2 mm over a face of a geodesic sphere rises above
+    the face's plane: the face's kept certificate lists exactly those few, so distances and
+    sweeps from over the face find the tetrahedron (they agree with the reference), without a
+    neighbourhood rebuild, while a face far from it has an empty list."""
+    ball = geodesic_sphere(10, 0.05)
+    top = int(np.argmax(ball.triangles_center @ np.array([0.1, 0.2, 0.97])))
+    normal = ball.face_normals[top]
+    centre = ball.triangles_center[top]
+    tetra = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float) * 6e-4,
+                            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), process=False)
+    tetra.apply_translation(centre + 0.002 * normal - tetra.vertices.mean(0))
+    m, d, shapes = mesh_model(tmp_path / "ball_tetra.obj", trimesh.util.concatenate([ball, tetra]))
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    # the chosen face as compiled (MuJoCo moves the mesh into its own frame): the ball's face
+    # whose centre lies farthest along the same direction
+    ball_f = f[:len(ball.faces)]
+    centres = v[ball_f].mean(1)
+    face = int(np.argmax((centres - v[ball_f].reshape(-1, 3).mean(0)) @ normal))
+    n = np.cross(v[f[face, 1]] - v[f[face, 0]], v[f[face, 2]] - v[f[face, 0]])
+    n /= np.linalg.norm(n)
+    rng = np.random.default_rng(3)
+    s.distance(*(centres[face] + 0.006 * n))  # a neighbourhood, built once
+    before = s.rebuilds
+    pts = centres[face] + rng.uniform(0.0015, 0.004, size=(60, 1)) * n + rng.normal(scale=3e-4, size=(60, 3))
+    dist = reference_distance(pts, v, f)
+    assert (dist < reference_distance(pts, v, ball_f)).any()  # the tetrahedron is nearest for some
+    for p, dd in zip(pts, dist):
+        s._hint, s._dkey, s._skey = face, None, None
+        assert abs(abs(s.distance(*p)[0]) - dd) < 1e-9  # (negative inside the tetrahedron)
+    assert s.rebuilds == before  # the kept certificate answered them all
+    r = 0.001
+    for p in pts:  # spheres touching the face, swept every way
+        p = p - (p - centres[face]) @ n * n + (r + 1e-9) * n
+        s._hint = face
+        dvec = rng.normal(scale=0.0015, size=3)
+        hit = s.sweep(*p, *dvec, r)
+        t, along = distances_along(v, f, p, dvec, samples=80)
+        if along[0] < r:
+            continue
+        if hit is None:
+            assert along.min() >= r - 1e-9
+        else:
+            assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
+            assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+    tetra_ids = set(range(len(ball.faces), len(f)))
+    kept = s._clear[face][1]
+    assert kept is not None and set(kept) == tetra_ids
+    far = int(np.argmin(centres @ n))  # the opposite side of the ball: nothing rises above it
+    assert s._face_clear(far, 1.0, 0.01) == ()
+
+
+def test_sliding_on_a_convex_mesh_needs_no_neighbourhood(tmp):
+    """Sliding round the 10k sphere, the kept certificates answer every query: the cached
+    neighbourhood is (almost) never rebuilt, and every distance the god-object was given equals
+    the brute force over all triangles."""
+    m, d, shapes = sphere10k(tmp)
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    r = 0.005
+    god = GodObject(shapes, r, 0.3, 0.24, (0.0, 0.0, 0.09))
+    god.update(0.0, 0.0, 0.05 + r - 0.002)
+    answers = []
+    distance = MeshShape.distance
+
+    def kept(self, x, y, z):
+        out = distance(self, x, y, z)
+        answers.append((x, y, z, out[0]))
+        return out
+
+    before = s.rebuilds
+    MeshShape.distance = kept
+    try:
+        for k in range(1500):
+            a = 0.3 + 0.5 * math.sin(0.004 * k)
+            god.update(0.053 * math.sin(a), 0.01 * math.sin(0.003 * k), 0.053 * math.cos(a))
+            assert deepest(god) <= 1e-9
+    finally:
+        MeshShape.distance = distance
+    assert god.contact
+    assert s.rebuilds - before <= 8  # the neighbourhood's certificates alone: 24-51 over this path
+    assert len(answers) > 1500
+    pts = np.array([a[:3] for a in answers[::5]])
+    assert np.abs(np.array([a[3] for a in answers[::5]]) - reference_distance(pts, v, f)).max() < 1e-9
