@@ -164,7 +164,7 @@ class GodObject:
 
     __slots__ = (
         "shapes", "radius", "mu_s", "mu_d", "x", "y", "z", "contact", "nx", "ny", "nz", "shape",
-        "depth", "sticking", "lx", "ly", "lz", "planes", "near",
+        "depth", "sticking", "lx", "ly", "lz", "planes", "near", "_bx", "_by", "_bz", "_room",
     )
 
     def __init__(self, shapes: list[Shape], radius: float, mu_s: float = 0.0, mu_d: float = 0.0,
@@ -182,6 +182,8 @@ class GodObject:
         self.mu_d = float(mu_d)
         self.planes: list = []
         self.near: list[Shape] = shapes
+        self._bx = self._by = self._bz = 0.0
+        self._room = math.inf
         self.reset(*position)
 
     def reset(self, x: float, y: float, z: float) -> None:
@@ -380,11 +382,17 @@ class GodObject:
         return True
 
     def _gather(self, x, y, z, xd, yd, zd) -> None:
-        """Broad phase, once per tick: the shapes whose bounding sphere meets the ball that
-        holds both the proxy and the device (every sub-move of this tick stays inside it)."""
-        cx, cy, cz = 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd)
+        """Broad phase, once per tick: the shapes near the ball that holds both the proxy and
+        the device, with a margin of 1 mm (`_move` widens it if a sub-move would leave it)."""
         ex, ey, ez = xd - x, yd - y, zd - z
-        reach = 0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + 2.0 * self.radius + 1e-3
+        self._gather_ball(0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
+                          0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + self.radius + 1e-3)
+
+    def _gather_ball(self, cx: float, cy: float, cz: float, room: float) -> None:
+        """`near`: every shape the proxy can touch while its centre stays within `room` (m) of c,
+        the shapes whose bounding sphere meets the ball of radius room + r."""
+        self._bx, self._by, self._bz, self._room = cx, cy, cz, room
+        reach = room + self.radius
         near = []
         for s in self.shapes:
             rb = s.rbound + reach
@@ -472,10 +480,17 @@ class GodObject:
                 planes = warm
                 first = (x, y, z)
                 tx, ty, tz = target
+        bx, by, bz, room2 = self._bx, self._by, self._bz, self._room * self._room
         for _ in range(MAX_ITERATIONS):
             dx, dy, dz = tx - x, ty - y, tz - z
             if dx * dx + dy * dy + dz * dz < 1e-24:
                 break
+            # every sweep stays in the ball whose shapes were gathered: a target that slides out
+            # of it (round a curved surface, along a plane's projection) widens it first
+            ex, ey, ez = tx - bx, ty - by, tz - bz
+            if ex * ex + ey * ey + ez * ez > room2:
+                self._gather_ball(bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
+                room2 = self._room * self._room
             hit = self._sweep(x, y, z, dx, dy, dz)
             if hit is None:
                 x, y, z = tx, ty, tz
