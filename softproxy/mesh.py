@@ -43,7 +43,7 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    The same certificates are also kept for the mesh's lifetime, independent of any
    neighbourhood: per face and side, the few triangles (STATIC_ABOVE at most, e.g. a coplanar
    neighbour a rounding above) within twice a query's reach that rise above its plane, and per
-   vertex the least sin β over that reach, each found once with numpy. When they hold (a
+   vertex the sin β table over that reach, each found once with numpy. When they hold (a
    convex patch), a distance query or a sweep reads the hint, its neighbour across an edge and
    those few, and no neighbourhood: sliding over a convex mesh rarely rebuilds one. A point at
    distance d needs a reach of 2d, a sphere of radius r sliding by L one of 2r + L.
@@ -403,7 +403,7 @@ class MeshShape(Shape):
         self._skey = None  # a sweep's start point (geom frame) and its certified nearest point
         self._sval = None
         self._clear: dict = {}   # face (i, or -1 - i for its back) -> radius checked clear (m), or -1
-        self._vclear: dict = {}  # vertex -> (radius checked (m), threshold on c²)
+        self._vclear: dict = {}  # vertex -> (radius checked (m), sin β, triangles, threshold on c²)
 
     # -- load-time tables ---------------------------------------------------------------
     def _build(self, v: np.ndarray, f: np.ndarray) -> None:
@@ -588,14 +588,16 @@ class MeshShape(Shape):
         self._clear[key] = (radius if out is not None else -1.0, out)
         return out
 
-    def _vertex_clear(self, vertex: int, hint: int, feature: int, need: float) -> float:
-        """The vertex certificate's threshold over every triangle within `need` (m) of the vertex,
-        kept for the mesh's lifetime: a tangent plane with the fan behind it, at cosine c from the
-        cone's axis, has every such triangle behind it when c > 0 and c² > the threshold (2.0
-        when none is certified by angle alone; see `_vertex_certified`)."""
+    def _vertex_clear(self, vertex: int, hint: int, feature: int, need: float):
+        """The vertex certificate's table over every triangle within `need` (m) of the vertex,
+        kept for the mesh's lifetime: (radius checked (m), sin β ascending, the off-fan
+        triangles in that order, threshold). A tangent plane with the fan behind it, at cosine
+        c from the cone's axis, has every such triangle behind it when c > 0 and c² > the
+        threshold (2.0 when none is certified by angle alone), else all but those with
+        sin β < sin α (see `_vertex_certified`)."""
         got = self._vclear.get(vertex)
         if got is not None and got[0] >= need:
-            return got[1]
+            return got
         t = self._tri[hint]
         k3 = 3 * (feature - 4)
         vx, vy, vz = t[k3], t[k3 + 1], t[k3 + 2]
@@ -611,12 +613,15 @@ class MeshShape(Shape):
             norm = np.sqrt((u * u).sum(2))
             sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
             sb[np.isin(self._faces[ids], list(ring))] = 1.0  # v and the ends of its edges
-            s0 = float(sb.min()) - 1e-12
+            least = sb.min(axis=1)
+            order = np.argsort(least, kind="stable")
+            sines, tris = least[order].tolist(), ids[order].tolist()
+            s0 = sines[0] - 1e-12
         else:
-            s0 = 1.0
-        threshold = 1.0 - s0 * s0 if s0 > 0.0 else 2.0
-        self._vclear[vertex] = (radius, threshold)
-        return threshold
+            sines, tris, s0 = [], [], 1.0
+        got = (radius, sines, tris, 1.0 - s0 * s0 if s0 > 0.0 else 2.0)
+        self._vclear[vertex] = got
+        return got
 
     def _static_clear(self, hint: int, feature: int, nx: float, ny: float, nz: float, need: float):
         """The few triangles within `need` (m) of the hint's nearest point q that may reach above
@@ -629,7 +634,11 @@ class MeshShape(Shape):
         t = self._tri[hint]
         dot0 = nx * t[15] + ny * t[16] + nz * t[17]
         side0 = 1.0 if dot0 >= 0.0 else -1.0
+        clear = self._clear
         if feature == 0:
+            got = clear.get(hint if side0 > 0.0 else -1 - hint)
+            if got is not None and (got[0] >= need or got[0] < 0.0):  # `_face_clear` without the call
+                return got[1]
             return self._face_clear(hint, side0, need)
         if feature > 3:
             vertex = self._tv[hint][feature - 4]
@@ -641,7 +650,27 @@ class MeshShape(Shape):
                 for ex, ey, ez, _ in self._ring[vertex]:
                     if nx * ex + ny * ey + nz * ez > ABOVE_TOL:
                         return None
-            return () if c * c > self._vertex_clear(vertex, hint, feature, need) else None
+            got = self._vclear.get(vertex)
+            if got is None or got[0] < need:
+                got = self._vertex_clear(vertex, hint, feature, need)
+            if c * c > got[3]:
+                return ()
+            # the few triangles with sin β < sin α: each vertex against the tangent plane
+            sines = got[1]
+            m = bisect.bisect_left(sines, math.sqrt(1.0 - c * c) + 1e-12)
+            if m > 8 * STATIC_ABOVE:
+                return None
+            k3 = 3 * (feature - 4)
+            off = nx * t[k3] + ny * t[k3 + 1] + nz * t[k3 + 2] + ABOVE_TOL
+            tris, few = self._tri, []
+            for i in got[2][:m]:
+                u = tris[i]
+                if (nx * u[0] + ny * u[1] + nz * u[2] > off or nx * u[3] + ny * u[4] + nz * u[5] > off
+                        or nx * u[6] + ny * u[7] + nz * u[8] > off):
+                    if len(few) == STATIC_ABOVE:
+                        return None
+                    few.append(i)
+            return tuple(few)
         other = self._adj[hint][feature - 1]
         if other < 0:
             return None
@@ -656,10 +685,12 @@ class MeshShape(Shape):
                 return None
         elif a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
             return None  # n outside the cone: a concave edge
-        first = self._face_clear(hint, side0, need)
+        got = clear.get(hint if side0 > 0.0 else -1 - hint)
+        first = got[1] if got is not None and (got[0] >= need or got[0] < 0.0) else self._face_clear(hint, side0, need)
         if first is None:
             return None
-        second = self._face_clear(other, side1, need)
+        got = clear.get(other if side1 > 0.0 else -1 - other)
+        second = got[1] if got is not None and (got[0] >= need or got[0] < 0.0) else self._face_clear(other, side1, need)
         if second is None:
             return None
         return first + second if second else first
@@ -1181,6 +1212,10 @@ class MeshShape(Shape):
                     # every triangle within reach of the segment but these few lies behind the
                     # tangent plane (certificates kept for the mesh's lifetime): the few are
                     # swept, and the start's nearest point is among them or q
+                    if not few:  # (the common case, inline)
+                        self._skey = (ax, ay, az)
+                        self._sval = start
+                        return None
                     return self._sweep_few(few, hint, start, ax, ay, az, ux, uy, uz, r, dd, far2, graze, None)
             else:
                 hint_hit = _sweep_triangle(t, edges[hint], ax, ay, az, ux, uy, uz, r, dd, far2, graze,

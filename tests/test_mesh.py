@@ -889,3 +889,46 @@ def test_sliding_on_a_convex_mesh_needs_no_neighbourhood(tmp):
     assert len(answers) > 1500
     pts = np.array([a[:3] for a in answers[::5]])
     assert np.abs(np.array([a[3] for a in answers[::5]]) - reference_distance(pts, v, f)).max() < 1e-9
+
+
+def test_kept_vertex_certificate_reads_the_few_triangles_above(tmp_path):
+    """A tetrahedron floating 3 mm over a vertex of a geodesic sphere, off to one side: from
+    points over the vertex, the vertex's kept table hands over the tetrahedron's triangles (a
+    few that rise above the tangent plane) and the distances agree with the reference."""
+    ball = geodesic_sphere(10, 0.05)
+    top = int(np.argmax(ball.vertices @ np.array([0.2, -0.1, 0.97])))
+    out = ball.vertices[top] / np.linalg.norm(ball.vertices[top])
+    side = np.cross(out, (1.0, 0.0, 0.0))
+    side /= np.linalg.norm(side)
+    tetra = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float) * 6e-4,
+                            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), process=False)
+    tetra.apply_translation(ball.vertices[top] + 0.003 * out + 0.0025 * side - tetra.vertices.mean(0))
+    m, d, shapes = mesh_model(tmp_path / "ball_tetra_v.obj", trimesh.util.concatenate([ball, tetra]))
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    ball_f = f[:len(ball.faces)]
+    centre = v[ball_f].reshape(-1, 3).mean(0)
+    vertex = int(ball_f.reshape(-1)[np.argmax((v[ball_f].reshape(-1, 3) - centre) @ out)])
+    fan = np.flatnonzero((ball_f == vertex).any(axis=1))
+    normal = (v[vertex] - centre) / np.linalg.norm(v[vertex] - centre)
+    rng = np.random.default_rng(7)
+    pts = v[vertex] + rng.uniform(0.001, 0.004, size=(40, 1)) * normal + rng.normal(scale=2e-6, size=(40, 3))
+    dist = reference_distance(pts, v, f)
+    static = MeshShape._static_clear
+    handed = []
+
+    def kept(self, hint, feature, *args):
+        few = static(self, hint, feature, *args)
+        if feature >= 4 and few:
+            handed.append(set(few))
+        return few
+
+    MeshShape._static_clear = kept
+    try:
+        for k, (p, dd) in enumerate(zip(pts, dist)):
+            s._hint, s._dkey, s._skey = int(fan[k % len(fan)]), None, None
+            assert abs(abs(s.distance(*p)[0]) - dd) < 1e-9
+    finally:
+        MeshShape._static_clear = static
+    tetra_ids = set(range(len(ball.faces), len(f)))
+    assert handed and all(h <= tetra_ids for h in handed)
