@@ -4,9 +4,12 @@ Each tick the proxy moves from where it was toward the device position x_d (Zill
 Salisbury's god-object, Ruspini's proxy): a sphere of radius r swept against every shape
 (`softproxy.geometry`), stopping at the first surface it moves into, then sliding on up to
 three constraint planes — faces, edges, corners and concave creases — all within one
-tick. Friction follows the proxy literature's friction cone: the proxy sticks while the
-device stays inside the static cone (tangential offset ≤ μ_s × penetration) and otherwise
-slides to the edge of the dynamic cone.
+tick; a plane the proxy slides off (a curved shape's tangent plane, a rounded edge's, a
+face's past the face's edge) is replaced by the shape's tangent plane under the proxy.
+Every sweep stays inside the ball whose shapes the tick's broad phase gathered. Friction
+follows the proxy literature's friction cone: the proxy sticks while the device stays
+inside the static cone (tangential offset ≤ μ_s × penetration) and otherwise slides to
+the edge of the dynamic cone.
 
 The proxy is stored in the frame of the geom it touches, so a moving object carries it;
 an object that moves into it pushes it out. Units: m, N, N/m, N·s/m.
