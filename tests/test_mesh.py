@@ -932,3 +932,83 @@ def test_kept_vertex_certificate_reads_the_few_triangles_above(tmp_path):
         MeshShape._static_clear = static
     tetra_ids = set(range(len(ball.faces), len(f)))
     assert handed and all(h <= tetra_ids for h in handed)
+
+
+def test_concave_certificate_reads_the_wall_only_where_it_can_reach(tmp_path):
+    """Inside a bowl (an open cap of a geodesic sphere, concave on its inner side) the rising
+    wall defeats the tangent-plane certificate; the concave face's kept certificate reads a
+    rising triangle only when the query's foot lies near enough the line it is kept under. A
+    tetrahedron floating just beyond an edge of the bottom face is such a triangle: distances
+    and sweeps from over the face, some nearest to the tetrahedron, agree with the brute force,
+    the certificate answers most of them, and it keeps the tetrahedron under a line, not among
+    the triangles read always."""
+    ball = geodesic_sphere(10, 0.03)
+    cap = trimesh.Trimesh(ball.vertices, ball.faces[ball.triangles_center[:, 2] < -0.012], process=False)
+    cap.remove_unreferenced_vertices()
+    bottom = int(np.argmin(cap.triangles_center[:, 2]))
+    a, b, c = cap.vertices[cap.faces[bottom]]
+    up = np.array([0.0, 0.0, 1.0])
+    mid = 0.5 * (a + b)
+    out = mid - (a + b + c) / 3.0
+    out -= (out @ up) * up
+    out /= np.linalg.norm(out)
+    tetra = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float) * 3e-4,
+                            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), process=False)
+    tetra.apply_translation(mid + 0.0006 * out + 0.0012 * up - tetra.vertices.mean(0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MeshWarning)  # an open sheet, and a loose tetrahedron
+        m, d, shapes = mesh_model(tmp_path / "cap_tetra.obj", trimesh.util.concatenate([cap, tetra]))
+    s = mesh_shape(shapes)
+    v, f = world_mesh(m, d)
+    centres = v[f].mean(1)
+    face = int(np.argmin(np.linalg.norm(centres - (a + b + c) / 3.0, axis=1)))
+    n = np.cross(v[f[face, 1]] - v[f[face, 0]], v[f[face, 2]] - v[f[face, 0]])
+    n /= np.linalg.norm(n)
+    if n[2] < 0.0:
+        n = -n
+    used = []
+    concave = MeshShape._concave_clear
+
+    def counted(self, *args):
+        got = concave(self, *args)
+        used.append(got is not None)
+        return got
+
+    rng = np.random.default_rng(5)
+    w = rng.dirichlet((1.0, 1.0, 1.0), size=150)
+    feet = w @ v[f[face]]
+    pts = feet + rng.uniform(0.0005, 0.003, size=(150, 1)) * n
+    dist = reference_distance(pts, v, f)
+    assert (dist < reference_distance(pts, v, f[:-4]) - 1e-6).sum() >= 3  # the tetrahedron nearest for some
+    MeshShape._concave_clear = counted
+    try:
+        for p, dd in zip(pts, dist):
+            s._hint, s._dkey, s._skey = face, None, None
+            assert abs(s.distance(*p)[0]) == pytest.approx(dd, abs=1e-9)
+        assert sum(used) > 0.5 * len(used)
+        r = 0.001
+        used.clear()
+        for foot in feet[:100]:  # spheres touching the face, sliding on or lifting off it
+            p = foot + (r + 1e-9) * n
+            dvec = rng.normal(scale=0.0008, size=3)
+            if dvec @ n < 0.0:
+                dvec -= 2.0 * (dvec @ n) * n
+            s._hint, s._dkey, s._skey = face, None, None
+            hit = s.sweep(*p, *dvec, r)
+            t, along = distances_along(v, f, p, dvec, samples=120)
+            if along[0] < r:
+                continue  # inside the wall or the tetrahedron already
+            if hit is None:
+                assert along.min() >= r - 1e-9
+            else:
+                assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
+                assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+            got = s.distance(*p)  # the start's nearest point, kept by the sweep
+            assert abs(got[0]) == pytest.approx(reference_distance(p[None], v, f)[0], abs=1e-9)
+        assert sum(used) > 0.3 * len(used)
+    finally:
+        MeshShape._concave_clear = concave
+    tetra_ids = set(range(len(f) - 4, len(f)))
+    kept = s._concave[face if face in s._concave else -1 - face]  # (the side queried)
+    assert kept[1] is not None and not tetra_ids & set(kept[1])
+    assert tetra_ids & {t for line in kept[2] for t in line[6]}
