@@ -121,8 +121,8 @@ CONCAVE_ALWAYS = 12
 CONCAVE_HEIGHT = 0.02
 """Highest query (m over the face) a concave face's kept certificate is built for."""
 CONCAVE_MARGIN = 0.5
-"""How far (times the face's bounding radius) a sweep's end foot may lie beyond a concave face's
-bounding circle (about its centre) for the face's kept certificate to serve the sweep."""
+"""How far (times the face's bounding radius) a sweep's end foot may lie outside a concave face
+(by each of its six lines) for the face's kept certificate to serve the sweep."""
 RECENT_HITS = 4
 """Triangles a sweep stopped on that `on_face` remembers (a proxy held in a concave corner of
 a mesh rests on up to three)."""
@@ -659,8 +659,8 @@ class MeshShape(Shape):
         by its kept certificate (`_concave_build`), as a tuple or list of ids; None when it does
         not apply. The query is a ball of radius ρ about each centre on the segment a–b (a point:
         a = b), each centre at height c over the face's plane, a's foot inside the face (the
-        caller's nearest point is on the face's interior) and b's within the face's bounding
-        radius times 1 + CONCAVE_MARGIN of its centre (checked here), and
+        caller's nearest point is on the face's interior) and b's within CONCAVE_MARGIN of it
+        (checked here), and
         h >= c the highest centre (m): a distance query at distance d from the face's interior
         (ρ = c = d), or a sphere of radius r touching the face and sliding on or above it
         (ρ = r + CONTACT_TOL, r - CONTACT_TOL <= c). Every other triangle has no point in any of
@@ -677,14 +677,18 @@ class MeshShape(Shape):
         if got[1] is None:
             return None
         if bx != ax or by != ay or bz != az:
-            # the segment's end: its foot within rho + margin of the face's centre (the start's
-            # is inside, on the face): every foot on the way lies within that of the centre, so
-            # in the range of b the certificate was found over
+            # the segment's end: its foot within rho + margin of the face's centre and less than
+            # the margin outside each of the six lines (the start's is inside, on the face): every
+            # foot on the way lies in the range of b the certificate was found over
+            inward, low = self._inward[i], got[3]
             nx, ny, nz, off = self._plane[i]
             h = nx * bx + ny * by + nz * bz - off
             ex, ey, ez = bx - got[4], by - got[5], bz - got[6]
             if ex * ex + ey * ey + ez * ez - h * h > got[7]:
-                return None  # farther than the margin: its neighbour's certificate, or the neighbourhood
+                return None  # farther than the margin from the face's centre
+            for k in range(0, 24, 4):
+                if inward[k + 3] - (inward[k] * bx + inward[k + 1] * by + inward[k + 2] * bz) < low:
+                    return None  # its neighbour's certificate, or the neighbourhood
             out = got[1]
             for mx, my, mz, o, top, least, tris in got[2]:
                 b = o - (mx * ax + my * ay + mz * az)
@@ -705,12 +709,11 @@ class MeshShape(Shape):
         """A concave face's kept certificate, for queries up to h (m) over it (see
         `_concave_clear`): (highest query height (m), the triangles always read, then per line
         k with triangles under it: (m_k, o_k, largest b0, the least inward distances b0 (m,
-        ascending), the triangles in that order)), margin, the face's centre and (its bounding
+        ascending), the triangles in that order)), -margin, the face's centre and (its bounding
         radius + margin)², or (inf, None, ...) when more than CONCAVE_ALWAYS are always read; found
         once with numpy. The margin (CONCAVE_MARGIN times the bounding radius) is how far a
-        sweep's end foot may leave the face: a foot within radius + margin of the centre (which
-        is inside the face) has b in [-(radius + margin), width + radius + margin] on every line,
-        b0 is found over that range grown by margin, and the region gathered is grown by 2 margin.
+        sweep's end foot may leave the face: b0 is found over [-2 margin, width + radius + 2
+        margin], every foot such a sweep passes over, and the region gathered is grown by 2 margin.
 
         Every ball of a query lies in the ball K of radius H tangent from above to the plane
         2 CONTACT_TOL below the face's, at the query's foot (H = the height allowed + 2
@@ -746,7 +749,7 @@ class MeshShape(Shape):
         m, o = self._lines[i, :, :3], self._lines[i, :, 3]              # (6, 3), (6,)
         width = -(face @ m.T - o).min(axis=0)                             # (6,)
         us = (abc @ m.T - o).transpose(2, 0, 1).reshape(-1, 3)            # (6 x k, 3) beyond each line
-        b0 = _least_clear(-(rho + 2.0 * margin), np.repeat(width + rho + 2.0 * margin, len(ids)), zc, big, us,
+        b0 = _least_clear(-2.0 * margin, np.repeat(width + rho + 2.0 * margin, len(ids)), zc, big, us,
                           np.tile(zs, (6, 1))).reshape(6, -1)
         rel = b0 / width[:, None]
         edge = np.argmin(rel, axis=0)
@@ -757,12 +760,12 @@ class MeshShape(Shape):
         else:
             lists = []
             for k in range(6):
-                sel = np.flatnonzero((edge == k) & np.isfinite(least) & (least > -(rho + 2.0 * margin)))
+                sel = np.flatnonzero((edge == k) & np.isfinite(least) & (least > -2.0 * margin))
                 if len(sel):
                     sel = sel[np.argsort(least[sel], kind="stable")]
                     lists.append((*self._lines[i, k].tolist(), float(least[sel[-1]]), least[sel].tolist(),
                                   tuple(ids[sel].tolist())))
-            got = (hmax, tuple(always.tolist()), tuple(lists), margin, cx, cy, cz, (rho + margin) ** 2)
+            got = (hmax, tuple(always.tolist()), tuple(lists), -margin, cx, cy, cz, (rho + margin) ** 2)
         self._concave[key] = got
         return got
 
