@@ -49,7 +49,7 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    distance d needs a reach of 2d, a sphere of radius r sliding by L one of 2r + L.
    On a concave patch (inside a bowl) the rising wall defeats the tangent plane, and a face
    keeps a second certificate: a query's balls (a point at distance d over the face's interior,
-   or a sphere touching the face and sliding on or above it, feet on or near the face) lie in a ball
+   or a sphere touching the face and sliding on or above it, feet inside the face) lie in a ball
    of radius H tangent to the face's plane at the foot, so a rising triangle can reach them only
    when the foot lies nearer than b0 to one of six lines in the plane (the edges, and through
    each vertex the line square to its bisector), b0 found once per triangle and line (numpy,
@@ -120,9 +120,6 @@ CONCAVE_ALWAYS = 12
 (the fan round the face); more, and the neighbourhood's lists serve the face."""
 CONCAVE_HEIGHT = 0.02
 """Highest query (m over the face) a concave face's kept certificate is built for."""
-CONCAVE_MARGIN = 0.5
-"""How far (times the face's bounding radius) a sweep's end foot may lie outside a concave face
-(by each of its six lines) for the face's kept certificate to serve the sweep."""
 RECENT_HITS = 4
 """Triangles a sweep stopped on that `on_face` remembers (a proxy held in a concave corner of
 a mesh rests on up to three)."""
@@ -359,10 +356,10 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=
     return (best if best > 0.0 else 0.0, mx, my, mz, feature)
 
 
-def _least_clear(start, width, zc, big, u, z, tol=1e-9):
-    """Per triangle (u, z) in a plane section (m), the least b0 in [start, width] (per triangle)
-    such that the disc of radius `big` about (-b, zc) misses it by more than `tol` for every b in
-    [b0, width]; inf when none. The centres within big + tol of the triangle are those in the triangle grown by
+def _least_clear(width, zc, big, u, z, tol=1e-9):
+    """Per triangle (u, z) in a plane section (m), the least b0 in [0, width] (per triangle) such that the disc
+    of radius `big` about (-b, zc) misses it by more than `tol` for every b in [b0, width]; inf
+    when none. The centres within big + tol of the triangle are those in the triangle grown by
     that radius, which meets the line z = zc in one interval [u1, u2]: its ends lie on the
     grown boundary, the circles about the vertices and the sides moved out along their normals,
     so they are the least and greatest of those curves' crossings with the line (the crossings
@@ -391,9 +388,9 @@ def _least_clear(start, width, zc, big, u, z, tol=1e-9):
             lo = np.where(cross, np.minimum(lo, at), lo)
             hi = np.where(cross, np.maximum(hi, at), hi)
     b1, b2 = -hi - 1e-12, -lo + 1e-12  # the disc meets the triangle for b in [b1, b2]
-    out = np.where(b2 < start, start, b2)
+    out = np.where(b2 < 0.0, 0.0, b2)
     out[(b2 >= width) & (b1 <= width)] = np.inf
-    out[(b1 > width) | ~np.isfinite(lo)] = start
+    out[(b1 > width) | ~np.isfinite(lo)] = 0.0
     return out
 
 
@@ -658,9 +655,8 @@ class MeshShape(Shape):
         """The triangles that may come within reach of a query over a concave face i on `side`,
         by its kept certificate (`_concave_build`), as a tuple or list of ids; None when it does
         not apply. The query is a ball of radius ρ about each centre on the segment a–b (a point:
-        a = b), each centre at height c over the face's plane, a's foot inside the face (the
-        caller's nearest point is on the face's interior) and b's within CONCAVE_MARGIN of it
-        (checked here), and
+        a = b), each centre at height c over the face's plane with its foot inside the face (a's
+        is, the caller's nearest point being on the face's interior; b's is checked here), and
         h >= c the highest centre (m): a distance query at distance d from the face's interior
         (ρ = c = d), or a sphere of radius r touching the face and sliding on or above it
         (ρ = r + CONTACT_TOL, r - CONTACT_TOL <= c). Every other triangle has no point in any of
@@ -677,18 +673,12 @@ class MeshShape(Shape):
         if got[1] is None:
             return None
         if bx != ax or by != ay or bz != az:
-            # the segment's end: its foot within rho + margin of the face's centre and less than
-            # the margin outside each of the six lines (the start's is inside, on the face): every
-            # foot on the way lies in the range of b the certificate was found over
-            inward, low = self._inward[i], got[3]
-            nx, ny, nz, off = self._plane[i]
-            h = nx * bx + ny * by + nz * bz - off
-            ex, ey, ez = bx - got[4], by - got[5], bz - got[6]
-            if ex * ex + ey * ey + ez * ez - h * h > got[7]:
-                return None  # farther than the margin from the face's centre
-            for k in range(0, 24, 4):
-                if inward[k + 3] - (inward[k] * bx + inward[k + 1] * by + inward[k + 2] * bz) < low:
-                    return None  # its neighbour's certificate, or the neighbourhood
+            # the segment's end: its foot inside the face too (the start's is, on the face)
+            inward = self._inward[i]
+            if (inward[3] < inward[0] * bx + inward[1] * by + inward[2] * bz
+                    or inward[7] < inward[4] * bx + inward[5] * by + inward[6] * bz
+                    or inward[11] < inward[8] * bx + inward[9] * by + inward[10] * bz):
+                return None  # its neighbour's certificate, or the neighbourhood
             out = got[1]
             for mx, my, mz, o, top, least, tris in got[2]:
                 b = o - (mx * ax + my * ay + mz * az)
@@ -709,11 +699,8 @@ class MeshShape(Shape):
         """A concave face's kept certificate, for queries up to h (m) over it (see
         `_concave_clear`): (highest query height (m), the triangles always read, then per line
         k with triangles under it: (m_k, o_k, largest b0, the least inward distances b0 (m,
-        ascending), the triangles in that order)), -margin, the face's centre and (its bounding
-        radius + margin)², or (inf, None, ...) when more than CONCAVE_ALWAYS are always read; found
-        once with numpy. The margin (CONCAVE_MARGIN times the bounding radius) is how far a
-        sweep's end foot may leave the face: b0 is found over [-2 margin, width + radius + 2
-        margin], every foot such a sweep passes over, and the region gathered is grown by 2 margin.
+        ascending), the triangles in that order)), or (inf, None, None) when more than
+        CONCAVE_ALWAYS are always read; found once with numpy.
 
         Every ball of a query lies in the ball K of radius H tangent from above to the plane
         2 CONTACT_TOL below the face's, at the query's foot (H = the height allowed + 2
@@ -737,8 +724,7 @@ class MeshShape(Shape):
         off *= side
         rho = float(self._rhos[i])
         cx, cy, cz = self._centre[i].tolist()
-        margin = CONCAVE_MARGIN * rho  # how far a sweep's end foot may leave the face
-        ids = self._region(cx, cy, cz, rho + 2.0 * margin + 2.0 * big)
+        ids = self._region(cx, cy, cz, rho + 2.0 * big)
         ids = ids[ids != i]
         abc = self._abc[ids]
         zs = abc @ normal - off                                  # (k, 3) heights over the plane
@@ -749,23 +735,22 @@ class MeshShape(Shape):
         m, o = self._lines[i, :, :3], self._lines[i, :, 3]              # (6, 3), (6,)
         width = -(face @ m.T - o).min(axis=0)                             # (6,)
         us = (abc @ m.T - o).transpose(2, 0, 1).reshape(-1, 3)            # (6 x k, 3) beyond each line
-        b0 = _least_clear(-2.0 * margin, np.repeat(width + rho + 2.0 * margin, len(ids)), zc, big, us,
-                          np.tile(zs, (6, 1))).reshape(6, -1)
+        b0 = _least_clear(np.repeat(width, len(ids)), zc, big, us, np.tile(zs, (6, 1))).reshape(6, -1)
         rel = b0 / width[:, None]
         edge = np.argmin(rel, axis=0)
         least = b0[edge, np.arange(len(ids))]
         always = ids[~np.isfinite(least)]
         if len(always) > CONCAVE_ALWAYS:
-            got = (math.inf, None, None, 0.0, 0.0, 0.0, 0.0, 0.0)
+            got = (math.inf, None, None)
         else:
             lists = []
             for k in range(6):
-                sel = np.flatnonzero((edge == k) & np.isfinite(least) & (least > -2.0 * margin))
+                sel = np.flatnonzero((edge == k) & np.isfinite(least) & (least > 0.0))
                 if len(sel):
                     sel = sel[np.argsort(least[sel], kind="stable")]
                     lists.append((*self._lines[i, k].tolist(), float(least[sel[-1]]), least[sel].tolist(),
                                   tuple(ids[sel].tolist())))
-            got = (hmax, tuple(always.tolist()), tuple(lists), -margin, cx, cy, cz, (rho + margin) ** 2)
+            got = (hmax, tuple(always.tolist()), tuple(lists))
         self._concave[key] = got
         return got
 
