@@ -357,7 +357,7 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=
 
 
 def _least_clear(width, zc, big, u, z, tol=1e-9):
-    """Per triangle (u, z) in a plane section (m), the least b0 in [0, width] (per triangle) such that the disc
+    """Per triangle (u, z) in a plane section (m), the least b0 in [0, width] such that the disc
     of radius `big` about (-b, zc) misses it by more than `tol` for every b in [b0, width]; inf
     when none. The centres within big + tol of the triangle are those in the triangle grown by
     that radius, which meets the line z = zc in one interval [u1, u2]: its ends lie on the
@@ -731,14 +731,19 @@ class MeshShape(Shape):
         rising = (zs > ABOVE_TOL).any(axis=1)
         ids, abc, zs = ids[rising], abc[rising], zs[rising]
         face = self._abc[i]
+        best = np.full(len(ids), np.inf)
+        edge = np.zeros(len(ids), dtype=np.int64)
+        least = np.full(len(ids), np.inf)
         zc = big - eps2
-        m, o = self._lines[i, :, :3], self._lines[i, :, 3]              # (6, 3), (6,)
-        width = -(face @ m.T - o).min(axis=0)                             # (6,)
-        us = (abc @ m.T - o).transpose(2, 0, 1).reshape(-1, 3)            # (6 x k, 3) beyond each line
-        b0 = _least_clear(np.repeat(width, len(ids)), zc, big, us, np.tile(zs, (6, 1))).reshape(6, -1)
-        rel = b0 / width[:, None]
-        edge = np.argmin(rel, axis=0)
-        least = b0[edge, np.arange(len(ids))]
+        for k in range(6):
+            m = self._lines[i, k, :3]
+            o = float(self._lines[i, k, 3])
+            width = float(-(face @ m - o).min())
+            us = abc @ m - o                                     # (k, 3) beyond the line
+            b0 = _least_clear(width, zc, big, us, zs)
+            rel = b0 / width
+            better = rel < best
+            best[better], edge[better], least[better] = rel[better], k, b0[better]
         always = ids[~np.isfinite(least)]
         if len(always) > CONCAVE_ALWAYS:
             got = (math.inf, None, None)
