@@ -47,15 +47,6 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    convex patch), a distance query or a sweep reads the hint, its neighbour across an edge and
    those few, and no neighbourhood: sliding over a convex mesh rarely rebuilds one. A point at
    distance d needs a reach of 2d, a sphere of radius r sliding by L one of 2r + L.
-   On a concave patch (inside a bowl) the rising wall defeats the tangent plane, and a face
-   keeps a second certificate: a query's balls (a point at distance d over the face's interior,
-   or a sphere touching the face and sliding on or above it, feet inside the face) lie in a ball
-   of radius H tangent to the face's plane at the foot, so a rising triangle can reach them only
-   when the foot lies nearer than b0 to one of six lines in the plane (the edges, and through
-   each vertex the line square to its bisector), b0 found once per triangle and line (numpy,
-   exact: where the triangle, seen along the line, meets the disc of radius H). The wall is
-   kept per line sorted by b0: a query reads the few triangles whose b0 its feet fall short of
-   (one bisection per line), and the hint's neighbours only when near their edge.
 4. the last distance answer is kept (the god-object asks again about the point it holds),
    and so is a sweep's start point whose nearest point the hint's certificate proved (the
    proxy that slid or pressed from there is asked about again), both keyed by the point in
@@ -115,11 +106,6 @@ GRID_CELLS = 64
 """Most grid cells per axis."""
 WALK_STEPS = 8
 """Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
-CONCAVE_ALWAYS = 12
-"""Most triangles a concave face's kept certificate may have to read wherever the foot lies
-(the fan round the face); more, and the neighbourhood's lists serve the face."""
-CONCAVE_HEIGHT = 0.02
-"""Highest query (m over the face) a concave face's kept certificate is built for."""
 RECENT_HITS = 4
 """Triangles a sweep stopped on that `on_face` remembers (a proxy held in a concave corner of
 a mesh rests on up to three)."""
@@ -356,44 +342,6 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=
     return (best if best > 0.0 else 0.0, mx, my, mz, feature)
 
 
-def _least_clear(width, zc, big, u, z, tol=1e-9):
-    """Per triangle (u, z) in a plane section (m), the least b0 in [0, width] such that the disc
-    of radius `big` about (-b, zc) misses it by more than `tol` for every b in [b0, width]; inf
-    when none. The centres within big + tol of the triangle are those in the triangle grown by
-    that radius, which meets the line z = zc in one interval [u1, u2]: its ends lie on the
-    grown boundary, the circles about the vertices and the sides moved out along their normals,
-    so they are the least and greatest of those curves' crossings with the line (the crossings
-    of the sides moved in lie inside the grown triangle). The disc meets the triangle for
-    b in [-u2, -u1]."""
-    rad = big + tol
-    lo = np.full(len(u), np.inf)
-    hi = np.full(len(u), -np.inf)
-    for j in range(3):
-        dz = z[:, j] - zc
-        reach = rad * rad - dz * dz
-        ok = reach >= 0.0
-        half = np.sqrt(np.where(ok, reach, 0.0))
-        lo = np.where(ok, np.minimum(lo, u[:, j] - half), lo)
-        hi = np.where(ok, np.maximum(hi, u[:, j] + half), hi)
-        eu, ez = u[:, (j + 1) % 3] - u[:, j], z[:, (j + 1) % 3] - z[:, j]
-        length = np.sqrt(eu * eu + ez * ez)
-        live = length > 0.0
-        nu, nz = ez / np.where(live, length, 1.0), -eu / np.where(live, length, 1.0)
-        for s in (1.0, -1.0):
-            au, az = u[:, j] + s * rad * nu, z[:, j] + s * rad * nz
-            bz = az + ez
-            cross = live & (ez != 0.0) & ((az - zc) * (bz - zc) <= 0.0)
-            t = np.clip((zc - az) / np.where(ez != 0.0, ez, 1.0), 0.0, 1.0)
-            at = au + t * eu
-            lo = np.where(cross, np.minimum(lo, at), lo)
-            hi = np.where(cross, np.maximum(hi, at), hi)
-    b1, b2 = -hi - 1e-12, -lo + 1e-12  # the disc meets the triangle for b in [b1, b2]
-    out = np.where(b2 < 0.0, 0.0, b2)
-    out[(b2 >= width) & (b1 <= width)] = np.inf
-    out[(b1 > width) | ~np.isfinite(lo)] = 0.0
-    return out
-
-
 # ---------------------------------------------------------------------------------------
 # The shape
 # ---------------------------------------------------------------------------------------
@@ -413,7 +361,7 @@ class MeshShape(Shape):
         "_ep", "_ev", "_eil", "_em", "_fn", "_q", "_abc", "_faces", "_sph", "_rhos", "_tv", "_fan", "_ring", "_vcone", "_centre", "_rho", "_slack",
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
         "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_vmemo", "_work", "_hint", "rebuilds",
-        "_recent", "_dkey", "_dval", "_skey", "_sval", "_clear", "_vclear", "_inward", "_lines", "_concave",
+        "_recent", "_dkey", "_dval", "_skey", "_sval", "_clear", "_vclear",
     )
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
@@ -456,7 +404,6 @@ class MeshShape(Shape):
         self._sval = None
         self._clear: dict = {}   # face (i, or -1 - i for its back) -> radius checked clear (m), or -1
         self._vclear: dict = {}  # vertex -> (radius checked (m), sin β, triangles, threshold on c²)
-        self._concave: dict = {}  # face (i, or -1 - i for its back) -> `_concave_build`'s table
 
     # -- load-time tables ---------------------------------------------------------------
     def _build(self, v: np.ndarray, f: np.ndarray) -> None:
@@ -484,15 +431,6 @@ class MeshShape(Shape):
         self._eil = 1.0 / (lengths * lengths)
         out = np.cross(units, n[:, None, :])  # in-plane, out of the triangle across each edge
         self._em = out
-        # per face, six lines in its plane with the face inside: the three edges, and through each
-        # vertex the line square to the bisector of its angle; b_k(x) = o_k - m_k·x, how far x's
-        # foot lies inside line k (m), kept as (m_k, o_k) x 6 (the concave certificate's pivots)
-        bis = np.stack([units[:, 0] - units[:, 2], units[:, 1] - units[:, 0], units[:, 2] - units[:, 1]], axis=1)
-        bis /= np.linalg.norm(bis, axis=2, keepdims=True)
-        lines = np.concatenate([out, -bis], axis=1)                             # (faces, 6, 3)
-        through = np.concatenate([starts, starts], axis=1)
-        self._lines = np.concatenate([lines, (lines * through).sum(2, keepdims=True)], axis=2)
-        self._inward = [tuple(row) for row in self._lines.reshape(-1, 24).tolist()]
         self._fn = n
         normals = np.concatenate([n[:, None, :], out], axis=1)                  # (faces, 4, 3)
         points = np.concatenate([a[:, None, :], starts], axis=1)
@@ -649,115 +587,6 @@ class MeshShape(Shape):
         out = tuple(rising.tolist()) if len(rising) <= STATIC_ABOVE else None
         self._clear[key] = (radius if out is not None else -1.0, out)
         return out
-
-    def _concave_clear(self, i: int, side: float, h: float, ax: float, ay: float, az: float,
-                       bx: float, by: float, bz: float):
-        """The triangles that may come within reach of a query over a concave face i on `side`,
-        by its kept certificate (`_concave_build`), as a tuple or list of ids; None when it does
-        not apply. The query is a ball of radius ρ about each centre on the segment a–b (a point:
-        a = b), each centre at height c over the face's plane with its foot inside the face (a's
-        is, the caller's nearest point being on the face's interior; b's is checked here), and
-        h >= c the highest centre (m): a distance query at distance d from the face's interior
-        (ρ = c = d), or a sphere of radius r touching the face and sliding on or above it
-        (ρ = r + CONTACT_TOL, r - CONTACT_TOL <= c). Every other triangle has no point in any of
-        those balls: it lies behind the plane (the tangent-plane certificate), or it rises above
-        it but clear of them while the feet stay at least its least inward distance from its edge."""
-        key = i if side > 0.0 else -1 - i
-        got = self._concave.get(key)
-        if got is None or got[0] < h:
-            if got is not None and got[1] is None:
-                return None
-            got = self._concave_build(i, side, h, got)
-            if got is None:
-                return None
-        if got[1] is None:
-            return None
-        if bx != ax or by != ay or bz != az:
-            # the segment's end: its foot inside the face too (the start's is, on the face)
-            inward = self._inward[i]
-            if (inward[3] < inward[0] * bx + inward[1] * by + inward[2] * bz
-                    or inward[7] < inward[4] * bx + inward[5] * by + inward[6] * bz
-                    or inward[11] < inward[8] * bx + inward[9] * by + inward[10] * bz):
-                return None  # its neighbour's certificate, or the neighbourhood
-            out = got[1]
-            for mx, my, mz, o, top, least, tris in got[2]:
-                b = o - (mx * ax + my * ay + mz * az)
-                c = o - (mx * bx + my * by + mz * bz)
-                if c < b:
-                    b = c
-                if b < top:
-                    out = out + tris[bisect.bisect_right(least, b):]
-            return out
-        out = got[1]
-        for mx, my, mz, o, top, least, tris in got[2]:
-            b = o - (mx * ax + my * ay + mz * az)
-            if b < top:
-                out = out + tris[bisect.bisect_right(least, b):]
-        return out
-
-    def _concave_build(self, i: int, side: float, h: float, got):
-        """A concave face's kept certificate, for queries up to h (m) over it (see
-        `_concave_clear`): (highest query height (m), the triangles always read, then per line
-        k with triangles under it: (m_k, o_k, largest b0, the least inward distances b0 (m,
-        ascending), the triangles in that order)), or (inf, None, None) when more than
-        CONCAVE_ALWAYS are always read; found once with numpy.
-
-        Every ball of a query lies in the ball K of radius H tangent from above to the plane
-        2 CONTACT_TOL below the face's, at the query's foot (H = the height allowed + 2
-        CONTACT_TOL): a ball of radius ρ about a centre at height c over the foot is in K when
-        c <= H - 2 CONTACT_TOL and ρ <= c + 2 CONTACT_TOL, as both queries' balls are. K lies in the cylinder along edge k over the disc of radius H about
-        (-b_k, H - 2 CONTACT_TOL) in (how far beyond the edge line, height) coordinates, b_k the
-        foot's inward distance from line k; a triangle rising above the plane whose projection
-        onto that section misses the disc for every b in [b0, width] misses every such K
-        (`_least_clear`, exact). The lines are the three edges and, through each vertex, the
-        line square to the bisector of its angle (the fan round a corner lies beyond it). Each
-        rising triangle is kept under the line with the least b0 (relative to the width), or
-        read always when no line clears it anywhere in the face (the fan round the face). The region gathered holds every triangle within 2H of the face."""
-        key = i if side > 0.0 else -1 - i
-        eps2 = 2.0 * CONTACT_TOL
-        hmax = max(1.05 * h, 1.25 * got[0] if got is not None else STATIC_REACH)
-        if hmax > CONCAVE_HEIGHT:
-            return None
-        big = hmax + eps2
-        nx, ny, nz, off = self._plane[i]
-        normal = np.array((nx, ny, nz)) * side
-        off *= side
-        rho = float(self._rhos[i])
-        cx, cy, cz = self._centre[i].tolist()
-        ids = self._region(cx, cy, cz, rho + 2.0 * big)
-        ids = ids[ids != i]
-        abc = self._abc[ids]
-        zs = abc @ normal - off                                  # (k, 3) heights over the plane
-        rising = (zs > ABOVE_TOL).any(axis=1)
-        ids, abc, zs = ids[rising], abc[rising], zs[rising]
-        face = self._abc[i]
-        best = np.full(len(ids), np.inf)
-        edge = np.zeros(len(ids), dtype=np.int64)
-        least = np.full(len(ids), np.inf)
-        zc = big - eps2
-        for k in range(6):
-            m = self._lines[i, k, :3]
-            o = float(self._lines[i, k, 3])
-            width = float(-(face @ m - o).min())
-            us = abc @ m - o                                     # (k, 3) beyond the line
-            b0 = _least_clear(width, zc, big, us, zs)
-            rel = b0 / width
-            better = rel < best
-            best[better], edge[better], least[better] = rel[better], k, b0[better]
-        always = ids[~np.isfinite(least)]
-        if len(always) > CONCAVE_ALWAYS:
-            got = (math.inf, None, None)
-        else:
-            lists = []
-            for k in range(6):
-                sel = np.flatnonzero((edge == k) & np.isfinite(least) & (least > 0.0))
-                if len(sel):
-                    sel = sel[np.argsort(least[sel], kind="stable")]
-                    lists.append((*self._lines[i, k].tolist(), float(least[sel[-1]]), least[sel].tolist(),
-                                  tuple(ids[sel].tolist())))
-            got = (hmax, tuple(always.tolist()), tuple(lists))
-        self._concave[key] = got
-        return got
 
     def _vertex_clear(self, vertex: int, hint: int, feature: int, need: float):
         """The vertex certificate's table over every triangle within `need` (m) of the vertex,
@@ -1247,13 +1076,7 @@ class MeshShape(Shape):
                 best2, qx, qy, qz, bf, hint = self._walk(hint, best2, qx, qy, qz, bf, x, y, z)
             if best2 > 0.0:
                 best = math.sqrt(best2)
-                nx, ny, nz = (x - qx) / best, (y - qy) / best, (z - qz) / best
-                few = self._static_clear(hint, bf, nx, ny, nz, 2.0 * best)
-                if few is None and bf == 0:
-                    # a concave face: its rising wall is read only where the point may reach it
-                    t = tris[hint]
-                    few = self._concave_clear(hint, 1.0 if nx * t[15] + ny * t[16] + nz * t[17] >= 0.0 else -1.0,
-                                              best, x, y, z, x, y, z)
+                few = self._static_clear(hint, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, 2.0 * best)
                 if few is not None:
                     for i in few:  # the few that may rise above the tangent plane: read them
                         if i != hint:
@@ -1385,12 +1208,6 @@ class MeshShape(Shape):
                 touching = dist + into >= r - CONTACT_TOL
                 start = (dist, qx, qy, qz, feature, hint)
                 few = self._static_clear(hint, feature, nx, ny, nz, 2.0 * reach + length) if touching else None
-                if few is None and touching and feature == 0 and dist >= r - CONTACT_TOL:
-                    # a concave face: the centre stays r or more over it (both ends: dist and
-                    # dist + into), so only the rising triangles that its balls may reach are read
-                    few = self._concave_clear(hint, 1.0 if nx * t[15] + ny * t[16] + nz * t[17] >= 0.0 else -1.0,
-                                              dist if into <= 0.0 else dist + into,
-                                              ax, ay, az, ax + ux, ay + uy, az + uz)
                 if few is not None:
                     # every triangle within reach of the segment but these few lies behind the
                     # tangent plane (certificates kept for the mesh's lifetime): the few are
@@ -1541,9 +1358,6 @@ class MeshShape(Shape):
         nearest point to the start, the start's nearest point kept for `distance`."""
         best, best_tri = (hint_hit, hint) if hint_hit is not None else (None, -1)
         best_lam = 1.0 if best is None else best[0]
-        # touched at once by several (held where faces meet): the nearest, as the scan of a
-        # neighbourhood sorted by distance would find first
-        touch2 = math.inf if best_lam > 0.0 or start is None else start[0] * start[0]
         tris, edges, planes = self._tri, self._edges, self._plane
         slab = r + CONTACT_TOL + 1e-12
         for i in few:
@@ -1558,10 +1372,8 @@ class MeshShape(Shape):
             if start is not None and close[0] < start[0] * start[0]:
                 start = (math.sqrt(close[0]), close[1], close[2], close[3], close[4], i)
             hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze, close)
-            if hit is not None and (hit[0] < best_lam or (hit[0] == 0.0 and best_lam == 0.0 and close[0] < touch2)):
+            if hit is not None and hit[0] < best_lam:
                 best, best_lam, best_tri = hit, hit[0], i
-                if best_lam == 0.0:
-                    touch2 = close[0]
         if start is not None:
             self._skey = (ax, ay, az)
             self._sval = start
