@@ -213,6 +213,40 @@ def distances_along(v, f, a, dvec, samples=200):
     return t, reference_distance(a + t[:, None] * dvec, v, f)
 
 
+@contextlib.contextmanager
+def recording_distances():
+    """Record (x, y, z, signed distance) for every `MeshShape.distance` answer the block gets,
+    to compare them afterwards with the brute force."""
+    distance = MeshShape.distance
+    answers = []
+
+    def recorded(self, x, y, z):
+        out = distance(self, x, y, z)
+        answers.append((x, y, z, out[0]))
+        return out
+
+    MeshShape.distance = recorded
+    try:
+        yield answers
+    finally:
+        MeshShape.distance = distance
+
+
+def check_sweep(hit, v, f, a, dvec, r, samples, skip_touching=False):
+    """Asserts a sweep's answer against exact distances along its segment: a miss stays out of
+    reach, a hit touches where it stops and nothing nearer before. Returns False, checking
+    nothing, when `skip_touching` and the sphere starts within r."""
+    t, along = distances_along(v, f, a, dvec, samples=samples)
+    if skip_touching and along[0] < r:
+        return False
+    if hit is None:
+        assert along.min() >= r - 1e-9
+    else:
+        assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
+        assert reference_distance((a + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+    return True
+
+
 @settings(max_examples=30, deadline=None)
 @given(st.tuples(coord, coord, coord), st.tuples(coord, coord, coord), st.floats(0.0, 0.012), st.floats(0.002, 0.06))
 def test_sweep_finds_the_first_touch(tmp, start, direction, r, length):
@@ -431,14 +465,6 @@ def test_bowl_slide_rebuilds_rarely_and_answers_exactly():
     r = 0.005
     god = GodObject(shapes, r, 0.3, 0.24, (0.0, 0.0, 0.03))
     rho = 0.035 - r + 0.002
-    answers = []
-    distance = MeshShape.distance
-
-    def kept(self, x, y, z):
-        out = distance(self, x, y, z)
-        answers.append((x, y, z, out[0]))
-        return out
-
     def device(k):
         a = 0.3 + 0.5 * math.sin(0.004 * k)
         return rho * math.sin(a), 0.0, 0.04 - rho * math.cos(a)
@@ -446,13 +472,10 @@ def test_bowl_slide_rebuilds_rarely_and_answers_exactly():
     for k in range(300):
         god.update(*device(k))
     before = s.rebuilds
-    MeshShape.distance = kept
-    try:
+    with recording_distances() as answers:
         for k in range(300, 1800):
             god.update(*device(k))
             assert deepest(god) <= TOL
-    finally:
-        MeshShape.distance = distance
     assert god.contact
     assert len(answers) > 1500
     assert s.rebuilds - before < 0.08 * 1500
@@ -645,12 +668,7 @@ def test_held_on_a_pole_is_exact_and_cheap(tmp):
     for u in rng.normal(size=(20, 3)):
         dvec = u / np.linalg.norm(u) * 2e-4
         hit = s.sweep(*start, *dvec, r)
-        t, along = distances_along(v, f, start, dvec, samples=50)
-        if hit is None:
-            assert along.min() >= r - 1e-9
-        else:
-            assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
-            assert reference_distance((start + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+        check_sweep(hit, v, f, start, dvec, r, 50)
 
 
 def test_distance_answer_kept_only_for_the_same_point_and_pose(tmp_path):
@@ -723,12 +741,7 @@ def test_walk_from_a_vertex_finds_the_nearer_fan_triangle(tmp):
         s._hint = int(fan[(k * 7) % len(fan)])
         dvec = np.array([-math.cos(a), -math.sin(a), -1.0]) * 0.003
         hit = s.sweep(*p, *dvec, 0.002)
-        t, along = distances_along(v, f, p, dvec, samples=60)
-        if hit is None:
-            assert along.min() >= 0.002 - 1e-9
-        else:
-            assert along[t < hit[0]].min(initial=math.inf) >= 0.002 - 1e-9
-            assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(0.002, abs=1e-9)
+        check_sweep(hit, v, f, p, dvec, 0.002, 60)
 
 
 def test_vertex_certificate_off_the_fan(tmp_path, tmp):
@@ -774,14 +787,7 @@ def test_vertex_certificate_off_the_fan(tmp_path, tmp):
             dvec = rng.normal(scale=0.002, size=3)
             r = 0.001
             hit = s.sweep(*p, *dvec, r)
-            t, along = distances_along(v, f, p, dvec, samples=60)
-            if along[0] < r:
-                continue
-            if hit is None:
-                assert along.min() >= r - 1e-9
-            else:
-                assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
-                assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+            check_sweep(hit, v, f, p, dvec, r, 60, skip_touching=True)
     finally:
         MeshShape._vertex_table = table
     assert tables > 0
@@ -842,14 +848,7 @@ def test_kept_certificate_reads_the_few_triangles_above_a_face(tmp_path):
         s._hint = face
         dvec = rng.normal(scale=0.0015, size=3)
         hit = s.sweep(*p, *dvec, r)
-        t, along = distances_along(v, f, p, dvec, samples=80)
-        if along[0] < r:
-            continue
-        if hit is None:
-            assert along.min() >= r - 1e-9
-        else:
-            assert along[t < hit[0]].min(initial=math.inf) >= r - 1e-9
-            assert reference_distance((p + hit[0] * dvec)[None], v, f)[0] == pytest.approx(r, abs=1e-9)
+        check_sweep(hit, v, f, p, dvec, r, 80, skip_touching=True)
     tetra_ids = set(range(len(ball.faces), len(f)))
     kept = s._clear[face][1]
     assert kept is not None and set(kept) == tetra_ids
@@ -867,23 +866,12 @@ def test_sliding_on_a_convex_mesh_needs_no_neighbourhood(tmp):
     r = 0.005
     god = GodObject(shapes, r, 0.3, 0.24, (0.0, 0.0, 0.09))
     god.update(0.0, 0.0, 0.05 + r - 0.002)
-    answers = []
-    distance = MeshShape.distance
-
-    def kept(self, x, y, z):
-        out = distance(self, x, y, z)
-        answers.append((x, y, z, out[0]))
-        return out
-
     before = s.rebuilds
-    MeshShape.distance = kept
-    try:
+    with recording_distances() as answers:
         for k in range(1500):
             a = 0.3 + 0.5 * math.sin(0.004 * k)
             god.update(0.053 * math.sin(a), 0.01 * math.sin(0.003 * k), 0.053 * math.cos(a))
             assert deepest(god) <= 1e-9
-    finally:
-        MeshShape.distance = distance
     assert god.contact
     assert s.rebuilds - before <= 8  # the neighbourhood's certificates alone: 24-51 over this path
     assert len(answers) > 1500
