@@ -346,6 +346,24 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=
 # The shape
 # ---------------------------------------------------------------------------------------
 
+def _convex_edge(t, u, nx: float, ny: float, nz: float, side0: float, dot0: float):
+    """Whether the tangent plane of normal n at a point on the edge between triangle t (n on
+    its side side0, dot0 = n·t's normal) and its neighbour u holds both faces behind it:
+    (side1, coplanar) when n lies in the cone of the two faces' outward normals (a convex
+    edge seen from outside; coplanar faces: n must be their own normal, since a sphere
+    touching the edge from beside it is not held by the plane), else None (concave, folded)."""
+    dot1 = nx * u[15] + ny * u[16] + nz * u[17]
+    side1 = 1.0 if dot1 >= 0.0 else -1.0
+    g = side0 * side1 * (t[15] * u[15] + t[16] * u[16] + t[17] * u[17])
+    det = 1.0 - g * g
+    a0, a1 = side0 * dot0, side1 * dot1
+    if det < 1e-12:
+        return (side1, True) if g > 0.0 and a0 > 1.0 - 1e-9 else None
+    if a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
+        return None  # n outside the cone: a concave edge
+    return (side1, False)
+
+
 class MeshShape(Shape):
     """A mesh geom's triangles as seen by a proxy (world frame in, world frame out; m).
 
@@ -674,17 +692,10 @@ class MeshShape(Shape):
         other = self._adj[hint][feature - 1]
         if other < 0:
             return None
-        u = self._tri[other]
-        dot1 = nx * u[15] + ny * u[16] + nz * u[17]
-        side1 = 1.0 if dot1 >= 0.0 else -1.0
-        g = side0 * side1 * (t[15] * u[15] + t[16] * u[16] + t[17] * u[17])
-        det = 1.0 - g * g
-        a0, a1 = side0 * dot0, side1 * dot1
-        if det < 1e-12:
-            if not (g > 0.0 and a0 > 1.0 - 1e-9):
-                return None
-        elif a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
-            return None  # n outside the cone: a concave edge
+        edge = _convex_edge(t, self._tri[other], nx, ny, nz, side0, dot0)
+        if edge is None:
+            return None
+        side1 = edge[0]
         got = clear.get(hint if side0 > 0.0 else -1 - hint)
         first = got[1] if got is not None and (got[0] >= need or got[0] < 0.0) else self._face_clear(hint, side0, need)
         if first is None:
@@ -822,20 +833,12 @@ class MeshShape(Shape):
         other = self._adj[hint][feature - 1]
         if other < 0 or other not in self._cpos:
             return None
-        u = self._tri[other]
-        dot1 = nx * u[15] + ny * u[16] + nz * u[17]
-        side1 = 1.0 if dot1 >= 0.0 else -1.0
-        g = side0 * side1 * (t[15] * u[15] + t[16] * u[16] + t[17] * u[17])
-        det = 1.0 - g * g
-        a0, a1 = side0 * dot0, side1 * dot1
-        if det < 1e-12:
-            # coplanar neighbours: one half-space, whose only normal is the faces' own (a
-            # sphere touching the edge from beside it is not held by the plane); folded back: none
-            if g > 0.0 and a0 > 1.0 - 1e-9:
-                return self._merged(self._above_list(hint, side0, n), self._above_list(other, side1, n))
+        edge = _convex_edge(t, self._tri[other], nx, ny, nz, side0, dot0)
+        if edge is None:
             return None
-        if a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
-            return None  # n outside the cone: a concave edge
+        side1, coplanar = edge
+        if coplanar:
+            return self._merged(self._above_list(hint, side0, n), self._above_list(other, side1, n))
         memo = above.get(hint if side0 > 0.0 else -1 - hint)
         memo1 = above.get(other if side1 > 0.0 else -1 - other)
         if memo is not None and memo1 is not None and memo[0] >= n and memo1[0] >= n and not memo[1] and not memo1[1]:
