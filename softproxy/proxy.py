@@ -501,8 +501,9 @@ class GodObject:
                     break
                 # a plane whose shape fell away under the proxy (a curved shape's tangent
                 # plane, a rounded edge's, a face's plane past the face's edge) is replaced by
-                # the shape's tangent plane below the proxy now: its linearisation where the
-                # proxy is, so a crease of a face and a curved shape converges quadratically
+                # the shape's tangent plane below the proxy now (its linearisation where the
+                # proxy is) and the others kept: a crease of a face and a curved shape is
+                # followed along both at once
                 kept = []
                 lifted = False
                 for p in planes:
