@@ -619,19 +619,11 @@ class MeshShape(Shape):
         t = self._tri[hint]
         k3 = 3 * (feature - 4)
         vx, vy, vz = t[k3], t[k3 + 1], t[k3 + 2]
-        ax, ay, az, _ = self._vcone[vertex]
         radius = max(2.0 * need, STATIC_REACH)
         ids = self._region(vx, vy, vz, radius)
         ids = ids[~np.isin(ids, list(self._fan[vertex]))]
         if len(ids):
-            ring = set()
-            for i in self._fan[vertex]:
-                ring.update(self._tv[i])
-            u = self._abc[ids] - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
-            norm = np.sqrt((u * u).sum(2))
-            sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
-            sb[np.isin(self._faces[ids], list(ring))] = 1.0  # v and the ends of its edges
-            least = sb.min(axis=1)
+            least = self._least_sines(vertex, vx, vy, vz, ids, self._fan_ring(vertex))
             order = np.argsort(least, kind="stable")
             sines, tris = least[order].tolist(), ids[order].tolist()
             s0 = sines[0] - 1e-12
@@ -895,6 +887,23 @@ class MeshShape(Shape):
             keep.sort()
         return keep
 
+    def _fan_ring(self, vertex: int) -> set:
+        """The vertex and the far ends of its edges: the vertices of its fan."""
+        ring = set()
+        for i in self._fan[vertex]:
+            ring.update(self._tv[i])
+        return ring
+
+    def _least_sines(self, vertex: int, vx: float, vy: float, vz: float, ids: np.ndarray, ring: set) -> np.ndarray:
+        """Per triangle in `ids` (numpy, batched), the least sin β of its vertices seen from v
+        below the cone's axis; the fan's own vertices count as 1 (behind with the fan)."""
+        ax, ay, az, _ = self._vcone[vertex]
+        u = self._abc[ids] - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
+        norm = np.sqrt((u * u).sum(2))
+        sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
+        sb[np.isin(self._faces[ids], list(ring))] = 1.0  # v and the ends of its edges
+        return sb.min(axis=1)
+
     def _vertex_table(self, vertex: int, hint: int, feature: int, n: int, memo):
         """The vertex certificate's table over the neighbourhood positions below n, extended
         from `memo` (positions already done): [done, sin β ascending, positions in that order,
@@ -907,17 +916,11 @@ class MeshShape(Shape):
         vx, vy, vz = t[k3], t[k3 + 1], t[k3 + 2]
         ax, ay, az, _ = self._vcone[vertex]
         fan, ci, tris, tv = self._fan[vertex], self._ci, self._tri, self._tv
-        ring = set()
-        for i in fan:
-            ring.update(tv[i])
+        ring = self._fan_ring(vertex)
         if n - done > BATCH_MIN:
             # many positions at once (after a rebuild): batched, merged into the sorted table
             ids = self._cids[done:n]
-            u = self._abc[ids] - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
-            norm = np.sqrt((u * u).sum(2))
-            sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
-            sb[np.isin(self._faces[ids], list(ring))] = 1.0  # v and the ends of its edges
-            least = sb.min(axis=1)
+            least = self._least_sines(vertex, vx, vy, vz, ids, ring)
             offfan = ~np.isin(ids, list(fan))
             sines_all = np.concatenate([np.array(sines), least[offfan]])
             out_all = np.concatenate([np.array(out, dtype=np.int64), np.flatnonzero(offfan) + done])
