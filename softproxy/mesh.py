@@ -64,6 +64,7 @@ import warnings
 import mujoco
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from softproxy.geometry import CONTACT_TOL, FACE_PARALLEL, GRAZE, Shape
 
@@ -85,13 +86,26 @@ re-centring then at most doubles the work, and a slow drift with short scans nev
 BATCH_MIN = 32
 """A certificate's table is extended over more new neighbourhood positions than this in one
 batched numpy pass rather than in scalar Python (after a rebuild it may be asked for hundreds)."""
-STATIC_REACH = 0.004
-"""Least radius (m) over which a kept certificate (`_face_clear`, `_vertex_clear`) is checked."""
-STATIC_ABOVE = 4
+KEPT_RADIUS = 0.005
+"""Proxy radius (m) the kept certificates (`_face_clear`, `_vertex_clear`) are built for at
+load, for every face and vertex at once; `prepare` builds them for a larger proxy, and a query
+beyond them builds its face's or vertex's alone, in the tick."""
+KEPT_STEP = 0.002
+"""How far (m) a sweep may move and still be covered by the certificates built for its radius."""
+STATIC_ABOVE = 8
 """Most triangles reaching above a face's plane that its kept certificate lists (and a query
-then reads); more, and the face is on a concave patch: the neighbourhood's lists serve it."""
-STATIC_RISE = 1e-7
-"""A neighbour this far (m) above a face's plane marks the face concave at once (no numpy pass)."""
+then reads: e.g. a vertex a rounding above a coplanar neighbour brings its fan of ~6); more,
+and the face is on a concave patch: the neighbourhood's lists serve it."""
+VERTEX_READ = 64
+"""Most vertices a kept vertex certificate tests against a tangent plane tilted from its cone's
+axis (those whose sin β is below the tilt's sine); more, and the neighbourhood serves it."""
+RISING_VERTICES = 4 * STATIC_ABOVE
+"""A face with more vertices than this rising above its plane near it is taken as concave at
+once (its rising triangles are not gathered)."""
+PAIR_CHUNK = 2048
+SINE_GRID = 2.0 ** 40
+"""Steps per unit a kept vertex table's sin β is rounded down to (≈1e-12) for one sort."""
+"""Points per numpy pass when gathering the vertices near every face or vertex (bounds memory)."""
 VECTOR_MIN = 64
 """A scan of more triangles than this is narrowed first by one vectorised distance pass
 (a point far from a symmetric mesh is nearly as far from hundreds of triangles)."""
@@ -380,6 +394,7 @@ class MeshShape(Shape):
         "_grid_lo", "_grid_h", "_grid_dims", "_grid_start", "_grid_order",
         "_cx", "_cy", "_cz", "_cr", "_cslack", "_cd", "_ci", "_cids", "_cpos", "_above", "_vmemo", "_work", "_hint", "rebuilds",
         "_recent", "_dkey", "_dval", "_skey", "_sval", "_clear", "_vclear",
+        "_off", "_vpos", "_vxyz", "_vtree", "_vt_start", "_vt_tris", "_edge_keys", "_vaxis", "_kept", "_vtable",
     )
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
@@ -421,7 +436,10 @@ class MeshShape(Shape):
         self._skey = None  # a sweep's start point (geom frame) and its certified nearest point
         self._sval = None
         self._clear: dict = {}   # face (i, or -1 - i for its back) -> radius checked clear (m), or -1
-        self._vclear: dict = {}  # vertex -> (radius checked (m), sin β, triangles, threshold on c²)
+        self._vclear: dict = {}  # vertex -> (radius checked (m), sin β, vertices, threshold on c²)
+        self._kept = 0.0         # the radius (m) every face's and vertex's certificate holds over
+        self._vtable = None      # `_vertex_tables` over every vertex, read into `_vclear` on first touch
+        self.prepare(KEPT_RADIUS)
 
     # -- load-time tables ---------------------------------------------------------------
     def _build(self, v: np.ndarray, f: np.ndarray) -> None:
@@ -434,7 +452,8 @@ class MeshShape(Shape):
         self._tri = [tuple(row) for row in np.column_stack([a, b, c, ab, ac, n, aa, abac, cc, inv]).tolist()]
         self._abc = np.stack([a, b, c], axis=1)  # (faces, 3 vertices, 3): the certificates' batched tests
         self._faces = f
-        self._plane = [tuple(row) for row in np.column_stack([n, (n * a).sum(1)]).tolist()]
+        self._off = (n * a).sum(1)  # each plane's offset n·A (m)
+        self._plane = [tuple(row) for row in np.column_stack([n, self._off]).tolist()]
         # edges AB, BC, CA as (start, unit direction, length) for the swept cylinders
         starts = np.stack([a, b, c], axis=1)
         vecs = np.stack([b - a, c - b, a - c], axis=1)
@@ -499,11 +518,13 @@ class MeshShape(Shape):
         self._tv = [tuple(row) for row in f.tolist()]
         order = np.argsort(f.reshape(-1), kind="stable")
         bounds = np.searchsorted(f.reshape(-1)[order], np.arange(len(v) + 1))
+        self._vt_start, self._vt_tris = bounds, order // 3  # per vertex, its triangles (numpy)
         tri_of = (order // 3).tolist()
         bounds = bounds.tolist()
         pairs = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
         pairs = np.unique(np.concatenate([pairs, pairs[:, ::-1]]), axis=0)
         pstart = np.searchsorted(pairs[:, 0], np.arange(len(v) + 1)).tolist()
+        self._edge_keys = pairs[:, 0] * len(v) + pairs[:, 1]  # sorted: v -> w is an edge
         evec = v[pairs[:, 1]] - v[pairs[:, 0]]
         eunit = evec / np.linalg.norm(evec, axis=1)[:, None]
         fans, rings, cones = [], [], []
@@ -528,6 +549,8 @@ class MeshShape(Shape):
                 cos = 2.0
             cones.append((*vn_l[i], cos))
         self._fan, self._ring, self._vcone = fans, rings, cones
+        self._vpos, self._vaxis, self._vtree = v, vnormal, cKDTree(v)
+        self._vxyz = [tuple(row) for row in v.tolist()]
 
         # the static grid of triangle centres
         self._centre, self._rho = centre, float(self._rhos.max())
@@ -574,62 +597,123 @@ class MeshShape(Shape):
         return ids[np.sqrt(np.einsum("ij,ij->i", c, c)) - self._rhos[ids] <= radius]
 
     # -- certificates kept for the mesh's lifetime ------------------------------------------------
-    def _face_clear(self, i: int, side: float, need: float):
-        """The triangles within `need` (m) of triangle i that reach above its plane on `side` (a
-        vertex higher than ABOVE_TOL), as a tuple of at most STATIC_ABOVE ids (a coplanar
-        neighbour a rounding above it), or None when there are more (a concave patch): every
-        other triangle that near lies behind the tangent plane. Found once per face and side,
-        over twice the reach asked (numpy), and kept across neighbourhood rebuilds."""
-        key = i if side > 0.0 else -1 - i
-        got = self._clear.get(key)
-        if got is not None and (got[0] < 0.0 or got[0] >= need):
-            return got[1]
-        nx, ny, nz, off = self._plane[i]
-        if side < 0.0:
-            nx, ny, nz, off = -nx, -ny, -nz, -off
-        off += ABOVE_TOL
-        if got is None:
-            tris, above = self._tri, 0
-            for j in self._adj[i]:
-                if j >= 0:
-                    u = tris[j]
-                    if (nx * u[0] + ny * u[1] + nz * u[2] > off + STATIC_RISE or nx * u[3] + ny * u[4] + nz * u[5] > off + STATIC_RISE
-                            or nx * u[6] + ny * u[7] + nz * u[8] > off + STATIC_RISE):
-                        self._clear[key] = (-1.0, None)  # a neighbour rises well above the plane: concave
-                        return None
-        radius = max(2.0 * need, STATIC_REACH)
-        rho = float(self._rhos[i])
-        cx, cy, cz = self._centre[i].tolist()
-        ids = self._region(cx, cy, cz, radius + rho)
-        rising = ids[(self._abc[ids] @ np.array((nx, ny, nz)) > off).any(axis=1)]
-        out = tuple(rising.tolist()) if len(rising) <= STATIC_ABOVE else None
-        self._clear[key] = (radius if out is not None else -1.0, out)
+    def prepare(self, radius: float) -> None:
+        """Build the kept certificates of every face and vertex (numpy, all at once) for a proxy
+        of `radius` (m) sweeping up to KEPT_STEP, so that its queries never build one in the
+        servo tick; call it when a proxy larger than KEPT_RADIUS is made (load builds those)."""
+        kept = 2.0 * (radius + CONTACT_TOL) + KEPT_STEP
+        if kept <= self._kept:
+            return
+        self._clear.update(self._face_tables(np.arange(self.triangles), kept))
+        self._vtable = self._vertex_tables(np.arange(len(self._vpos)), kept)
+        self._vclear = {}
+        self._kept = kept
+
+    def _vertices_near(self, points: np.ndarray, reach: np.ndarray):
+        """(k, w) for every vertex w within reach[k] (m) of points[k], as two numpy arrays."""
+        ks, ws = [], []
+        for s in range(0, len(points), PAIR_CHUNK):
+            tree = cKDTree(points[s:s + PAIR_CHUNK])
+            got = tree.sparse_distance_matrix(self._vtree, float(reach[s:s + PAIR_CHUNK].max()), output_type="ndarray")
+            k = got["i"].astype(np.int64) + s
+            keep = got["v"] <= reach[k]
+            ks.append(k[keep])
+            ws.append(got["j"][keep].astype(np.int64))
+        return np.concatenate(ks), np.concatenate(ws)
+
+    def _face_tables(self, faces: np.ndarray, radius: float) -> dict:
+        """Kept face certificates for `faces` (ids) over `radius` (m), all at once: per face and
+        side (key i, or -1 - i for its back), (radius, the triangles within radius of the face
+        that reach above its plane), or (-1, None) when more than STATIC_ABOVE do (a concave
+        patch). A triangle reaches above the plane when one of its vertices does (higher than
+        ABOVE_TOL), and such a vertex lies within radius + the face's and twice the largest
+        triangle's bounding radius of the face's centre: one dot product per vertex that near,
+        then the rising vertices' triangles within radius."""
+        rhos, centre = self._rhos, self._centre
+        k, w = self._vertices_near(centre[faces], radius + rhos[faces] + 2.0 * self._rho)
+        face = faces[k]
+        h = np.einsum("ij,ij->i", np.take(self._vpos, w, axis=0), np.take(self._fn, face, axis=0))
+        h -= np.take(self._off, face)
+        start, tris = self._vt_start, self._vt_tris
+        ids = faces.tolist()
+        out = {}
+        for side, rising in ((1.0, h > ABOVE_TOL), (-1.0, h < -ABOVE_TOL)):
+            keys = ids if side > 0.0 else [-1 - i for i in ids]
+            # a face with many rising vertices near it is concave (or seen from behind): not expanded
+            many = np.bincount(k[rising], minlength=len(faces)) > RISING_VERTICES
+            rising &= ~many[k]
+            rk, rw = k[rising], w[rising]
+            # each rising vertex's triangles: (face position, triangle) pairs, kept within radius
+            count = start[rw + 1] - start[rw]
+            first = np.repeat(start[rw] - np.cumsum(count) + count, count)
+            t = tris[first + np.arange(int(count.sum()))]
+            rk = np.repeat(rk, count)
+            gap = np.linalg.norm(centre[t] - centre[faces[rk]], axis=1) - rhos[t] - rhos[faces[rk]]
+            near = gap <= radius
+            pair = np.unique(rk[near] * self.triangles + t[near])
+            rk, t = pair // self.triangles, pair % self.triangles
+            bounds = np.searchsorted(rk, np.arange(len(faces) + 1))
+            counts = np.diff(bounds)
+            out.update(dict.fromkeys(keys, (radius, ())))
+            out.update(dict.fromkeys([keys[j] for j in np.flatnonzero(many | (counts > STATIC_ABOVE)).tolist()], (-1.0, None)))
+            for j in np.flatnonzero((counts > 0) & (counts <= STATIC_ABOVE)).tolist():
+                out[keys[j]] = (radius, tuple(t[bounds[j]:bounds[j + 1]].tolist()))
         return out
 
-    def _vertex_clear(self, vertex: int, hint: int, feature: int, need: float):
-        """The vertex certificate's table over every triangle within `need` (m) of the vertex,
-        kept for the mesh's lifetime: (radius checked (m), sin β ascending, the off-fan
-        triangles in that order, threshold). A tangent plane with the fan behind it, at cosine
-        c from the cone's axis, has every such triangle behind it when c > 0 and c² > the
-        threshold (2.0 when none is certified by angle alone), else all but those with
-        sin β < sin α (see `_vertex_certified`)."""
-        got = self._vclear.get(vertex)
-        if got is not None and got[0] >= need:
-            return got
-        t = self._tri[hint]
-        k3 = 3 * (feature - 4)
-        vx, vy, vz = t[k3], t[k3 + 1], t[k3 + 2]
-        radius = max(2.0 * need, STATIC_REACH)
-        ids = self._region(vx, vy, vz, radius)
-        ids = ids[~np.isin(ids, list(self._fan[vertex]))]
-        if len(ids):
-            least = self._least_sines(vertex, vx, vy, vz, ids, self._fan_ring(vertex))
-            order = np.argsort(least, kind="stable")
-            sines, tris = least[order].tolist(), ids[order].tolist()
-            s0 = sines[0] - 1e-12
-        else:
-            sines, tris, s0 = [], [], 1.0
-        got = (radius, sines, tris, 1.0 - s0 * s0 if s0 > 0.0 else 2.0)
+    def _face_clear(self, i: int, side: float, need: float):
+        """The triangles within `need` (m) of triangle i that reach above its plane on `side`, as
+        a tuple of at most STATIC_ABOVE ids (e.g. a coplanar neighbour a rounding above it), or
+        None when there are more (a concave patch): every other triangle that near lies behind
+        the tangent plane. Built for every face at load or by `prepare`; a need beyond that
+        builds this face's over twice the need, here."""
+        key = i if side > 0.0 else -1 - i
+        got = self._clear.get(key)
+        if got is None or 0.0 <= got[0] < need:
+            self._clear.update(self._face_tables(np.array([i]), 2.0 * need))
+            got = self._clear[key]
+        return got[1]
+
+    def _vertex_tables(self, vertices: np.ndarray, radius: float):
+        """Kept vertex certificates for `vertices` (ids) over `radius` (m), all at once: per
+        vertex v, the vertices w of the triangles within radius of it (all within radius + twice
+        the largest triangle's bounding radius), but v and the ends of its edges (behind the
+        tangent plane with the fan), by sin β ascending (β: the angle of w - v below the plane
+        square to v's cone axis), the first VERTEX_READ + 1 of them. (radius, start per vertex
+        position, sin β, w), the last two flat (numpy)."""
+        k, w = self._vertices_near(self._vpos[vertices], np.full(len(vertices), radius + 2.0 * self._rho))
+        v = vertices[k]
+        keys = v * len(self._vpos) + w
+        at = np.minimum(np.searchsorted(self._edge_keys, keys), len(self._edge_keys) - 1)
+        off = (w != v) & (self._edge_keys[at] != keys)
+        k, w, v = k[off], w[off], v[off]
+        u = np.take(self._vpos, w, axis=0) - np.take(self._vpos, v, axis=0)
+        sines = -np.einsum("ij,ij->i", u, np.take(self._vaxis, v, axis=0)) / np.linalg.norm(u, axis=1)
+        # sorted by vertex, then sin β rounded down to 2^-40 (conservative: a lower sin β reads
+        # more), as one integer key
+        grid = np.floor((sines + 1.0) * SINE_GRID).astype(np.int64)
+        order = np.argsort((k << 42) | grid)
+        k, w, sines = k[order], w[order], grid[order] / SINE_GRID - 1.0
+        start = np.searchsorted(k, np.arange(len(vertices) + 1))
+        head = np.arange(len(k)) - start[k] <= VERTEX_READ
+        k, w, sines = k[head], w[head], sines[head]
+        return (radius, np.searchsorted(k, np.arange(len(vertices) + 1)), sines, w)
+
+    def _vertex_clear(self, vertex: int, need: float):
+        """The vertex certificate's table over every triangle within `need` (m) of the vertex:
+        (radius checked (m), sin β ascending (the first VERTEX_READ + 1), the vertices in that
+        order, threshold). A tangent plane with the fan behind it, at cosine c from the cone's
+        axis, has every such triangle behind it when c > 0 and c² > the threshold (2.0 when none
+        is certified by angle alone), else all but those on a vertex with sin β < sin α that
+        rises above it. Read from the table built at load or by `prepare` on first touch (a few
+        µs); a need beyond it builds this vertex's over twice the need, here."""
+        table = self._vtable
+        k = vertex
+        if need > table[0]:
+            table, k = self._vertex_tables(np.array([vertex]), 2.0 * need), 0
+        radius, start, sines, ids = table
+        sines, ids = sines[start[k]:start[k + 1]].tolist(), ids[start[k]:start[k + 1]].tolist()
+        s0 = (sines[0] if sines else 1.0) - 1e-12
+        got = (radius, sines, ids, 1.0 - s0 * s0 if s0 > 0.0 else 2.0)
         self._vclear[vertex] = got
         return got
 
@@ -662,24 +746,23 @@ class MeshShape(Shape):
                         return None
             got = self._vclear.get(vertex)
             if got is None or got[0] < need:
-                got = self._vertex_clear(vertex, hint, feature, need)
+                got = self._vertex_clear(vertex, need)
             if c * c > got[3]:
                 return ()
-            # the few triangles with sin β < sin α: each vertex against the tangent plane
-            sines = got[1]
-            m = bisect.bisect_left(sines, math.sqrt(1.0 - c * c) + 1e-12)
-            if m > 8 * STATIC_ABOVE:
+            # the few vertices with sin β < sin α, each against the tangent plane; the triangles
+            # on those above it are read
+            m = bisect.bisect_left(got[1], math.sqrt(1.0 - c * c) + 1e-12)
+            if m > VERTEX_READ:
                 return None
             k3 = 3 * (feature - 4)
             off = nx * t[k3] + ny * t[k3 + 1] + nz * t[k3 + 2] + ABOVE_TOL
-            tris, few = self._tri, []
-            for i in got[2][:m]:
-                u = tris[i]
-                if (nx * u[0] + ny * u[1] + nz * u[2] > off or nx * u[3] + ny * u[4] + nz * u[5] > off
-                        or nx * u[6] + ny * u[7] + nz * u[8] > off):
-                    if len(few) == STATIC_ABOVE:
+            vxyz, few = self._vxyz, ()
+            for w in got[2][:m]:
+                x, y, z = vxyz[w]
+                if nx * x + ny * y + nz * z > off:
+                    few = self._fan[w].union(few)
+                    if len(few) > STATIC_ABOVE:
                         return None
-                    few.append(i)
             return tuple(few)
         other = self._adj[hint][feature - 1]
         if other < 0:

@@ -13,7 +13,7 @@ import trimesh
 from hypothesis import given, settings, strategies as st
 
 from softproxy.geometry import shapes_of
-from softproxy.mesh import POINT_RADIUS, MeshShape, MeshWarning, validate_mesh
+from softproxy.mesh import ABOVE_TOL, POINT_RADIUS, VERTEX_READ, MeshShape, MeshWarning, validate_mesh
 from softproxy.proxy import GodObject
 
 TOL = 1e-6  # the promise: never more than 1 µm inside anything
@@ -810,20 +810,23 @@ def test_vertex_certificate_off_the_fan(tmp_path, tmp):
     assert calls[0] <= 3 * len(pts)
 
 
-def test_kept_certificate_reads_the_few_triangles_above_a_face(tmp_path):
-    """A tetrahedron (4 triangles) floating 2 mm over a face of a geodesic sphere rises above
-    the face's plane: the face's kept certificate lists exactly those few, so distances and
-    sweeps from over the face find the tetrahedron (they agree with the reference), without a
-    neighbourhood rebuild, while a face far from it has an empty list."""
+def small_tetra(at) -> trimesh.Trimesh:
+    """A tetrahedron (4 triangles, 0.6 mm legs) centred at `at` (m)."""
+    tetra = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float) * 6e-4,
+                            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), process=False)
+    tetra.apply_translation(at - tetra.vertices.mean(0))
+    return tetra
+
+
+def ball_with_tetra_over_a_face(path: Path, height: float):
+    """A geodesic sphere (2000 triangles, 5 cm) with `small_tetra` floating `height` (m) over
+    its face nearest (0.1, 0.2, 0.97): (shape, world vertices, faces, the ball's faces, that face
+    and its unit normal as compiled, the ball's face centres)."""
     ball = geodesic_sphere(10, 0.05)
     top = int(np.argmax(ball.triangles_center @ np.array([0.1, 0.2, 0.97])))
     normal = ball.face_normals[top]
-    centre = ball.triangles_center[top]
-    tetra = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float) * 6e-4,
-                            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), process=False)
-    tetra.apply_translation(centre + 0.002 * normal - tetra.vertices.mean(0))
-    m, d, shapes = mesh_model(tmp_path / "ball_tetra.obj", trimesh.util.concatenate([ball, tetra]))
-    s = mesh_shape(shapes)
+    tetra = small_tetra(ball.triangles_center[top] + height * normal)
+    m, d, shapes = mesh_model(path, trimesh.util.concatenate([ball, tetra]))
     v, f = world_mesh(m, d)
     # the chosen face as compiled (MuJoCo moves the mesh into its own frame): the ball's face
     # whose centre lies farthest along the same direction
@@ -831,7 +834,15 @@ def test_kept_certificate_reads_the_few_triangles_above_a_face(tmp_path):
     centres = v[ball_f].mean(1)
     face = int(np.argmax((centres - v[ball_f].reshape(-1, 3).mean(0)) @ normal))
     n = np.cross(v[f[face, 1]] - v[f[face, 0]], v[f[face, 2]] - v[f[face, 0]])
-    n /= np.linalg.norm(n)
+    return mesh_shape(shapes), v, f, ball_f, face, n / np.linalg.norm(n), centres
+
+
+def test_kept_certificate_reads_the_few_triangles_above_a_face(tmp_path):
+    """A tetrahedron (4 triangles) floating 2 mm over a face of a geodesic sphere rises above
+    the face's plane: the face's kept certificate lists exactly those few, so distances and
+    sweeps from over the face find the tetrahedron (they agree with the reference), without a
+    neighbourhood rebuild, while a face far from it has an empty list."""
+    s, v, f, ball_f, face, n, centres = ball_with_tetra_over_a_face(tmp_path / "ball_tetra.obj", 0.002)
     rng = np.random.default_rng(3)
     s.distance(*(centres[face] + 0.006 * n))  # a neighbourhood, built once
     before = s.rebuilds
@@ -849,7 +860,7 @@ def test_kept_certificate_reads_the_few_triangles_above_a_face(tmp_path):
         dvec = rng.normal(scale=0.0015, size=3)
         hit = s.sweep(*p, *dvec, r)
         check_sweep(hit, v, f, p, dvec, r, 80, skip_touching=True)
-    tetra_ids = set(range(len(ball.faces), len(f)))
+    tetra_ids = set(range(len(ball_f), len(f)))
     kept = s._clear[face][1]
     assert kept is not None and set(kept) == tetra_ids
     far = int(np.argmin(centres @ n))  # the opposite side of the ball: nothing rises above it
@@ -888,9 +899,7 @@ def test_kept_vertex_certificate_reads_the_few_triangles_above(tmp_path):
     out = ball.vertices[top] / np.linalg.norm(ball.vertices[top])
     side = np.cross(out, (1.0, 0.0, 0.0))
     side /= np.linalg.norm(side)
-    tetra = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float) * 6e-4,
-                            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), process=False)
-    tetra.apply_translation(ball.vertices[top] + 0.003 * out + 0.0025 * side - tetra.vertices.mean(0))
+    tetra = small_tetra(ball.vertices[top] + 0.003 * out + 0.0025 * side)
     m, d, shapes = mesh_model(tmp_path / "ball_tetra_v.obj", trimesh.util.concatenate([ball, tetra]))
     s = mesh_shape(shapes)
     v, f = world_mesh(m, d)
@@ -920,3 +929,86 @@ def test_kept_vertex_certificate_reads_the_few_triangles_above(tmp_path):
         MeshShape._static_clear = static
     tetra_ids = set(range(len(ball.faces), len(f)))
     assert handed and all(h <= tetra_ids for h in handed)
+
+
+def dented_ball_with_tetra(tmp_path):
+    """A geodesic sphere (720 triangles) with a dozen vertices pushed 1.5 mm in (concave
+    patches round them) and a tetrahedron floating 2 mm over one face: a MeshShape in it."""
+    ball = geodesic_sphere(6, 0.05)
+    v = ball.vertices.copy()
+    v[np.random.default_rng(11).choice(len(v), 12, replace=False)] *= 0.97
+    top = int(np.argmax(ball.triangles_center @ np.array([0.3, -0.2, 0.93])))
+    tetra = small_tetra(ball.triangles_center[top] + 0.002 * ball.face_normals[top])
+    mesh = trimesh.util.concatenate([trimesh.Trimesh(v, ball.faces, process=False), tetra])
+    return mesh_shape(mesh_model(tmp_path / "dented.obj", mesh)[2])
+
+
+def test_kept_tables_built_at_load_match_brute_force(tmp_path):
+    """The certificates built at load for every face and vertex at once (numpy, from the
+    vertices near each) agree with a brute force over all triangles, on a sphere with dents and
+    a floating tetrahedron: a face's list holds every triangle within the radius that rises above
+    its plane (or the face is marked concave only where one does), and a vertex's table lists
+    every vertex of the triangles within the radius, off its ring, no later than its sin β."""
+    s = dented_ball_with_tetra(tmp_path)
+    radius = s._kept
+    abc, n, off, centre, rhos = s._abc, s._fn, s._off, s._centre, s._rhos
+    concave = listed = 0
+    for i in range(s.triangles):
+        near = np.flatnonzero(np.linalg.norm(centre - centre[i], axis=1) - rhos - rhos[i] <= radius)
+        height = abc[near] @ n[i] - off[i]
+        for side, key in ((1.0, i), (-1.0, -1 - i)):
+            rising = set(near[(side * height > ABOVE_TOL).any(axis=1)].tolist())
+            kept_radius, few = s._clear[key]
+            if few is None:
+                assert rising
+                concave += side > 0.0
+            else:
+                assert kept_radius >= radius and rising <= set(few)
+                listed += bool(few) and side > 0.0
+    assert concave > 0 and listed > 0  # the dents and the tetrahedron
+    faces = s._faces
+    for vertex in np.unique(faces):
+        fan = (faces == vertex).any(axis=1)
+        ring = set(faces[fan].reshape(-1).tolist())
+        near = (np.linalg.norm(centre - s._vpos[vertex], axis=1) - rhos <= radius) & ~fan
+        others = sorted(set(faces[near].reshape(-1).tolist()) - ring)
+        u = s._vpos[others] - s._vpos[vertex]
+        sines = -(u @ s._vaxis[vertex]) / np.linalg.norm(u, axis=1)
+        kept_radius, table, ids, _ = s._vertex_clear(int(vertex), radius)
+        assert kept_radius >= radius and table == sorted(table)
+        cut = table[-1] if len(table) > VERTEX_READ else math.inf
+        kept = dict(zip(ids, table))
+        for w, sine in zip(others, sines):
+            if sine < cut:
+                assert kept[w] <= sine
+
+
+def test_kept_certificate_beyond_its_radius_is_built_for_the_query(tmp_path):
+    """A tetrahedron floating 17 mm over a face lies beyond the radius the kept certificates
+    are built over at load (a 5 mm proxy): a point 11 mm over the face, nearer the tetrahedron,
+    builds that face's certificate over its own reach and finds it; after `prepare` for a
+    1 cm proxy the table built then already lists it, and no query builds one."""
+    path = tmp_path / "ball_far_tetra.obj"
+    s, v, f, ball_f, face, n, centres = ball_with_tetra_over_a_face(path, 0.017)
+    tetra_ids = set(range(len(ball_f), len(f)))
+    assert s._clear[face] == (s._kept, ())  # nothing rises within the load radius
+    p = centres[face] + 0.011 * n
+    truth = reference_distance(p[None], v, f)[0]
+    assert truth < 0.0065  # the tetrahedron is nearest
+    s._hint, s._dkey, s._skey = face, None, None
+    assert abs(abs(s.distance(*p)[0]) - truth) < 1e-9
+    assert set(s._clear[face][1]) == tetra_ids
+
+    s = ball_with_tetra_over_a_face(path, 0.017)[0]
+    s.prepare(0.01)
+    assert s._kept >= 0.02 and set(s._clear[face][1]) == tetra_ids
+    built = []
+    tables = MeshShape._face_tables
+    MeshShape._face_tables = lambda self, *args: built.append(args) or tables(self, *args)
+    try:
+        for p in centres[face] + np.array([0.009, 0.01, 0.0105])[:, None] * n:
+            s._hint, s._dkey, s._skey = face, None, None
+            assert abs(abs(s.distance(*p)[0]) - reference_distance(p[None], v, f)[0]) < 1e-9
+    finally:
+        MeshShape._face_tables = tables
+    assert not built
