@@ -25,7 +25,7 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    of c reads only the triangles whose bound minus e is within its reach, a short prefix;
    the neighbourhood is rebuilt when a query leaves it, or drifted far enough that its
    prefix grew long once the scans since the last rebuild have read about a rebuild's worth
-   of triangles (REBUILD_WORK);
+   of triangles (REBUILD_WORK); re-centred inside the old ball, from the old one's triangles;
 3. the hint, the triangle touched or nearest last, is tested first: pressed into it, the
    sweep ends at once. Its tangent plane at the nearest point is a certificate: a triangle
    lying wholly behind the hint's plane (behind both faces' planes at a convex edge) is at
@@ -37,16 +37,24 @@ Cost per query is bounded on large meshes (all in the geom frame; numpy only to 
    uv-sphere, where ~100 thin triangles meet, reads none of them. A triangle off the fan is
    behind it too when its far vertices lie far enough below the cone's axis (a per-vertex
    table sorted by that angle, one bisection per query), so on a convex patch none is read
-   whatever the triangles' shape. When an edge rises above
-   that plane, a triangle on it holds a nearer point: the query walks there first (the
+   whatever the triangles' shape. When an edge rises above that plane, a triangle on it
+   holds a nearer point, and when the nearest point is on an edge the point may lie over or
+   beyond the neighbour across it: the query walks there first (WALK_STEPS at most; the
    face's or edge's certificate then holds). Scalar Python over the few triangles that remain.
    The same certificates are also kept for the mesh's lifetime, independent of any
-   neighbourhood: per face and side, the few triangles (STATIC_ABOVE at most, e.g. a coplanar
-   neighbour a rounding above) within twice a query's reach that rise above its plane, and per
-   vertex the sin β table over that reach, each found once with numpy. When they hold (a
-   convex patch), a distance query or a sweep reads the hint, its neighbour across an edge and
-   those few, and no neighbourhood: sliding over a convex mesh rarely rebuilds one. A point at
-   distance d needs a reach of 2d, a sphere of radius r sliding by L one of 2r + L.
+   neighbourhood, and built at load for every face and vertex at once (numpy, from the
+   vertices near each, found with a k-d tree), over the reach of a KEPT_RADIUS proxy sweeping
+   up to KEPT_STEP; `prepare(radius)` builds them for a larger proxy: per face and side, the
+   few triangles (STATIC_ABOVE at most, e.g. a vertex a rounding above a coplanar neighbour
+   brings its fan) within that reach that rise above its plane, and per vertex the sin β
+   table of the vertices near it (VERTEX_READ + 1 at most, read into Python lists on first
+   touch, a few µs). A query beyond that reach builds its face's or vertex's table alone, in
+   the tick, over twice its reach. When they hold (a convex patch), a distance query or a
+   sweep reads the hint, its neighbour across an edge and those few, and no neighbourhood:
+   sliding over a convex mesh rarely rebuilds one and builds nothing. A point at distance d
+   needs a reach of 2d, a sphere of radius r sliding by L one of 2r + L. On a concave patch
+   (inside a bowl) they do not hold, and the neighbourhood serves the query: its certificate
+   lists (the rising triangles by position, the sin β tables) are built as scans read it.
 4. the last distance answer is kept (the god-object asks again about the point it holds),
    and so is a sweep's start point whose nearest point the hint's certificate proved (the
    proxy that slid or pressed from there is asked about again), both keyed by the point in
@@ -360,6 +368,11 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=
 # The shape
 # ---------------------------------------------------------------------------------------
 
+def _rows(a: np.ndarray) -> list:
+    """The rows of a 2-d array as tuples of floats (the hot path's form)."""
+    return list(map(tuple, a.tolist()))
+
+
 def _convex_edge(t, u, nx: float, ny: float, nz: float, side0: float, dot0: float):
     """Whether the tangent plane of normal n at a point on the edge between triangle t (n on
     its side side0, dot0 = n·t's normal) and its neighbour u holds both faces behind it:
@@ -449,18 +462,18 @@ class MeshShape(Shape):
         n = cross / np.linalg.norm(cross, axis=1)[:, None]
         aa, abac, cc = (ab * ab).sum(1), (ab * ac).sum(1), (ac * ac).sum(1)
         inv = 1.0 / (aa * cc - abac * abac)
-        self._tri = [tuple(row) for row in np.column_stack([a, b, c, ab, ac, n, aa, abac, cc, inv]).tolist()]
+        self._tri = _rows(np.column_stack([a, b, c, ab, ac, n, aa, abac, cc, inv]))
         self._abc = np.stack([a, b, c], axis=1)  # (faces, 3 vertices, 3): the certificates' batched tests
         self._faces = f
         self._off = (n * a).sum(1)  # each plane's offset n·A (m)
-        self._plane = [tuple(row) for row in np.column_stack([n, self._off]).tolist()]
+        self._plane = _rows(np.column_stack([n, self._off]))
         # edges AB, BC, CA as (start, unit direction, length) for the swept cylinders
         starts = np.stack([a, b, c], axis=1)
         vecs = np.stack([b - a, c - b, a - c], axis=1)
         lengths = np.linalg.norm(vecs, axis=2)
         units = vecs / lengths[..., None]
-        self._edges = [tuple(tuple(e) for e in tri) for tri in
-                       np.concatenate([starts, units, lengths[..., None]], axis=2).tolist()]
+        edges = np.concatenate([starts, units, lengths[..., None]], axis=2)
+        self._edges = list(zip(*(_rows(edges[:, k]) for k in range(3))))
         # vectorised tables: exact point-triangle distance by edges (region rebuilds), and the
         # plane and the three in-plane edge lines as rows of Q, so that Q @ (p, 1) gives the
         # height over the plane and how far p lies beyond each edge (neighbourhood rebuilds)
@@ -506,16 +519,16 @@ class MeshShape(Shape):
         pair = np.flatnonzero(counts == 2)
         one, two = slots[first[pair]], slots[first[pair] + 1]
         adj[one], adj[two] = two // 3, one // 3
-        self._adj = [tuple(row) for row in adj.reshape(-1, 3).tolist()]
+        self._adj = _rows(adj.reshape(-1, 3))
         fv = vnormal[f]                            # (faces, 3 vertices, 3)
-        self._pn = [(tuple(n[i]), *map(tuple, enormal[i]), *map(tuple, fv[i])) for i in range(len(f))]
-        self._vn = [tuple(row) for row in fv.reshape(-1, 9).tolist()]
+        self._pn = list(zip(_rows(n), *(_rows(enormal[:, k]) for k in range(3)), *(_rows(fv[:, k]) for k in range(3))))
+        self._vn = _rows(fv.reshape(-1, 9))
 
         # vertex fans, for the certificate of a nearest point on a vertex: each triangle's three
         # vertex ids; per vertex, its triangles and the edges to its ring of neighbours (from
         # the vertex, each with a triangle on it), and a circular cone (axis, cosine) of directions that see every edge
         # going away from them (n·e <= 0): inside it, the whole fan lies behind the tangent plane
-        self._tv = [tuple(row) for row in f.tolist()]
+        self._tv = _rows(f)
         order = np.argsort(f.reshape(-1), kind="stable")
         bounds = np.searchsorted(f.reshape(-1)[order], np.arange(len(v) + 1))
         self._vt_start, self._vt_tris = bounds, order // 3  # per vertex, its triangles (numpy)
@@ -550,7 +563,7 @@ class MeshShape(Shape):
             cones.append((*vn_l[i], cos))
         self._fan, self._ring, self._vcone = fans, rings, cones
         self._vpos, self._vaxis, self._vtree = v, vnormal, cKDTree(v)
-        self._vxyz = [tuple(row) for row in v.tolist()]
+        self._vxyz = _rows(v)
 
         # the static grid of triangle centres
         self._centre, self._rho = centre, float(self._rhos.max())
@@ -786,30 +799,35 @@ class MeshShape(Shape):
         their distance: the larger of sqrt(h² + b²), h the height over the plane, b how far c
         lies beyond the farthest edge line (exact over the face and most of the edges, short of
         it near a vertex), and the distance to the triangle's bounding sphere about its centre.
-        `slack` (m): how far queries may drift from c before a new one pays."""
+        `slack` (m): how far queries may drift from c before a new one pays. A ball inside the
+        current one (re-centred after a drift) is gathered from the current triangles, not the grid."""
         self.rebuilds += 1
+        ex, ey, ez = cx - self._cx, cy - self._cy, cz - self._cz
+        inside = self._cids is not None and math.sqrt(ex * ex + ey * ey + ez * ez) + radius <= self._cr
         self._cx, self._cy, self._cz, self._cr, self._cslack = cx, cy, cz, radius, slack
         self._above = {}
         self._vmemo = {}
         self._work = 0
-        ids = self._cells(cx, cy, cz, radius)
+        ids = self._cids if inside else self._cells(cx, cy, cz, radius)
         if ids is None:
             self._cd, self._ci, self._cids, self._cpos = [], [], None, {}
             return
         # the bounding spheres first: only the triangles whose sphere meets the ball go on
+        # (np.take: a third of fancy indexing's cost here)
+        take = np.take
         c4 = np.array((cx, cy, cz, 1.0))
-        sphere = self._sph[ids] @ c4
+        sphere = take(self._sph, ids, axis=0) @ c4
         sphere += cx * cx + cy * cy + cz * cz
         np.maximum(sphere, 0.0, out=sphere)
         np.sqrt(sphere, out=sphere)
-        sphere -= self._rhos[ids]
-        keep = sphere <= radius
-        ids, sphere = ids[keep], sphere[keep]
+        sphere -= take(self._rhos, ids)
+        keep = np.flatnonzero(sphere <= radius)
+        ids, sphere = take(ids, keep), take(sphere, keep)
         # then one matrix product (k, 16) @ (16, 4): height, beyond each edge line
         p = np.zeros((16, 4))
         for j in range(4):
             p[4 * j:4 * j + 4, j] = c4
-        v = self._q[ids] @ p
+        v = take(self._q, ids, axis=0) @ p
         beyond = np.maximum(np.maximum(v[:, 1], v[:, 2]), v[:, 3])
         np.maximum(beyond, 0.0, out=beyond)
         beyond *= beyond
@@ -819,11 +837,11 @@ class MeshShape(Shape):
         np.maximum(sphere, 0.0, out=sphere)
         sphere *= sphere
         np.maximum(bound, sphere, out=bound)
+        keep = np.flatnonzero(bound <= radius * radius)
+        bound, ids = take(bound, keep), take(ids, keep)
         sort = np.argsort(bound)
-        bound = bound[sort]
-        n = int(np.searchsorted(bound, radius * radius, side="right"))
-        self._cd = np.sqrt(bound[:n]).tolist()
-        ids = ids[sort[:n]]
+        self._cd = np.sqrt(take(bound, sort)).tolist()
+        ids = take(ids, sort)
         self._cids = ids
         self._ci = ids.tolist()
         self._cpos = dict.fromkeys(self._ci)
@@ -831,13 +849,13 @@ class MeshShape(Shape):
     def _distances(self, p: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """Exact distances (m) from point p to triangles `ids`: the plane inside the triangle,
         else the nearest of its three edges."""
-        w = p - self._ep[ids]                          # (k, 3 edges, 3)
-        ev = self._ev[ids]
-        t = np.clip(np.einsum("kij,kij->ki", w, ev) * self._eil[ids], 0.0, 1.0)
+        w = p - np.take(self._ep, ids, axis=0)         # (k, 3 edges, 3)
+        ev = np.take(self._ev, ids, axis=0)
+        t = np.clip(np.einsum("kij,kij->ki", w, ev) * np.take(self._eil, ids, axis=0), 0.0, 1.0)
         diff = w - t[..., None] * ev
         edge2 = np.einsum("kij,kij->ki", diff, diff).min(axis=1)
-        inside = (np.einsum("kij,kij->ki", w, self._em[ids]) <= 0.0).all(axis=1)
-        h = np.einsum("kj,kj->k", w[:, 0], self._fn[ids])
+        inside = (np.einsum("kij,kij->ki", w, np.take(self._em, ids, axis=0)) <= 0.0).all(axis=1)
+        h = np.einsum("kj,kj->k", w[:, 0], np.take(self._fn, ids, axis=0))
         return np.sqrt(np.where(inside, h * h, edge2))
 
     def _above_list(self, i: int, side: float, n: int) -> list:
@@ -855,7 +873,7 @@ class MeshShape(Shape):
             off += ABOVE_TOL
             if n - done > BATCH_MIN:
                 # many positions at once (a new hint after a rebuild): one batched test
-                h = self._abc[self._cids[done:n]] @ np.array((nx, ny, nz))
+                h = np.take(self._abc, self._cids[done:n], axis=0) @ np.array((nx, ny, nz))
                 out.extend((np.flatnonzero((h > off).any(axis=1)) + done).tolist())
             else:
                 tris, ci = self._tri, self._ci
@@ -981,10 +999,10 @@ class MeshShape(Shape):
         """Per triangle in `ids` (numpy, batched), the least sin β of its vertices seen from v
         below the cone's axis; the fan's own vertices count as 1 (behind with the fan)."""
         ax, ay, az, _ = self._vcone[vertex]
-        u = self._abc[ids] - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
+        u = np.take(self._abc, ids, axis=0) - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
         norm = np.sqrt((u * u).sum(2))
         sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
-        sb[np.isin(self._faces[ids], list(ring))] = 1.0  # v and the ends of its edges
+        sb[np.isin(np.take(self._faces, ids, axis=0), list(ring))] = 1.0  # v and the ends of its edges
         return sb.min(axis=1)
 
     def _vertex_table(self, vertex: int, hint: int, feature: int, n: int, memo):
@@ -1035,25 +1053,29 @@ class MeshShape(Shape):
         return memo
 
     def _walk(self, hint, d2, qx, qy, qz, feature, x, y, z):
-        """From the hint's closest point to p on a vertex, step to a triangle on an edge leaving
-        the vertex that rises above the tangent plane there (it holds a nearer point), while
-        there is one (WALK_STEPS at most): then the vertex certificate, or the face's or the
-        edge's, holds. Returns (d2, qx, qy, qz, feature, hint)."""
-        tris, tv, rings, cones = self._tri, self._tv, self._ring, self._vcone
+        """From the hint's closest point q to p on an edge or a vertex, step to a nearer triangle:
+        across the edge (p may lie over the neighbour's face, or beyond it), or from a vertex to a
+        triangle on an edge leaving it that rises above the tangent plane there (it holds a nearer
+        point); while there is one (WALK_STEPS at most): then the certificate of the face, edge or
+        vertex reached holds more often. Returns (d2, qx, qy, qz, feature, hint)."""
+        tris, tv, rings, cones, adj = self._tri, self._tv, self._ring, self._vcone, self._adj
         for _ in range(WALK_STEPS):
-            if feature < 4 or d2 <= 0.0:
+            if feature == 0 or d2 <= 0.0:
                 break
-            v = tv[hint][feature - 4]
-            dist = math.sqrt(d2)
-            nx, ny, nz = (x - qx) / dist, (y - qy) / dist, (z - qz) / dist
-            ax, ay, az, cos = cones[v]
-            if nx * ax + ny * ay + nz * az >= cos:
-                break
-            step = -1
-            for ex, ey, ez, t in rings[v]:
-                if nx * ex + ny * ey + nz * ez > ABOVE_TOL:
-                    step = t
+            if feature < 4:
+                step = adj[hint][feature - 1]
+            else:
+                v = tv[hint][feature - 4]
+                dist = math.sqrt(d2)
+                nx, ny, nz = (x - qx) / dist, (y - qy) / dist, (z - qz) / dist
+                ax, ay, az, cos = cones[v]
+                if nx * ax + ny * ay + nz * az >= cos:
                     break
+                step = -1
+                for ex, ey, ez, t in rings[v]:
+                    if nx * ex + ny * ey + nz * ez > ABOVE_TOL:
+                        step = t
+                        break
             if step < 0:
                 break
             c = _closest(tris[step], x, y, z)
@@ -1154,14 +1176,7 @@ class MeshShape(Shape):
             # convex patch they prove it the nearest, with no neighbourhood
             hint = hint0
             best2, qx, qy, qz, bf = _closest(tris[hint], x, y, z)
-            if 1 <= bf <= 3:
-                # nearest on an edge: the point may lie over the neighbour's face instead
-                other = self._adj[hint][bf - 1]
-                if other >= 0:
-                    d2, rx, ry, rz, f = _closest(tris[other], x, y, z)
-                    if d2 < best2:
-                        best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, other
-            if bf >= 4:
+            if bf:
                 best2, qx, qy, qz, bf, hint = self._walk(hint, best2, qx, qy, qz, bf, x, y, z)
             if best2 > 0.0:
                 best = math.sqrt(best2)
@@ -1198,7 +1213,7 @@ class MeshShape(Shape):
             self._work += scan
             if drifted and best + e < self._cr and scan > DRIFT_SCAN and self._work > REBUILD_WORK:
                 # a neighbourhood centred here is cheaper to scan (radius kept)
-                self._neighbourhood(x, y, z, max(self._cr - e, best + self._cslack), self._cslack)
+                self._neighbourhood(x, y, z, max(self._cr - e - 1e-12, best + self._cslack), self._cslack)
                 e = 0.0
                 drifted = False
                 continue
@@ -1271,16 +1286,7 @@ class MeshShape(Shape):
         if hint >= 0:
             t = tris[hint]
             d2, qx, qy, qz, feature = _closest(t, ax, ay, az)
-            if 1 <= feature <= 3:
-                # nearest on an edge: the start may lie over the neighbour's face instead
-                other = self._adj[hint][feature - 1]
-                if other >= 0:
-                    c = _closest(tris[other], ax, ay, az)
-                    if c[0] < d2:
-                        d2, qx, qy, qz, feature = c
-                        hint = other
-                        t = tris[hint]
-            if feature >= 4:
+            if feature:
                 d2, qx, qy, qz, feature, hint = self._walk(hint, d2, qx, qy, qz, feature, ax, ay, az)
                 t = tris[hint]
             if d2 <= reach * reach and d2 > 1e-24:
