@@ -37,6 +37,10 @@ class Shape:
 
     flat = False
     """True when every face is planar (the solver then needs no curvature refinement)."""
+    convex = False
+    """True when the shape (and so the shape inflated by the proxy's radius) is convex: it then
+    lies behind every plane that touches it, which lets the god-object skip sweeping it along
+    such a plane (`GodObject._sweep`)."""
 
     __slots__ = ("geom", "body", "name", "static", "rbound", "px", "py", "pz",
                  "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22", "_xpos", "_xmat", "cvel")
@@ -122,6 +126,7 @@ class PlaneShape(Shape):
     """MuJoCo plane: infinite for collision, outward normal +z of the geom frame."""
 
     flat = True
+    convex = True
     __slots__ = ()
 
     def on_face(self, nx, ny, nz):
@@ -144,6 +149,7 @@ class PlaneShape(Shape):
 
 
 class SphereShape(Shape):
+    convex = True
     __slots__ = ("radius",)
 
     def __init__(self, model, data, geom, static):
@@ -162,6 +168,7 @@ class SphereShape(Shape):
 class CapsuleShape(Shape):
     """Capsule: radius, half-length along the geom's z axis."""
 
+    convex = True
     __slots__ = ("radius", "half")
 
     def __init__(self, model, data, geom, static):
@@ -180,6 +187,7 @@ class CapsuleShape(Shape):
 class CylinderShape(Shape):
     """Cylinder: radius, half-height along the geom's z axis (flat caps, sharp rims)."""
 
+    convex = True
     __slots__ = ("radius", "half")
 
     def __init__(self, model, data, geom, static):
@@ -209,6 +217,7 @@ class BoxShape(Shape):
     """Box: half-sizes along the geom axes."""
 
     flat = True
+    convex = True
     __slots__ = ("hx", "hy", "hz")
 
     def __init__(self, model, data, geom, static):
@@ -250,6 +259,7 @@ class BoxShape(Shape):
 class EllipsoidShape(Shape):
     """Ellipsoid: semi-axes along the geom axes. Exact distance by a 1-D root find."""
 
+    convex = True
     __slots__ = ("a", "b", "c")
 
     def __init__(self, model, data, geom, static):

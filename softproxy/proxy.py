@@ -167,7 +167,7 @@ class GodObject:
 
     __slots__ = (
         "shapes", "radius", "mu_s", "mu_d", "x", "y", "z", "contact", "nx", "ny", "nz", "shape",
-        "depth", "sticking", "lx", "ly", "lz", "planes", "near", "_bx", "_by", "_bz", "_room",
+        "depth", "sticking", "lx", "ly", "lz", "planes", "near", "_bx", "_by", "_bz", "_room", "_rounding",
     )
 
     def __init__(self, shapes: list[Shape], radius: float, mu_s: float = 0.0, mu_d: float = 0.0,
@@ -187,6 +187,7 @@ class GodObject:
         self.near: list[Shape] = shapes
         self._bx = self._by = self._bz = 0.0
         self._room = math.inf
+        self._rounding = False  # the last solve followed a surface round (a plane lifted off)
         self.reset(*position)
 
     def reset(self, x: float, y: float, z: float) -> None:
@@ -234,7 +235,7 @@ class GodObject:
             nx, ny, nz = ex / depth, ey / depth, ez / depth
         else:
             nx, ny, nz = planes[-1][0], planes[-1][1], planes[-1][2]
-        best = _touched(planes, nx, ny, nz)
+        best = planes[0][4] if len(planes) == 1 else _touched(planes, nx, ny, nz)
 
         # friction cone, tested from the first surface point the proxy reached this tick
         hx, hy, hz = first
@@ -263,8 +264,8 @@ class GodObject:
         self.depth = depth
         self.sticking = sticking
         self.shape = best
-        # remember the proxy in the touched geom's frame
-        self.lx, self.ly, self.lz = best.to_local(fx, fy, fz)
+        if not best.static:  # remember the proxy in the touched geom's frame: it carries it
+            self.lx, self.ly, self.lz = best.to_local(fx, fy, fz)
         return True
 
     def _keep_resting(self, planes: list, x: float, y: float, z: float) -> None:
@@ -312,9 +313,14 @@ class GodObject:
             self.y = shape.r10 * lx + shape.r11 * ly + shape.r12 * lz + shape.py
             self.z = shape.r20 * lx + shape.r21 * ly + shape.r22 * lz + shape.pz
         x, y, z = self.x, self.y, self.z
+        # broad phase: the shapes near the ball that holds both the proxy and the device, with
+        # a margin of 1 mm (`_move` widens it if a sub-move would leave it)
         if around_proxy:
-            xd, yd, zd = x, y, z
-        self._gather(x, y, z, xd, yd, zd)
+            self._gather_ball(x, y, z, self.radius + 1e-3)
+        else:
+            ex, ey, ez = xd - x, yd - y, zd - z
+            self._gather_ball(0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
+                              0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + self.radius + 1e-3)
         # Only a moving shape can have come into the proxy, or a static one if the
         # proxy itself was carried; the carrier holds the proxy where it was, outside.
         for s in self.near:
@@ -379,17 +385,8 @@ class GodObject:
         best = _touched(planes, nx, ny, nz)
         self.nx, self.ny, self.nz = nx, ny, nz
         self.depth = depth
-        if best is not self.shape:
-            self.shape = best
-            self.lx, self.ly, self.lz = best.to_local(x, y, z)
+        self.shape = best  # a static face: nothing carries the proxy
         return True
-
-    def _gather(self, x, y, z, xd, yd, zd) -> None:
-        """Broad phase, once per tick: the shapes near the ball that holds both the proxy and
-        the device, with a margin of 1 mm (`_move` widens it if a sub-move would leave it)."""
-        ex, ey, ez = xd - x, yd - y, zd - z
-        self._gather_ball(0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
-                          0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + self.radius + 1e-3)
 
     def _gather_ball(self, cx: float, cy: float, cz: float, room: float) -> None:
         """`near`: every shape the proxy can touch while its centre stays within `room` (m) of c,
@@ -425,12 +422,20 @@ class GodObject:
             if not moved:
                 return
 
-    def _sweep(self, x, y, z, dx, dy, dz):
-        """Earliest hit over all shapes of the sphere moving by (dx, dy, dz): (lam, nx, ny, nz, shape)."""
+    def _sweep(self, x, y, z, dx, dy, dz, planes=()):
+        """Earliest hit over all shapes of the sphere moving by (dx, dy, dz): (lam, nx, ny, nz, shape).
+
+        `planes`: constraint planes that the start and the end of the move both satisfy. A
+        convex shape owning one of them lies behind it, so a move on or above it cannot enter
+        the shape: it is not swept (a slide along a face or a tangent plane sweeps only the
+        other shapes)."""
         r = self.radius
         best = None
         best_lam = 1.0
+        behind = [p[4] for p in planes if p[4].convex] if planes else ()
         for s in self.near:
+            if s in behind:
+                continue
             hit = s.sweep(x, y, z, dx, dy, dz, r)
             if hit is not None and hit[0] < best_lam:
                 best_lam = hit[0]
@@ -438,18 +443,40 @@ class GodObject:
         return best
 
     def _solve(self, x, y, z, gx, gy, gz):
-        """`_move` warm-started with last tick's planes on planar faces of static shapes.
+        """`_move` warm-started with last tick's planes when every one belongs to a static shape.
 
-        A proxy resting on a face, an edge or a corner keeps resting on the same planes from
-        tick to tick: starting from them saves a sweep per plane. A face plane extends past
-        the face's edges, so the end point must still touch every plane's real surface; when
-        one does not (the proxy slid past an edge), `_move` starts again from no planes.
-        Never unsafe either way: every motion is still swept against every shape.
+        A proxy resting on a face, an edge or a corner keeps resting on the same shapes from
+        tick to tick: starting from their planes saves a sweep per plane. A planar face's plane
+        is kept as it was; a convex shape's plane elsewhere (a rounded edge or corner, a curved
+        surface) is its tangent plane under the proxy now, one distance query, unless the last
+        solve slid round a curve (it would lift off again). A plane may run on past the shape's
+        surface: a proxy that lifts off one (past a face's edge, round a curve) is solved again
+        from no planes, so a warm start ends where the cold solve ends. Never unsafe either
+        way: every motion is still swept.
         """
-        warm = self.planes
-        if warm and _on_static_faces(warm):
-            return self._move(x, y, z, gx, gy, gz, warm)
-        return self._move(x, y, z, gx, gy, gz)
+        last = self.planes
+        if not last:
+            return self._move(x, y, z, gx, gy, gz)
+        r = self.radius
+        warm = []
+        for p in last:
+            s = p[4]
+            if not s.static:
+                return self._move(x, y, z, gx, gy, gz)
+            if s.on_face(p[0], p[1], p[2]):
+                warm.append(p)
+                continue
+            if not s.convex or self._rounding:  # sliding round a curve: a warm start would lift
+                return self._move(x, y, z, gx, gy, gz)
+            d, nx, ny, nz = s.distance(x, y, z)
+            if d - r > LIFT_TOL:
+                return self._move(x, y, z, gx, gy, gz)
+            for q in warm:  # a box's face and its rounded edge at their seam: one plane
+                if q[4] is s and q[0] * nx + q[1] * ny + q[2] * nz > PARALLEL:
+                    break
+            else:
+                warm.append((nx, ny, nz, 0.0, s))  # its offset is taken through the proxy in _move
+        return self._move(x, y, z, gx, gy, gz, warm)
 
     def _move(self, x, y, z, gx, gy, gz, warm=None):
         """Constrained motion toward (gx, gy, gz). Leaves the tight planes in self.planes.
@@ -462,6 +489,7 @@ class GodObject:
         first = None
         straight = True
         on_surfaces = False
+        self._rounding = False
         r = self.radius
         x0, y0, z0 = x, y, z
         tx, ty, tz = gx, gy, gz
@@ -483,8 +511,10 @@ class GodObject:
                 planes = warm
                 first = (x, y, z)
                 tx, ty, tz = target
+        # a warm start saves the sweeps that would have found its planes, one each, not the
+        # budget of those that follow: it ends where a cold solve ends, for less
         bx, by, bz, room2 = self._bx, self._by, self._bz, self._room * self._room
-        for _ in range(MAX_ITERATIONS):
+        for _ in range(MAX_ITERATIONS - len(planes)):
             dx, dy, dz = tx - x, ty - y, tz - z
             if dx * dx + dy * dy + dz * dz < 1e-24:
                 break
@@ -494,7 +524,9 @@ class GodObject:
             if ex * ex + ey * ey + ez * ez > room2:
                 self._gather_ball(bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
                 room2 = self._room * self._room
-            hit = self._sweep(x, y, z, dx, dy, dz)
+            # the proxy and the target are on or above every plane (the target is projected
+            # onto them; a hit, a lifted plane's replacement lie below the proxy)
+            hit = self._sweep(x, y, z, dx, dy, dz, planes)
             if hit is None:
                 x, y, z = tx, ty, tz
                 if not planes or (tx == gx and ty == gy and tz == gz):
@@ -521,6 +553,7 @@ class GodObject:
                 if not lifted:
                     on_surfaces = True  # every plane's real surface is under the proxy
                     break
+                self._rounding = True
                 if warm:  # what the warm start assumed no longer holds: solve cold
                     return self._move(x0, y0, z0, gx, gy, gz)
                 straight = False
