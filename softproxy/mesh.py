@@ -1176,7 +1176,15 @@ class MeshShape(Shape):
             # convex patch they prove it the nearest, with no neighbourhood
             hint = hint0
             best2, qx, qy, qz, bf = _closest(tris[hint], x, y, z)
-            if bf:
+            if 1 <= bf <= 3:
+                # nearest on an edge: the point may lie over the neighbour's face instead (or
+                # beyond it: then walk on)
+                other = self._adj[hint][bf - 1]
+                if other >= 0:
+                    d2, rx, ry, rz, f = _closest(tris[other], x, y, z)
+                    if d2 < best2:
+                        best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, other
+            if bf and hint != hint0 or bf >= 4:
                 best2, qx, qy, qz, bf, hint = self._walk(hint, best2, qx, qy, qz, bf, x, y, z)
             if best2 > 0.0:
                 best = math.sqrt(best2)
@@ -1286,7 +1294,17 @@ class MeshShape(Shape):
         if hint >= 0:
             t = tris[hint]
             d2, qx, qy, qz, feature = _closest(t, ax, ay, az)
-            if feature:
+            if 1 <= feature <= 3:
+                # nearest on an edge: the start may lie over the neighbour's face instead (or
+                # beyond it: then walk on)
+                other = self._adj[hint][feature - 1]
+                if other >= 0:
+                    c = _closest(tris[other], ax, ay, az)
+                    if c[0] < d2:
+                        d2, qx, qy, qz, feature = c
+                        hint = other
+                        t = tris[hint]
+            if feature and hint != self._hint or feature >= 4:
                 d2, qx, qy, qz, feature, hint = self._walk(hint, d2, qx, qy, qz, feature, ax, ay, az)
                 t = tris[hint]
             if d2 <= reach * reach and d2 > 1e-24:
