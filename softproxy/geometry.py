@@ -65,6 +65,10 @@ class Shape:
         (self.r00, self.r01, self.r02, self.r10, self.r11, self.r12,
          self.r20, self.r21, self.r22) = self._xmat.tolist()
 
+    def prepare(self, radius: float) -> None:
+        """Get ready for a proxy of `radius` (m): build now whatever its queries would otherwise
+        build inside the servo tick. Primitives need nothing; meshes build certificates."""
+
     def to_local(self, x: float, y: float, z: float) -> tuple[float, float, float]:
         dx, dy, dz = x - self.px, y - self.py, z - self.pz
         return (self.r00 * dx + self.r10 * dy + self.r20 * dz,

@@ -181,6 +181,8 @@ class GodObject:
             raise ValueError(f"mu_d ({mu_d}) must be <= mu_s ({mu_s})")
         self.shapes = shapes
         self.radius = float(radius)
+        for s in shapes:  # nothing the queries need is built in the tick
+            s.prepare(self.radius)
         self.mu_s = float(mu_s)
         self.mu_d = float(mu_d)
         self.planes: list = []
