@@ -111,9 +111,9 @@ RISING_VERTICES = 4 * STATIC_ABOVE
 """A face with more vertices than this rising above its plane near it is taken as concave at
 once (its rising triangles are not gathered)."""
 PAIR_CHUNK = 2048
+"""Points per numpy pass when gathering the vertices near every face or vertex (bounds memory)."""
 SINE_GRID = 2.0 ** 40
 """Steps per unit a kept vertex table's sin β is rounded down to (≈1e-12) for one sort."""
-"""Points per numpy pass when gathering the vertices near every face or vertex (bounds memory)."""
 VECTOR_MIN = 64
 """A scan of more triangles than this is narrowed first by one vectorised distance pass
 (a point far from a symmetric mesh is nearly as far from hundreds of triangles)."""
