@@ -1012,3 +1012,27 @@ def test_kept_certificate_beyond_its_radius_is_built_for_the_query(tmp_path):
     finally:
         MeshShape._face_tables = tables
     assert not built
+
+
+def test_a_god_object_prepares_the_mesh_for_its_radius(tmp_path):
+    """Making a god-object of 8 mm radius builds the mesh's kept certificates over its reach
+    (`Shape.prepare`), so the face under the tetrahedron 17 mm up already lists it before
+    any query, and the proxy's ticks pressed on that face build no table."""
+    path = tmp_path / "ball_far_tetra.obj"
+    s, v, f, ball_f, face, n, centres = ball_with_tetra_over_a_face(path, 0.017)
+    tetra_ids = set(range(len(ball_f), len(f)))
+    assert set(s._clear[face][1] or ()) != tetra_ids  # not within the load-time radius
+    god = GodObject([s], 0.008, 0.5, 0.4, tuple(centres[face] + 0.0085 * n))
+    assert set(s._clear[face][1]) == tetra_ids
+    built = []
+    tables = MeshShape._face_tables
+    MeshShape._face_tables = lambda self, *args: built.append(args) or tables(self, *args)
+    try:
+        along = (v[f[face, 1]] - v[f[face, 0]]) / np.linalg.norm(v[f[face, 1]] - v[f[face, 0]])
+        for k in range(20):  # pressed 1 mm in, wiggled along the face
+            q = centres[face] + 0.007 * n + 2e-4 * math.sin(0.3 * k) * along
+            god.update(*q)
+            assert god.contact and deepest(god) <= 1e-6
+    finally:
+        MeshShape._face_tables = tables
+    assert not built
