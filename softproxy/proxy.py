@@ -115,6 +115,14 @@ def _on_static_faces(planes: list) -> bool:
     return True
 
 
+def _plane_of(planes: list, s: Shape, nx: float, ny: float, nz: float) -> int:
+    """Index in `planes` of shape s's plane of normal n (parallel within PARALLEL), or -1."""
+    for i, p in enumerate(planes):
+        if p[4] is s and p[0] * nx + p[1] * ny + p[2] * nz > PARALLEL:
+            return i
+    return -1
+
+
 def _touched(planes: list, nx: float, ny: float, nz: float) -> Shape:
     """The touched shape: the one whose active plane is most aligned with the force's n."""
     best, best_dot = planes[0][4], -2.0
@@ -277,12 +285,7 @@ class GodObject:
         What the next tick's warm start builds on."""
         resting = self.planes
         for p in planes:
-            if not self._rests_on(p, x, y, z):
-                continue
-            for q in resting:
-                if q[4] is p[4] and q[0] * p[0] + q[1] * p[1] + q[2] * p[2] > PARALLEL:
-                    break
-            else:
+            if self._rests_on(p, x, y, z) and _plane_of(resting, p[4], p[0], p[1], p[2]) < 0:
                 resting.append(p)
         self.planes = resting[-3:]
 
@@ -456,29 +459,28 @@ class GodObject:
         from no planes, so a warm start ends where the cold solve ends. Never unsafe either
         way: every motion is still swept.
         """
-        last = self.planes
-        if not last:
-            return self._move(x, y, z, gx, gy, gz)
-        r = self.radius
+        return self._move(x, y, z, gx, gy, gz, self._warm_planes(x, y, z))
+
+    def _warm_planes(self, x: float, y: float, z: float) -> list | None:
+        """Last tick's planes to start `_solve` from, as `_solve` says, or None: solve cold."""
         warm = []
-        for p in last:
+        for p in self.planes:
             s = p[4]
             if not s.static:
-                return self._move(x, y, z, gx, gy, gz)
+                return None
             if s.on_face(p[0], p[1], p[2]):
                 warm.append(p)
                 continue
             if not s.convex or self._rounding:  # sliding round a curve: a warm start would lift
-                return self._move(x, y, z, gx, gy, gz)
+                return None
             d, nx, ny, nz = s.distance(x, y, z)
-            if d - r > LIFT_TOL:
-                return self._move(x, y, z, gx, gy, gz)
-            for q in warm:  # a box's face and its rounded edge at their seam: one plane
-                if q[4] is s and q[0] * nx + q[1] * ny + q[2] * nz > PARALLEL:
-                    break
-            else:
-                warm.append((nx, ny, nz, 0.0, s))  # its offset is taken through the proxy in _move
-        return self._move(x, y, z, gx, gy, gz, warm)
+            if d - self.radius > LIFT_TOL:
+                return None
+            # (a box's face and its rounded edge at their seam give one plane; its offset is
+            # taken through the proxy in _move)
+            if not warm or _plane_of(warm, s, nx, ny, nz) < 0:
+                warm.append((nx, ny, nz, 0.0, s))
+        return warm or None
 
     def _move(self, x, y, z, gx, gy, gz, warm=None):
         """Constrained motion toward (gx, gy, gz). Leaves the tight planes in self.planes.
@@ -572,10 +574,9 @@ class GodObject:
             else:
                 straight = False
             c = nx * x + ny * y + nz * z
-            for i, p in enumerate(planes):
-                if p[4] is s and p[0] * nx + p[1] * ny + p[2] * nz > PARALLEL:
-                    del planes[i]
-                    break
+            i = _plane_of(planes, s, nx, ny, nz)  # the same plane met again: replaced, not doubled
+            if i >= 0:
+                del planes[i]
             planes.append((nx, ny, nz, c, s))
             if len(planes) > 3:
                 del planes[0]
