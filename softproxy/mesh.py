@@ -668,7 +668,8 @@ class MeshShape(Shape):
             bounds = np.searchsorted(rk, np.arange(len(faces) + 1))
             counts = np.diff(bounds)
             out.update(dict.fromkeys(keys, (radius, ())))
-            out.update(dict.fromkeys([keys[j] for j in np.flatnonzero(many | (counts > STATIC_ABOVE)).tolist()], (-1.0, None)))
+            concave = np.flatnonzero(many | (counts > STATIC_ABOVE)).tolist()
+            out.update(dict.fromkeys([keys[j] for j in concave], (-1.0, None)))
             for j in np.flatnonzero((counts > 0) & (counts <= STATIC_ABOVE)).tolist():
                 out[keys[j]] = (radius, tuple(t[bounds[j]:bounds[j + 1]].tolist()))
         return out
@@ -999,7 +1000,7 @@ class MeshShape(Shape):
         """Per triangle in `ids` (numpy, batched), the least sin β of its vertices seen from v
         below the cone's axis; the fan's own vertices count as 1 (behind with the fan)."""
         ax, ay, az, _ = self._vcone[vertex]
-        u = np.take(self._abc, ids, axis=0) - np.array((vx, vy, vz))               # (k, 3 vertices, 3)
+        u = np.take(self._abc, ids, axis=0) - np.array((vx, vy, vz))  # (k, 3 vertices, 3)
         norm = np.sqrt((u * u).sum(2))
         sb = -(u @ np.array((ax, ay, az))) / np.where(norm > 0.0, norm, 1.0)
         sb[np.isin(np.take(self._faces, ids, axis=0), list(ring))] = 1.0  # v and the ends of its edges
@@ -1184,7 +1185,7 @@ class MeshShape(Shape):
                     d2, rx, ry, rz, f = _closest(tris[other], x, y, z)
                     if d2 < best2:
                         best2, qx, qy, qz, bf, hint = d2, rx, ry, rz, f, other
-            if bf and hint != hint0 or bf >= 4:
+            if (bf and hint != hint0) or bf >= 4:  # stepped across an edge, or on a vertex: walk on
                 best2, qx, qy, qz, bf, hint = self._walk(hint, best2, qx, qy, qz, bf, x, y, z)
             if best2 > 0.0:
                 best = math.sqrt(best2)
@@ -1304,7 +1305,7 @@ class MeshShape(Shape):
                         d2, qx, qy, qz, feature = c
                         hint = other
                         t = tris[hint]
-            if feature and hint != self._hint or feature >= 4:
+            if (feature and hint != self._hint) or feature >= 4:  # as in `_nearest`
                 d2, qx, qy, qz, feature, hint = self._walk(hint, d2, qx, qy, qz, feature, ax, ay, az)
                 t = tris[hint]
             if d2 <= reach * reach and d2 > 1e-24:
