@@ -67,7 +67,7 @@ class ServoLoop:
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
-                 overrun_watchdog: bool = True) -> None:
+                 overrun_watchdog: bool = True, compiled: bool = False) -> None:
         if not (math.isfinite(rate_hz) and 10.0 <= rate_hz <= 100_000.0):
             raise ValueError(f"rate_hz must be between 10 and 100000, got {rate_hz!r}")
         for f in fingers:
@@ -93,6 +93,13 @@ class ServoLoop:
         self._started = False
         self.last_device_error = ""  # what the device said when it last failed
         self.sensors = []  # fingertip sensor channels (softproxy.fingertip_sensors): tick(loop) each tick
+        self.compiled = None
+        """The `CompiledFingers` running the fingers when `compiled=True` (else None): the same
+        tick as compiled code, answers equal to the last bit, primitive shapes only."""
+        if compiled:
+            from softproxy.compiled.engine import CompiledFingers  # numba is imported only when asked for
+
+            self.compiled = CompiledFingers(world, fingers, device)
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -110,6 +117,8 @@ class ServoLoop:
                 f.placed = False  # placed at its first good sample instead
             else:
                 f.place(s.x, s.y, s.z)
+        if self.compiled is not None:
+            self.compiled.pack()
 
     def tick(self) -> None:
         """One servo tick at loop time `self.t`; advances time by one period."""
@@ -129,7 +138,28 @@ class ServoLoop:
             ok = False
         safe = self._safe_next
         self._safe_next = False
-        world.begin_step()
+        if self.compiled is not None:
+            world.begin_step(refresh_shapes=False)  # the compiled fingers read MuJoCo's poses
+            self._compiled_fingers(ok, safe, dt)
+            if self.sensors:
+                self.compiled.sync()
+        else:
+            world.begin_step()
+            self._fingers(ok, safe, dt)
+        for ch in self.sensors:
+            ch.tick(self)
+        world.end_step()
+        self.t += dt
+        self.ticks += 1
+        duration = time.perf_counter() - start
+        if duration > self.overrun_limit and self.overrun_watchdog:
+            self.faults["overrun"] += 1
+            self._safe_next = True
+        self.stats.record(duration, dt)
+
+    def _fingers(self, ok: bool, safe: bool, dt: float) -> None:
+        """Every finger's part of the tick, in Python: update (or hold), wrench, device send."""
+        world = self.world
         for f, s in self._pairs:
             if not ok or not s.valid or not s.is_finite():
                 if ok:
@@ -145,16 +175,17 @@ class ServoLoop:
             if self.audit:
                 f.audit()
             self._send(f, safe)
-        for ch in self.sensors:
-            ch.tick(self)
-        world.end_step()
-        self.t += dt
-        self.ticks += 1
-        duration = time.perf_counter() - start
-        if duration > self.overrun_limit and self.overrun_watchdog:
-            self.faults["overrun"] += 1
-            self._safe_next = True
-        self.stats.record(duration, dt)
+
+    def _compiled_fingers(self, ok: bool, safe: bool, dt: float) -> None:
+        """`_fingers` in one compiled call; then each device finger is sent what it computed."""
+        compiled = self.compiled
+        self.faults["invalid_sample"] += compiled.run(self.samples, ok, safe, self.audit, dt)
+        device = self.device
+        for i, f in enumerate(self.fingers):
+            try:
+                device.send(f.params.device_finger, *compiled.sent(i))
+            except Exception:
+                self.faults["send_error"] += 1
 
     def _send(self, f: SoftFingerProxy, safe: bool) -> None:
         """Send the finger's force and torque, clamped to what the device renders (zero if safe)."""
@@ -193,6 +224,7 @@ class ServoLoop:
                 for _ in range(ticks):
                     self.tick()
                     if on_tick is not None:
+                        self.sync()
                         on_tick(self)
                 return
             period = self.period
@@ -209,15 +241,27 @@ class ServoLoop:
                     self.stats.misses += 1
                 next_start += period
                 if on_tick is not None:
+                    self.sync()
                     on_tick(self)
         finally:
             if gc_was_enabled:
                 gc.enable()
             self.stop()
 
+    def sync(self) -> None:
+        """Compiled loops: bring every attribute of the fingers up to date (a tick writes back
+        only its outputs: force, torque, contact point, body, P, valid). No-op in Python."""
+        if self.compiled is not None:
+            self.compiled.sync()
+
     def stop(self) -> None:
         """The safe state: zero force to every finger, no finger wrench left on the bodies."""
+        if self.compiled is not None:  # the Python objects take the whole state back first
+            self.compiled.sync()
+            self.compiled.clear_wrenches()
         self.world.clear_wrenches()
         for f in self.fingers:
             f.clear_output()
             self._send(f, True)
+        if self.compiled is not None:
+            self.compiled.pack()

@@ -55,11 +55,13 @@ class World:
             raise ValueError(f"timestep must be > 0 s, got {dt!r}")
         self.model.opt.timestep = dt
 
-    def begin_step(self) -> None:
-        """First half of mj_step: kinematics and velocities of the current state; refresh shapes."""
+    def begin_step(self, refresh_shapes: bool = True) -> None:
+        """First half of mj_step: kinematics and velocities of the current state; refresh the
+        moving shapes' poses (not needed by code that reads MuJoCo's poses itself)."""
         mujoco.mj_step1(self.model, self.data)
-        for s in self.moving:
-            s.refresh()
+        if refresh_shapes:
+            for s in self.moving:
+                s.refresh()
 
     def push(self, body: int, fx, fy, fz, px, py, pz, tx, ty, tz) -> None:
         """Add force (N) at world point p (m) plus a pure torque (N·m) on `body` for this tick."""

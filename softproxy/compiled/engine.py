@@ -1,0 +1,206 @@
+"""`CompiledFingers`: every finger of a servo tick in one numba call.
+
+The Python tick spends most of its time in the interpreter (~20 µs of attribute work for
+two fingers around a 4 µs `mj_step`); this runs the same fingers — god-object, coupling,
+torsion, wrenches, the device clamp — as compiled code on flat arrays, reading poses
+straight from MuJoCo. The answers are the Python engine's to the last bit
+(tests/test_compiled.py), so the Python classes stay the reference.
+
+The arrays are the state while a loop runs compiled: after every tick the fingers' Python
+objects are written back (`mirror`), so viewers, recorders, sensors and reports read them
+as before; code that changes a finger by hand (place it, reset it) calls `pack()` after.
+Only worlds of primitive shapes run compiled (meshes stay in Python: `supported`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from softproxy.compiled import finger as kernel
+from softproxy.compiled.godobject import scratch
+from softproxy.compiled.layout import (
+    D_FX, F_B, F_B_TAU, F_BODY, F_COLUMNS, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K, F_MAX_FORCE,
+    F_MAX_FORCE_SEEN, F_MAX_SPEED, F_MAX_TORQUE, F_NORMAL_FORCE, F_OX, F_OY, F_OZ, F_PENETRATION_MAX, F_PLACED,
+    F_PX, F_PY, F_PZ, F_RAMP, F_SCALE, F_SLIDE_EVENTS, F_SOFT_START, F_SPIKE_RUN, F_SPIKES_REJECTED, F_STWIST,
+    F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID, F_WAS_STICKING, F_XD, F_YD, F_ZD, G_BX, G_BY, G_BZ,
+    DEVICE_SEEN, FINGER_SEEN, GOD_SEEN, OUTPUT, TORSION_SEEN,
+    G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D, G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY, G_NZ, G_PLANES,
+    G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING, G_X, G_Y, G_Z, PLANE_WIDTH, T_ALPHA_0, T_ALPHA_G,
+    T_ALPHA_P, T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_D, T_MU_PRIME, T_MU_S, T_P_STAR, T_R0, T_RATIO,
+    T_SATURATE, T_SLIP_EVENTS, T_SLIPPING, T_TORQUE,
+)
+from softproxy.compiled.shapes import shape_table
+from softproxy.device import Device
+from softproxy.finger import SoftFingerProxy
+from softproxy.world import World
+
+
+def supported(world: World, fingers: list[SoftFingerProxy]) -> str:
+    """Why these fingers cannot run compiled ('' when they can)."""
+    try:
+        shape_table(world.shapes)
+    except ValueError as exc:
+        return str(exc)
+    for f in fingers:
+        if f.god.shapes is not world.shapes:
+            return f"finger {f.params.name!r} touches shapes of its own, not the world's"
+    return ""
+
+
+class CompiledFingers:
+    """The fingers of a `ServoLoop`, run by `run(...)` once per tick (after mj_step1)."""
+
+    def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device) -> None:
+        why = supported(world, fingers)
+        if why:
+            raise ValueError(f"this scene cannot run compiled: {why}")
+        self.world = world
+        self.fingers = fingers
+        self.device = device
+        self.shapes = world.shapes
+        self._index = {id(s): k for k, s in enumerate(self.shapes)}
+        self.S = shape_table(self.shapes)
+        d, m = world.data, world.model
+        # views into mjData, kept (each attribute access builds a new array object)
+        self._xpos, self._xmat, self._cvel = d.geom_xpos, d.geom_xmat, d.cvel
+        self._xipos, self._xfrc = d.xipos, d.xfrc_applied
+        self._fixed = np.array([int(w) == 0 for w in m.body_weldid], dtype=np.bool_)
+        n = len(fingers)
+        self.F = np.zeros((n, F_COLUMNS))
+        self.near = np.zeros((n, max(len(self.shapes), 1)), dtype=np.int64)
+        self.samples = np.zeros((n, 5))
+        self._scratch = scratch()
+        self._wrench = np.zeros((m.nbody, 6))
+        self._touched = np.zeros(m.nbody, dtype=np.int64)
+        self._pushed = np.zeros(m.nbody, dtype=np.int64)
+        self._counts = np.zeros(2, dtype=np.int64)
+        self._device_finger = [f.params.device_finger for f in fingers]
+        self.pack()
+
+    def pack(self) -> None:
+        """Copy every finger's state from its Python objects into the arrays."""
+        for i, f in enumerate(self.fingers):
+            row = self.F[i]
+            god, tors = f.god, f.torsion
+            row[G_X], row[G_Y], row[G_Z] = god.x, god.y, god.z
+            row[G_CONTACT] = god.contact
+            row[G_NX], row[G_NY], row[G_NZ] = god.nx, god.ny, god.nz
+            row[G_SHAPE] = -1 if god.shape is None else self._index[id(god.shape)]
+            row[G_DEPTH], row[G_STICKING] = god.depth, god.sticking
+            row[G_LX], row[G_LY], row[G_LZ] = god.lx, god.ly, god.lz
+            row[G_BX], row[G_BY], row[G_BZ], row[G_ROOM] = god._bx, god._by, god._bz, god._room
+            row[G_ROUNDING] = god._rounding
+            row[G_NPLANES] = len(god.planes)
+            for j, (nx, ny, nz, c, s) in enumerate(god.planes):
+                row[G_PLANES + PLANE_WIDTH * j:G_PLANES + PLANE_WIDTH * (j + 1)] = (nx, ny, nz, c, self._index[id(s)])
+            row[G_RADIUS], row[G_MU_S], row[G_MU_D] = god.radius, god.mu_s, god.mu_d
+            row[G_NNEAR] = len(god.near)
+            self.near[i, :len(god.near)] = [self._index[id(s)] for s in god.near]
+            row[F_PLACED] = f.placed
+            row[F_K], row[F_B], row[F_B_TAU] = f.k, f.b, f.b_tau
+            row[F_MAX_FORCE], row[F_MAX_TORQUE] = f.max_force, f.max_torque
+            row[F_OX], row[F_OY], row[F_OZ], row[F_SCALE] = f.ox, f.oy, f.oz, f.scale
+            row[F_MAX_SPEED], row[F_SOFT_START], row[F_DT], row[F_RAMP] = f.max_speed, f.soft_start, f.dt, f._ramp
+            row[F_XD], row[F_YD], row[F_ZD] = f.xd, f.yd, f.zd
+            row[F_SX], row[F_SY], row[F_SZ], row[F_STWIST] = f._sx, f._sy, f._sz, f._stwist
+            row[F_FX], row[F_FY], row[F_FZ], row[F_TORQUE] = f.fx, f.fy, f.fz, f.torque
+            row[F_TX], row[F_TY], row[F_TZ] = f.tx, f.ty, f.tz
+            row[F_PX], row[F_PY], row[F_PZ] = f.px, f.py, f.pz
+            row[F_BODY], row[F_NORMAL_FORCE], row[F_VALID] = f.body, f.normal_force, f.valid
+            row[F_MAX_FORCE_SEEN], row[F_PENETRATION_MAX] = f.max_force_seen, f.penetration_max
+            row[F_SLIDE_EVENTS], row[F_SPIKES_REJECTED] = f.slide_events, f.spikes_rejected
+            row[F_SPIKE_RUN], row[F_WAS_STICKING] = f._spike_run, f._was_sticking
+            row[F_HAS_TORSION] = tors is not None
+            if tors is not None:
+                row[T_IN_CONTACT] = tors.in_contact
+                row[T_ALPHA_0], row[T_ALPHA_P], row[T_ALPHA_G] = tors.alpha_0, tors.alpha_p, tors.alpha_g
+                row[T_TORQUE], row[T_LIMIT], row[T_SLIPPING] = tors.torque, tors.limit, tors.slipping
+                row[T_SLIP_EVENTS] = tors.slip_events
+                row[T_K_TAU], row[T_MU_S], row[T_MU_D], row[T_GAMMA] = tors.k_tau, tors.mu_s, tors.mu_d, tors.gamma
+                row[T_SATURATE], row[T_RATIO] = tors.saturate, tors._ratio
+                model = tors._model
+                row[T_MU_PRIME], row[T_R0], row[T_P_STAR] = model.mu_prime, model.r0, model.p_star
+
+    def mirror(self) -> None:
+        """Write this tick's outputs back into the fingers (force and torque, contact point,
+        touched body, P, valid): what an application embedding the loop reads after a tick."""
+        F = self.F
+        for i, f in enumerate(self.fingers):
+            (f.fx, f.fy, f.fz, f.torque, f.tx, f.ty, f.tz, f.px, f.py, f.pz, body, f.normal_force,
+             valid) = F[i, OUTPUT].tolist()
+            f.body = int(body)
+            f.valid = valid != 0.0
+
+    def sync(self) -> None:
+        """Write the whole state back into the fingers' Python objects (proxy, contact,
+        torsion, counters, the solver's bookkeeping) and the shapes' poses: after it every
+        attribute reads as after a Python tick, and the Python engine could take over."""
+        shapes = self.shapes
+        for s in self.world.moving:
+            s.refresh()
+        for i, f in enumerate(self.fingers):
+            r = self.F[i].tolist()
+            god = f.god
+            god.x, god.y, god.z, contact, god.nx, god.ny, god.nz, shape, god.depth, sticking = r[GOD_SEEN]
+            god.contact = contact != 0.0
+            god.shape = shapes[int(shape)] if shape >= 0.0 else None
+            god.sticking = sticking != 0.0
+            god.lx, god.ly, god.lz = r[G_LX], r[G_LY], r[G_LZ]
+            god._bx, god._by, god._bz, god._room = r[G_BX], r[G_BY], r[G_BZ], r[G_ROOM]
+            god._rounding = r[G_ROUNDING] != 0.0
+            god.planes = [(*r[p:p + 4], shapes[int(r[p + 4])])
+                          for p in range(G_PLANES, G_PLANES + PLANE_WIDTH * int(r[G_NPLANES]), PLANE_WIDTH)]
+            god.near = [shapes[k] for k in self.near[i, :int(r[G_NNEAR])].tolist()]
+            f.placed = r[F_PLACED] != 0.0
+            f.dt, f._ramp = r[F_DT], r[F_RAMP]
+            f.xd, f.yd, f.zd = r[DEVICE_SEEN]
+            f._sx, f._sy, f._sz, f._stwist = r[F_SX], r[F_SY], r[F_SZ], r[F_STWIST]
+            (f.fx, f.fy, f.fz, f.torque, f.tx, f.ty, f.tz, f.px, f.py, f.pz, body, f.normal_force, valid,
+             f.max_force_seen, f.penetration_max, slides, spikes) = r[FINGER_SEEN]
+            f.body = int(body)
+            f.valid = valid != 0.0
+            f.slide_events = int(slides)
+            f.spikes_rejected = int(spikes)
+            f._spike_run, f._was_sticking = int(r[F_SPIKE_RUN]), r[F_WAS_STICKING] != 0.0
+            tors = f.torsion
+            if tors is not None:
+                in_contact, tors.alpha_0, tors.alpha_p, tors.alpha_g, tors.torque, tors.limit, slipping, slips = \
+                    r[TORSION_SEEN]
+                tors.in_contact = in_contact != 0.0
+                tors.slipping = slipping != 0.0
+                tors.slip_events = int(slips)
+
+    def run(self, samples: list, ok: bool, safe: bool, audit: bool, dt: float) -> int:
+        """The fingers' part of one tick from this tick's device samples (after mj_step1).
+
+        `ok`: the device read succeeded. Returns how many samples were unusable (invalid,
+        not finite, or refused by their finger); the wrenches are in xfrc_applied after."""
+        rows = self.samples
+        unusable = 0
+        for i, j in enumerate(self._device_finger):
+            s = samples[j]
+            usable = ok and s.valid and s.is_finite()
+            if usable:
+                rows[i, 0], rows[i, 1], rows[i, 2], rows[i, 3], rows[i, 4] = s.x, s.y, s.z, s.twist, 1.0
+            else:
+                rows[i, 4] = 0.0
+                unusable += ok
+        device = self.device
+        unusable += kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc, self._fixed,
+                                self.F, self.near, rows, dt, safe, audit, float(device.max_force),
+                                float(device.max_torque), self._scratch, self._wrench, self._touched, self._pushed,
+                                self._counts)
+        self.mirror()
+        return unusable
+
+    def sent(self, i: int) -> tuple[float, float, float, float, float, float]:
+        """What finger i's device finger is sent this tick (N, N·m), clamped, zero if unsafe."""
+        return tuple(self.F[i, D_FX:D_FX + 6].tolist())
+
+    def clear_wrenches(self) -> None:
+        """Remove every wrench the fingers put on the bodies (the safe state)."""
+        xfrc = self._xfrc
+        for j in range(int(self._counts[1])):
+            xfrc[self._pushed[j]] = 0.0
+        self._wrench[:] = 0.0
+        self._counts[:] = 0

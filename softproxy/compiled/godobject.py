@@ -1,0 +1,600 @@
+"""The god-object solver of `softproxy.proxy`, compiled: the same steps on a finger's state row.
+
+A numba twin of `GodObject.update` / `follow` / `reset` for worlds of primitive shapes. Each
+function mirrors the Python method of the same name line by line, in the same order of
+floating-point operations, so the two agree to the last bit (tests/test_compiled.py runs
+them side by side). The Python class stays the reference and the documentation: read it
+for the why of every step; comments here only mark where the form differs.
+
+State: `g` is the finger's row of the state array (columns in `layout`), `near` its row of
+the broad phase's shape list; shapes are rows of the table `S`, posed by MuJoCo's
+`geom_xpos` / `geom_xmat`. A list of constraint planes is an (n, 5) array of rows
+(nx, ny, nz, c, shape row) plus a count. Units: m.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from softproxy.compiled.layout import (
+    G_BX, G_BY, G_BZ, G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D, G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY,
+    G_NZ, G_PLANES, G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING, G_X, G_Y, G_Z, PLANE_WIDTH, S_CONVEX,
+    S_FLAT, S_RBOUND, S_STATIC, S_GEOM,
+)
+from softproxy.compiled.shapes import shape_distance, shape_on_face, shape_sweep, shape_to_local, shape_to_world
+from softproxy.geometry import CONTACT_TOL, GRAZE
+from softproxy.proxy import LIFT_TOL, MAX_ITERATIONS, PARALLEL, WORKSPACE_LIMIT
+
+PLANE_ROOM = 8
+"""Rows of a scratch plane list: three planes, plus the ones `_keep_resting` adds before it
+keeps the last three."""
+
+
+@njit(cache=True)
+def _load_planes(g, pl):
+    """Copy the finger's planes into the scratch list pl; returns their count."""
+    n = int(g[G_NPLANES])
+    for j in range(n):
+        for k in range(PLANE_WIDTH):
+            pl[j, k] = g[G_PLANES + PLANE_WIDTH * j + k]
+    return n
+
+
+@njit(cache=True)
+def _store_planes(g, pl, n):
+    """The finger's planes := the last three of pl[:n] (`resting[-3:]`)."""
+    start = n - 3 if n > 3 else 0
+    for j in range(start, n):
+        for k in range(PLANE_WIDTH):
+            g[G_PLANES + PLANE_WIDTH * (j - start) + k] = pl[j, k]
+    g[G_NPLANES] = n - start
+
+
+@njit(cache=True)
+def _feasible(pl, n, x, y, z, skip0, skip1):
+    for i in range(n):
+        if i != skip0 and i != skip1 and pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z < pl[i, 3] - CONTACT_TOL:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _corner(px, py, pz, pl):
+    """`proxy._corner`: (found, qx, qy, qz)."""
+    ax, ay, az, ca = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
+    bx, by, bz, cb = pl[1, 0], pl[1, 1], pl[1, 2], pl[1, 3]
+    cx, cy, cz, cc = pl[2, 0], pl[2, 1], pl[2, 2], pl[2, 3]
+    ux, uy, uz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
+    vx, vy, vz = cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax
+    wx, wy, wz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    det = ax * ux + ay * uy + az * uz
+    if abs(det) <= 1e-12:
+        return False, 0.0, 0.0, 0.0
+    ea = ca - (ax * px + ay * py + az * pz)
+    eb = cb - (bx * px + by * py + bz * pz)
+    ec = cc - (cx * px + cy * py + cz * pz)
+    dx = (ux * ea + vx * eb + wx * ec) / det
+    dy = (uy * ea + vy * eb + wy * ec) / det
+    dz = (uz * ea + vz * eb + wz * ec) / det
+    gab, gac, gbc = ax * bx + ay * by + az * bz, ax * cx + ay * cy + az * cz, bx * cx + by * cy + bz * cz
+    c00, c11, c22 = 1.0 - gbc * gbc, 1.0 - gac * gac, 1.0 - gab * gab
+    c01, c02, c12 = gac * gbc - gab, gab * gbc - gac, gab * gac - gbc
+    gdet = c00 + gab * c01 + gac * c02
+    if gdet <= 1e-12:
+        return False, 0.0, 0.0, 0.0
+    if (c00 * ea + c01 * eb + c02 * ec) / gdet < 0.0 or (c01 * ea + c11 * eb + c12 * ec) / gdet < 0.0 \
+            or (c02 * ea + c12 * eb + c22 * ec) / gdet < 0.0:
+        return False, 0.0, 0.0, 0.0
+    return True, px + dx, py + dy, pz + dz
+
+
+@njit(cache=True)
+def _project_by_enumeration(px, py, pz, pl, n):
+    """`proxy._project_by_enumeration`: (found, qx, qy, qz)."""
+    if _feasible(pl, n, px, py, pz, -1, -1):
+        return True, px, py, pz
+    for i in range(n):
+        nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
+        lam = c - (nx * px + ny * py + nz * pz)
+        if lam > 0.0:
+            qx, qy, qz = px + lam * nx, py + lam * ny, pz + lam * nz
+            if _feasible(pl, n, qx, qy, qz, i, -1):
+                return True, qx, qy, qz
+    for i in range(n):
+        for j in range(i + 1, n):
+            ax, ay, az, ci = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
+            bx, by, bz, cj = pl[j, 0], pl[j, 1], pl[j, 2], pl[j, 3]
+            g = ax * bx + ay * by + az * bz
+            det = 1.0 - g * g
+            if det < 1e-12:
+                continue
+            ei = ci - (ax * px + ay * py + az * pz)
+            ej = cj - (bx * px + by * py + bz * pz)
+            a = (ei - g * ej) / det
+            b = (ej - g * ei) / det
+            if a < 0.0 or b < 0.0:
+                continue
+            qx, qy, qz = px + a * ax + b * bx, py + a * ay + b * by, pz + a * az + b * bz
+            if _feasible(pl, n, qx, qy, qz, i, j):
+                return True, qx, qy, qz
+    if n == 3:
+        ax, ay, az, ca = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
+        bx, by, bz, cb = pl[1, 0], pl[1, 1], pl[1, 2], pl[1, 3]
+        cx, cy, cz, cc = pl[2, 0], pl[2, 1], pl[2, 2], pl[2, 3]
+        det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+        if abs(det) > 1e-12:
+            qx = (ca * (by * cz - bz * cy) - ay * (cb * cz - bz * cc) + az * (cb * cy - by * cc)) / det
+            qy = (ax * (cb * cz - bz * cc) - ca * (bx * cz - bz * cx) + az * (bx * cc - cb * cx)) / det
+            qz = (ax * (by * cc - cb * cy) - ay * (bx * cc - cb * cx) + ca * (bx * cy - by * cx)) / det
+            return True, qx, qy, qz
+    return False, 0.0, 0.0, 0.0
+
+
+@njit(cache=True)
+def _project(px, py, pz, pl, n):
+    """`proxy._project`: (found, qx, qy, qz)."""
+    if n == 1:
+        nx, ny, nz, c = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
+        lam = c - (nx * px + ny * py + nz * pz)
+        if lam > 0.0:
+            return True, px + lam * nx, py + lam * ny, pz + lam * nz
+        return True, px, py, pz
+    outside = False
+    for i in range(n):
+        if pl[i, 0] * px + pl[i, 1] * py + pl[i, 2] * pz < pl[i, 3] - CONTACT_TOL:
+            outside = True
+            break
+    if not outside:
+        return True, px, py, pz
+    if n == 3:
+        found, qx, qy, qz = _corner(px, py, pz, pl)
+        if found:
+            return True, qx, qy, qz
+    return _project_by_enumeration(px, py, pz, pl, n)
+
+
+@njit(cache=True)
+def _plane_of(pl, n, s, nx, ny, nz):
+    """`proxy._plane_of`: index of shape s's plane of normal n in pl[:n], or -1."""
+    for i in range(n):
+        if int(pl[i, 4]) == s and pl[i, 0] * nx + pl[i, 1] * ny + pl[i, 2] * nz > PARALLEL:
+            return i
+    return -1
+
+
+@njit(cache=True)
+def _touched(pl, n, nx, ny, nz):
+    """`proxy._touched`: the shape row whose plane is most aligned with n."""
+    best, best_dot = int(pl[0, 4]), -2.0
+    for i in range(n):
+        dot = pl[i, 0] * nx + pl[i, 1] * ny + pl[i, 2] * nz
+        if dot > best_dot:
+            best, best_dot = int(pl[i, 4]), dot
+    return best
+
+
+@njit(cache=True)
+def _on_static_faces(S, xmat, pl, n):
+    for i in range(n):
+        s = int(pl[i, 4])
+        if not (S[s, S_STATIC] != 0.0 and shape_on_face(S, xmat, s, pl[i, 0], pl[i, 1], pl[i, 2])):
+            return False
+    return True
+
+
+@njit(cache=True)
+def gather_ball(S, xpos, xmat, g, near, cx, cy, cz, room):
+    """`GodObject._gather_ball`."""
+    g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] = cx, cy, cz, room
+    reach = room + g[G_RADIUS]
+    count = 0
+    for s in range(S.shape[0]):
+        k = int(S[s, S_GEOM])
+        rb = S[s, S_RBOUND] + reach
+        if rb == math.inf:
+            if xmat[k, 2] * (cx - xpos[k, 0]) + xmat[k, 5] * (cy - xpos[k, 1]) + xmat[k, 8] * (cz - xpos[k, 2]) <= reach:
+                near[count] = s
+                count += 1
+            continue
+        dx, dy, dz = xpos[k, 0] - cx, xpos[k, 1] - cy, xpos[k, 2] - cz
+        if dx * dx + dy * dy + dz * dz <= rb * rb:
+            near[count] = s
+            count += 1
+    g[G_NNEAR] = count
+
+
+@njit(cache=True)
+def push_out(S, xpos, xmat, g, near):
+    """`GodObject._push_out`."""
+    r = g[G_RADIUS]
+    for _ in range(3):
+        moved = False
+        for j in range(int(g[G_NNEAR])):
+            d, nx, ny, nz = shape_distance(S, xpos, xmat, near[j], g[G_X], g[G_Y], g[G_Z])
+            gap = d - r
+            if gap < 0.0:
+                push = -gap + CONTACT_TOL
+                g[G_X] += push * nx
+                g[G_Y] += push * ny
+                g[G_Z] += push * nz
+                moved = True
+        if not moved:
+            return
+
+
+@njit(cache=True)
+def reset(S, xpos, xmat, g, near, x, y, z):
+    """`GodObject.reset`; False (nothing changed) for a position outside the workspace."""
+    if not (-WORKSPACE_LIMIT < x < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < y < WORKSPACE_LIMIT
+            and -WORKSPACE_LIMIT < z < WORKSPACE_LIMIT):
+        return False
+    g[G_X], g[G_Y], g[G_Z] = x, y, z
+    g[G_CONTACT] = 0.0
+    g[G_NX] = g[G_NY] = g[G_NZ] = 0.0
+    g[G_SHAPE] = -1.0
+    g[G_DEPTH] = 0.0
+    g[G_STICKING] = 0.0
+    g[G_LX] = g[G_LY] = g[G_LZ] = 0.0
+    for s in range(S.shape[0]):
+        near[s] = s
+    g[G_NNEAR] = S.shape[0]
+    push_out(S, xpos, xmat, g, near)
+    return True
+
+
+@njit(cache=True)
+def _settle(S, xpos, xmat, g, near, xd, yd, zd, around_proxy):
+    """`GodObject._settle`: returns the proxy position before the push."""
+    shape = int(g[G_SHAPE])
+    carrier = -1
+    if shape >= 0 and S[shape, S_STATIC] == 0.0:
+        carrier = shape
+        g[G_X], g[G_Y], g[G_Z] = shape_to_world(S, xpos, xmat, shape, g[G_LX], g[G_LY], g[G_LZ])
+    x, y, z = g[G_X], g[G_Y], g[G_Z]
+    if around_proxy:
+        gather_ball(S, xpos, xmat, g, near, x, y, z, g[G_RADIUS] + 1e-3)
+    else:
+        ex, ey, ez = xd - x, yd - y, zd - z
+        gather_ball(S, xpos, xmat, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
+                    0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + g[G_RADIUS] + 1e-3)
+    for j in range(int(g[G_NNEAR])):
+        s = near[j]
+        if s != carrier and (carrier >= 0 or S[s, S_STATIC] == 0.0):
+            push_out(S, xpos, xmat, g, near)
+            break
+    return x, y, z
+
+
+@njit(cache=True)
+def follow(S, xpos, xmat, g, near):
+    """`GodObject.follow`: no device sample; stay on the body, out of what moved in."""
+    _settle(S, xpos, xmat, g, near, g[G_X], g[G_Y], g[G_Z], True)
+
+
+@njit(cache=True)
+def _sweep(S, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
+    """`GodObject._sweep`: (found, lam, nx, ny, nz, shape row) of the earliest hit."""
+    r = g[G_RADIUS]
+    found = False
+    best_lam, bnx, bny, bnz, bs = 1.0, 0.0, 0.0, 0.0, -1
+    for j in range(int(g[G_NNEAR])):
+        s = near[j]
+        if S[s, S_CONVEX] != 0.0:
+            behind = False
+            for i in range(n):
+                if int(pl[i, 4]) == s:
+                    behind = True
+                    break
+            if behind:
+                continue
+        lam, nx, ny, nz = shape_sweep(S, xpos, xmat, s, x, y, z, dx, dy, dz, r)
+        if lam >= 0.0 and lam < best_lam:
+            found = True
+            best_lam, bnx, bny, bnz, bs = lam, nx, ny, nz, s
+    return found, best_lam, bnx, bny, bnz, bs
+
+
+@njit(cache=True)
+def _rests_on(S, xpos, xmat, g, pl, i, x, y, z, on_surface):
+    """`GodObject._rests_on` for plane pl[i]."""
+    nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
+    if not abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL:
+        return False
+    return on_surface or shape_distance(S, xpos, xmat, int(pl[i, 4]), x, y, z)[0] - g[G_RADIUS] <= LIFT_TOL
+
+
+@njit(cache=True)
+def _keep_resting(S, xpos, xmat, g, resting, nr, pl, n, x, y, z):
+    """`GodObject._keep_resting`: resting[:nr] (self.planes) plus the planes of pl[:n] the
+    proxy at p still rests on; the last three become the finger's planes."""
+    for i in range(n):
+        if _rests_on(S, xpos, xmat, g, pl, i, x, y, z, False) and \
+                _plane_of(resting, nr, int(pl[i, 4]), pl[i, 0], pl[i, 1], pl[i, 2]) < 0:
+            for k in range(PLANE_WIDTH):
+                resting[nr, k] = pl[i, k]
+            nr += 1
+    _store_planes(g, resting, nr)
+
+
+@njit(cache=True)
+def _still_in_corner(S, xpos, xmat, g, xd, yd, zd, pl, n):
+    """`GodObject._still_in_corner`."""
+    if not _on_static_faces(S, xmat, pl, n):
+        return False
+    found, qx, qy, qz = _corner(xd, yd, zd, pl)
+    x, y, z = g[G_X], g[G_Y], g[G_Z]
+    if not found or abs(qx - x) + abs(qy - y) + abs(qz - z) > 1e-12:
+        return False
+    ex, ey, ez = x - xd, y - yd, z - zd
+    depth = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if depth == 0.0:
+        return False
+    nx, ny, nz = ex / depth, ey / depth, ez / depth
+    best = _touched(pl, n, nx, ny, nz)
+    g[G_NX], g[G_NY], g[G_NZ] = nx, ny, nz
+    g[G_DEPTH] = depth
+    g[G_SHAPE] = best
+    return True
+
+
+@njit(cache=True)
+def _still_stuck(S, xpos, xmat, g, near, xd, yd, zd, pl):
+    """`GodObject._still_stuck`."""
+    n = _load_planes(g, pl)
+    if n == 3:
+        return _still_in_corner(S, xpos, xmat, g, xd, yd, zd, pl, n)
+    shape = int(g[G_SHAPE])
+    if n != 1 or S[shape, S_FLAT] == 0.0:
+        return False
+    x, y, z, r = g[G_X], g[G_Y], g[G_Z], g[G_RADIUS]
+    d, nx, ny, nz = shape_distance(S, xpos, xmat, shape, x, y, z)
+    if abs(d - r) > 1e-7:
+        return False
+    depth = nx * (x - xd) + ny * (y - yd) + nz * (z - zd)
+    if depth <= 0.0:
+        return False
+    fx, fy, fz = xd + depth * nx, yd + depth * ny, zd + depth * nz
+    df, mx, my, mz = shape_distance(S, xpos, xmat, shape, fx, fy, fz)
+    if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
+        return False
+    sx, sy, sz = x - fx, y - fy, z - fz
+    if sx * sx + sy * sy + sz * sz > (g[G_MU_S] * depth) ** 2:
+        return False
+    for j in range(int(g[G_NNEAR])):
+        s = near[j]
+        if s != shape and shape_sweep(S, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
+            return False
+    p = G_PLANES
+    g[p], g[p + 1], g[p + 2], g[p + 3], g[p + 4] = nx, ny, nz, nx * x + ny * y + nz * z, shape
+    g[G_NPLANES] = 1.0
+    g[G_NX], g[G_NY], g[G_NZ] = nx, ny, nz
+    g[G_DEPTH] = depth
+    return True
+
+
+@njit(cache=True)
+def _warm_planes(S, xpos, xmat, g, x, y, z, warm):
+    """`GodObject._warm_planes` into warm; returns the count (0: solve cold)."""
+    n = int(g[G_NPLANES])
+    count = 0
+    for j in range(n):
+        p = G_PLANES + PLANE_WIDTH * j
+        s = int(g[p + 4])
+        if S[s, S_STATIC] == 0.0:
+            return 0
+        if shape_on_face(S, xmat, s, g[p], g[p + 1], g[p + 2]):
+            for k in range(PLANE_WIDTH):
+                warm[count, k] = g[p + k]
+            count += 1
+            continue
+        if S[s, S_CONVEX] == 0.0 or g[G_ROUNDING] != 0.0:
+            return 0
+        d, nx, ny, nz = shape_distance(S, xpos, xmat, s, x, y, z)
+        if d - g[G_RADIUS] > LIFT_TOL:
+            return 0
+        if count == 0 or _plane_of(warm, count, s, nx, ny, nz) < 0:
+            warm[count, 0], warm[count, 1], warm[count, 2], warm[count, 3], warm[count, 4] = nx, ny, nz, 0.0, s
+            count += 1
+    return count
+
+
+@njit(cache=True)
+def _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
+    """One pass of `GodObject._move`. Returns (restart, x, y, z, hx, hy, hz, straight, n):
+    restart when a warm start must be solved again cold (the Python method's recursion);
+    otherwise the end point, the first surface point, and the resting planes in pl[:n]."""
+    n = 0
+    has_first = False
+    hx = hy = hz = 0.0
+    straight = True
+    on_surfaces = False
+    g[G_ROUNDING] = 0.0
+    r = g[G_RADIUS]
+    tx, ty, tz = gx, gy, gz
+    if nwarm > 0:
+        for j in range(nwarm):
+            warm[j, 3] = warm[j, 0] * x + warm[j, 1] * y + warm[j, 2] * z
+        ex, ey, ez = gx - x, gy - y, gz - z
+        graze = GRAZE * math.sqrt(ex * ex + ey * ey + ez * ez)
+        found = False
+        for j in range(nwarm):
+            if warm[j, 3] - (warm[j, 0] * gx + warm[j, 1] * gy + warm[j, 2] * gz) > graze:
+                found, qx, qy, qz = _project(gx, gy, gz, warm, nwarm)
+                break
+        if found:
+            for j in range(nwarm):
+                for k in range(PLANE_WIDTH):
+                    pl[j, k] = warm[j, k]
+            n = nwarm
+            has_first = True
+            hx, hy, hz = x, y, z
+            tx, ty, tz = qx, qy, qz
+    bx, by, bz, room2 = g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] * g[G_ROOM]
+    for _ in range(MAX_ITERATIONS - n):
+        dx, dy, dz = tx - x, ty - y, tz - z
+        if dx * dx + dy * dy + dz * dz < 1e-24:
+            break
+        ex, ey, ez = tx - bx, ty - by, tz - bz
+        if ex * ex + ey * ey + ez * ez > room2:
+            gather_ball(S, xpos, xmat, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
+            room2 = g[G_ROOM] * g[G_ROOM]
+        hit, lam, nx, ny, nz, s = _sweep(S, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n)
+        if not hit:
+            x, y, z = tx, ty, tz
+            if n == 0 or (tx == gx and ty == gy and tz == gz):
+                break
+            nk = 0
+            lifted = False
+            for i in range(n):
+                si = int(pl[i, 4])
+                d, mx, my, mz = shape_distance(S, xpos, xmat, si, x, y, z)
+                if d - r <= LIFT_TOL:
+                    for k in range(PLANE_WIDTH):
+                        kept[nk, k] = pl[i, k]
+                    nk += 1
+                    continue
+                lifted = True
+                dup = False
+                for q in range(nk):
+                    if int(kept[q, 4]) == si:
+                        dup = True
+                        break
+                if not dup:
+                    kept[nk, 0], kept[nk, 1], kept[nk, 2] = mx, my, mz
+                    kept[nk, 3] = mx * x + my * y + mz * z - (d - r)
+                    kept[nk, 4] = si
+                    nk += 1
+            if not lifted:
+                on_surfaces = True
+                break
+            g[G_ROUNDING] = 1.0
+            if nwarm > 0:
+                return True, x, y, z, hx, hy, hz, straight, 0
+            straight = False
+            for i in range(nk):
+                for k in range(PLANE_WIDTH):
+                    pl[i, k] = kept[i, k]
+            n = nk
+            found, qx, qy, qz = _project(gx, gy, gz, pl, n)
+            if not found:
+                break
+            tx, ty, tz = qx, qy, qz
+            continue
+        x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
+        if not has_first:
+            has_first = True
+            hx, hy, hz = x, y, z
+        else:
+            straight = False
+        c = nx * x + ny * y + nz * z
+        i = _plane_of(pl, n, s, nx, ny, nz)
+        if i >= 0:
+            for j in range(i, n - 1):
+                for k in range(PLANE_WIDTH):
+                    pl[j, k] = pl[j + 1, k]
+            n -= 1
+        pl[n, 0], pl[n, 1], pl[n, 2], pl[n, 3], pl[n, 4] = nx, ny, nz, c, s
+        n += 1
+        if n > 3:
+            for j in range(n - 1):
+                for k in range(PLANE_WIDTH):
+                    pl[j, k] = pl[j + 1, k]
+            n -= 1
+        found, qx, qy, qz = _project(gx, gy, gz, pl, n)
+        if not found:
+            break
+        tx, ty, tz = qx, qy, qz
+    nr = 0
+    for i in range(n):
+        if _rests_on(S, xpos, xmat, g, pl, i, x, y, z, on_surfaces):
+            for k in range(PLANE_WIDTH):
+                pl[nr, k] = pl[i, k]
+            nr += 1
+        elif nwarm > 0 and abs(pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z - pl[i, 3]) <= LIFT_TOL:
+            return True, x, y, z, hx, hy, hz, straight, 0
+    if not has_first:
+        hx, hy, hz = x, y, z
+    return False, x, y, z, hx, hy, hz, straight, nr
+
+
+@njit(cache=True)
+def _move(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
+    """`GodObject._move`: (x, y, z, hx, hy, hz, straight, n), resting planes in pl[:n]."""
+    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz,
+                                                              warm, nwarm, pl, kept)
+    if restart:  # what the warm start assumed no longer holds: solve again from no planes
+        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz,
+                                                                  warm, 0, pl, kept)
+    return ex, ey, ez, hx, hy, hz, straight, n
+
+
+@njit(cache=True)
+def update(S, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
+    """`GodObject.update`: move the proxy toward the device position (m, world).
+
+    pl, saved, warm, kept: scratch plane lists of PLANE_ROOM rows. False on garbage input
+    (the proxy then only follows its body)."""
+    if not (-WORKSPACE_LIMIT < xd < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < yd < WORKSPACE_LIMIT
+            and -WORKSPACE_LIMIT < zd < WORKSPACE_LIMIT):
+        follow(S, xpos, xmat, g, near)
+        return False
+    x, y, z = _settle(S, xpos, xmat, g, near, xd, yd, zd, False)
+    if g[G_STICKING] != 0.0 and g[G_X] == x and g[G_Y] == y and g[G_Z] == z \
+            and _still_stuck(S, xpos, xmat, g, near, xd, yd, zd, pl):
+        return True
+    x, y, z = g[G_X], g[G_Y], g[G_Z]
+    nwarm = _warm_planes(S, xpos, xmat, g, x, y, z, warm)
+    fx, fy, fz, hx, hy, hz, straight, n = _move(S, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm, pl, kept)
+    if n == 0:
+        g[G_NPLANES] = 0.0
+        g[G_X], g[G_Y], g[G_Z] = fx, fy, fz
+        g[G_CONTACT] = 0.0
+        g[G_SHAPE] = -1.0
+        g[G_DEPTH] = 0.0
+        g[G_STICKING] = 0.0
+        return True
+
+    ex, ey, ez = fx - xd, fy - yd, fz - zd
+    depth = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if depth > 0.0:
+        nx, ny, nz = ex / depth, ey / depth, ez / depth
+    else:
+        nx, ny, nz = pl[n - 1, 0], pl[n - 1, 1], pl[n - 1, 2]
+    best = int(pl[0, 4]) if n == 1 else _touched(pl, n, nx, ny, nz)
+
+    sx, sy, sz = hx - fx, hy - fy, hz - fz
+    slide = math.sqrt(sx * sx + sy * sy + sz * sz)
+    sticking = slide <= g[G_MU_S] * depth
+    _store_planes(g, pl, n)
+    if sticking:
+        fx, fy, fz = hx, hy, hz
+        if slide > 0.0:
+            _keep_resting(S, xpos, xmat, g, saved, 0, pl, n, hx, hy, hz)
+    elif g[G_MU_D] > 0.0 and slide > 0.0:
+        back = g[G_MU_D] * depth / slide
+        tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
+        if straight:
+            fx, fy, fz = tx, ty, tz
+        else:
+            for j in range(n):  # the frictionless solve's planes, kept aside
+                for k in range(PLANE_WIDTH):
+                    saved[j, k] = pl[j, k]
+            fx, fy, fz, _, _, _, _, m = _move(S, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept)
+            _keep_resting(S, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
+    g[G_X], g[G_Y], g[G_Z] = fx, fy, fz
+    g[G_CONTACT] = 1.0
+    g[G_NX], g[G_NY], g[G_NZ] = nx, ny, nz
+    g[G_DEPTH] = depth
+    g[G_STICKING] = 1.0 if sticking else 0.0
+    g[G_SHAPE] = best
+    if S[best, S_STATIC] == 0.0:
+        g[G_LX], g[G_LY], g[G_LZ] = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
+    return True
+
+
+def scratch() -> np.ndarray:
+    """Four scratch plane lists for `update` (allocated once per engine, not per tick)."""
+    return np.zeros((4, PLANE_ROOM, PLANE_WIDTH))

@@ -1,0 +1,89 @@
+"""Where each number lives in the compiled engine's flat arrays (column indices).
+
+The compiled tick (`softproxy.compiled`) keeps every shape and every finger as a row of a
+float64 array, so that one numba call can run the fingers of a tick with no Python objects.
+Shape table rows come from `softproxy.geometry` shapes; finger rows from `SoftFingerProxy`,
+its `GodObject` and its `TorsionalFriction`. Poses are read straight from MuJoCo's
+`geom_xpos` (ngeom × 3) and `geom_xmat` (ngeom × 9, row-major: r00 r01 r02 r10 … r22).
+"""
+
+# -- shape table: one row per Shape, in the order of World.shapes -------------------------
+S_TYPE = 0       # MuJoCo geom type (mjtGeom): plane 0, sphere 2, capsule 3, ellipsoid 4, cylinder 5, box 6
+S_GEOM = 1       # geom id (row of geom_xpos / geom_xmat)
+S_BODY = 2       # body id
+S_STATIC = 3     # 1.0 when the shape never moves
+S_CONVEX = 4     # 1.0 (every primitive)
+S_FLAT = 5       # 1.0 for plane and box
+S_RBOUND = 6     # bounding radius (m), inf for a plane
+S_A = 7          # sphere/capsule/cylinder radius, box hx, ellipsoid a (m)
+S_B = 8          # capsule/cylinder half-length, box hy, ellipsoid b (m)
+S_C = 9          # box hz, ellipsoid c (m)
+S_COLUMNS = 10
+
+GEOM_PLANE = 0
+GEOM_SPHERE = 2
+GEOM_CAPSULE = 3
+GEOM_ELLIPSOID = 4
+GEOM_CYLINDER = 5
+GEOM_BOX = 6
+
+# -- finger state: one row per finger -------------------------------------------------------
+# god-object (softproxy.proxy.GodObject)
+G_X, G_Y, G_Z = 0, 1, 2          # proxy centre (m, world)
+G_CONTACT = 3
+G_NX, G_NY, G_NZ = 4, 5, 6       # contact normal
+G_SHAPE = 7                      # touched shape (row of the shape table) or -1
+G_DEPTH = 8
+G_STICKING = 9
+G_LX, G_LY, G_LZ = 10, 11, 12    # proxy in the touched geom's frame
+G_BX, G_BY, G_BZ, G_ROOM = 13, 14, 15, 16   # the broad phase's ball
+G_ROUNDING = 17
+G_NPLANES = 18
+G_PLANES = 19                    # 3 planes × (nx, ny, nz, c, shape row): columns 19..33
+PLANE_WIDTH = 5
+G_RADIUS = 34
+G_MU_S = 35
+G_MU_D = 36
+G_NNEAR = 37                     # how many shape rows `near` holds
+# the finger (softproxy.finger.SoftFingerProxy)
+F_PLACED = 40
+F_K, F_B, F_B_TAU = 41, 42, 43
+F_MAX_FORCE, F_MAX_TORQUE = 44, 45
+F_OX, F_OY, F_OZ, F_SCALE = 46, 47, 48, 49
+F_MAX_SPEED, F_SOFT_START, F_DT, F_RAMP = 50, 51, 52, 53
+F_XD, F_YD, F_ZD = 54, 55, 56
+F_SX, F_SY, F_SZ, F_STWIST = 57, 58, 59, 60
+F_FX, F_FY, F_FZ = 61, 62, 63
+F_TORQUE = 64
+F_TX, F_TY, F_TZ = 65, 66, 67
+F_PX, F_PY, F_PZ = 68, 69, 70
+F_BODY = 71
+F_NORMAL_FORCE = 72
+F_VALID = 73
+F_MAX_FORCE_SEEN = 74
+F_PENETRATION_MAX = 75
+F_SLIDE_EVENTS = 76
+F_SPIKES_REJECTED = 77
+F_SPIKE_RUN = 78
+F_WAS_STICKING = 79
+F_HAS_TORSION = 80
+# torsion (softproxy.torsion.TorsionalFriction)
+T_IN_CONTACT = 81
+T_ALPHA_0, T_ALPHA_P, T_ALPHA_G = 82, 83, 84
+T_TORQUE, T_LIMIT = 85, 86
+T_SLIPPING = 87
+T_SLIP_EVENTS = 88
+T_K_TAU, T_MU_S, T_MU_D, T_GAMMA = 89, 90, 91, 92
+T_SATURATE, T_RATIO = 93, 94
+T_MU_PRIME, T_R0, T_P_STAR = 95, 96, 97
+# what the device is sent this tick (clamped to the device, zero when not valid or safe)
+D_FINGER = 98
+D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ = 99, 100, 101, 102, 103, 104
+F_COLUMNS = 105
+
+# runs of columns written back into the Python objects: OUTPUT every tick, the rest by sync
+OUTPUT = slice(F_FX, F_VALID + 1)
+GOD_SEEN = slice(G_X, G_STICKING + 1)
+DEVICE_SEEN = slice(F_XD, F_ZD + 1)
+FINGER_SEEN = slice(F_FX, F_SPIKES_REJECTED + 1)
+TORSION_SEEN = slice(T_IN_CONTACT, T_SLIP_EVENTS + 1)

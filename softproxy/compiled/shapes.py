@@ -1,0 +1,260 @@
+"""Numba twins of `softproxy.geometry`'s primitive shapes, for the compiled god-object.
+
+Each function answers one `Shape` query (distance, sweep, on_face, to_local) for row k of a
+flat shape table (`shape_table`, columns in `softproxy.compiled.layout`) with the pose read
+straight from MuJoCo's `geom_xpos` / `geom_xmat`. Every function repeats the floating-point
+operations of the Python method in the same order, so the results are bit-identical; this is
+checked by tests/test_compiled_shapes.py. Change both sides together.
+
+Note: numba freezes the module-level constants (CONTACT_TOL, GRAZE, …) into its on-disk cache,
+which is keyed on this file only: after changing them in `softproxy.geometry`, touch this file
+(or clear softproxy/compiled/__pycache__).
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+from softproxy import geometry
+from softproxy.geometry import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
+from softproxy.compiled.layout import (
+    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_PLANE, GEOM_SPHERE,
+    S_A, S_B, S_BODY, S_C, S_COLUMNS, S_CONVEX, S_FLAT, S_GEOM, S_RBOUND, S_STATIC, S_TYPE,
+)
+
+# exact classes only: a subclass may answer differently from its compiled twin
+_TYPES = {
+    geometry.PlaneShape: GEOM_PLANE,
+    geometry.SphereShape: GEOM_SPHERE,
+    geometry.CapsuleShape: GEOM_CAPSULE,
+    geometry.EllipsoidShape: GEOM_ELLIPSOID,
+    geometry.CylinderShape: GEOM_CYLINDER,
+    geometry.BoxShape: GEOM_BOX,
+}
+
+
+def shape_table(shapes) -> np.ndarray:
+    """The shape table (nshapes × S_COLUMNS, float64) of a list of `softproxy.geometry` primitives."""
+    S = np.zeros((len(shapes), S_COLUMNS), dtype=np.float64)
+    for k, s in enumerate(shapes):
+        gtype = _TYPES.get(type(s))
+        if gtype is None:
+            raise ValueError(f"shape {getattr(s, 'name', k)!r} ({type(s).__name__}) is not a primitive "
+                             "the compiled engine supports (plane, sphere, capsule, ellipsoid, cylinder, box)")
+        S[k, S_TYPE] = gtype
+        S[k, S_GEOM] = s.geom
+        S[k, S_BODY] = s.body
+        S[k, S_STATIC] = 1.0 if s.static else 0.0
+        S[k, S_CONVEX] = 1.0 if s.convex else 0.0
+        S[k, S_FLAT] = 1.0 if s.flat else 0.0
+        S[k, S_RBOUND] = s.rbound
+        if gtype == GEOM_SPHERE:
+            S[k, S_A] = s.radius
+        elif gtype == GEOM_CAPSULE or gtype == GEOM_CYLINDER:
+            S[k, S_A], S[k, S_B] = s.radius, s.half
+        elif gtype == GEOM_BOX:
+            S[k, S_A], S[k, S_B], S[k, S_C] = s.hx, s.hy, s.hz
+        elif gtype == GEOM_ELLIPSOID:
+            S[k, S_A], S[k, S_B], S[k, S_C] = s.a, s.b, s.c
+    return S
+
+
+@njit(cache=True)
+def shape_to_local(S, xpos, xmat, k, x, y, z):
+    """World point (m) to shape k's geom frame (m), as `Shape.to_local`."""
+    g = int(S[k, S_GEOM])
+    dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
+    return (xmat[g, 0] * dx + xmat[g, 3] * dy + xmat[g, 6] * dz,
+            xmat[g, 1] * dx + xmat[g, 4] * dy + xmat[g, 7] * dz,
+            xmat[g, 2] * dx + xmat[g, 5] * dy + xmat[g, 8] * dz)
+
+
+@njit(cache=True)
+def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
+    """Point in shape k's geom frame (m) to world (m): the inverse of `shape_to_local`."""
+    g = int(S[k, S_GEOM])
+    return (xmat[g, 0] * lx + xmat[g, 1] * ly + xmat[g, 2] * lz + xpos[g, 0],
+            xmat[g, 3] * lx + xmat[g, 4] * ly + xmat[g, 5] * lz + xpos[g, 1],
+            xmat[g, 6] * lx + xmat[g, 7] * ly + xmat[g, 8] * lz + xpos[g, 2])
+
+
+@njit(cache=True)
+def _capsule_local(radius, half, x, y, z):
+    """CapsuleShape.local_distance: signed distance (m) and outward normal, geom frame."""
+    h = half
+    zc = z - (h if z > h else -h if z < -h else z)
+    n = math.sqrt(x * x + y * y + zc * zc)
+    if n == 0.0:
+        return (-radius, 1.0, 0.0, 0.0)
+    return (n - radius, x / n, y / n, zc / n)
+
+
+@njit(cache=True)
+def _cylinder_local(radius, half, x, y, z):
+    """CylinderShape.local_distance: signed distance (m) and outward normal, geom frame."""
+    rho = math.sqrt(x * x + y * y)
+    dr = rho - radius
+    dz = abs(z) - half
+    sz = 1.0 if z >= 0.0 else -1.0
+    if rho > 0.0:
+        ux, uy = x / rho, y / rho
+    else:
+        ux, uy = 1.0, 0.0
+    if dr <= 0.0 and dz <= 0.0:
+        if dr > dz:
+            return (dr, ux, uy, 0.0)
+        return (dz, 0.0, 0.0, sz)
+    if dr <= 0.0:
+        return (dz, 0.0, 0.0, sz)
+    if dz <= 0.0:
+        return (dr, ux, uy, 0.0)
+    n = math.sqrt(dr * dr + dz * dz)
+    return (n, ux * dr / n, uy * dr / n, sz * dz / n)
+
+
+@njit(cache=True)
+def _ellipsoid_local(a, b, c, x, y, z):
+    """EllipsoidShape.local_distance: signed distance (m) and outward normal, geom frame."""
+    a2, b2, c2 = a * a, b * b, c * c
+    lo = -min(a2, b2, c2)
+    g = (x * x) / a2 + (y * y) / b2 + (z * z) / c2
+    if g == 0.0:
+        m = min(a, b, c)
+        if m == a:
+            return (-m, 1.0, 0.0, 0.0)
+        if m == b:
+            return (-m, 0.0, 1.0, 0.0)
+        return (-m, 0.0, 0.0, 1.0)
+    hi = max(a, b, c) * math.sqrt(x * x + y * y + z * z) + 0.0
+    hi = hi if hi > 0.0 else 1.0
+    lo_t = lo * (1.0 - 1e-12) if g < 1.0 else 0.0
+    hi_t = 0.0 if g < 1.0 else hi
+    t = 0.5 * (lo_t + hi_t)
+    for _ in range(100):
+        ea, eb, ec = a2 + t, b2 + t, c2 + t
+        fx, fy, fz = a * x / ea, b * y / eb, c * z / ec
+        f = fx * fx + fy * fy + fz * fz - 1.0
+        if f > 0.0:
+            lo_t = t
+        else:
+            hi_t = t
+        df = -2.0 * (fx * fx / ea + fy * fy / eb + fz * fz / ec)
+        nt = t - f / df if df != 0.0 else 0.5 * (lo_t + hi_t)
+        if not (lo_t < nt and nt < hi_t):
+            nt = 0.5 * (lo_t + hi_t)
+        if abs(nt - t) <= 1e-15 * (abs(t) + a2):
+            t = nt
+            break
+        t = nt
+    qx, qy, qz = a2 * x / (a2 + t), b2 * y / (b2 + t), c2 * z / (c2 + t)
+    ex, ey, ez = x - qx, y - qy, z - qz
+    dist = math.sqrt(ex * ex + ey * ey + ez * ez)
+    gx, gy, gz = qx / a2, qy / b2, qz / c2
+    gn = math.sqrt(gx * gx + gy * gy + gz * gz)
+    return ((dist if g >= 1.0 else -dist), gx / gn, gy / gn, gz / gn)
+
+
+@njit(cache=True)
+def shape_distance(S, xpos, xmat, k, x, y, z):
+    """Signed distance (m, < 0 inside) from shape k and outward unit normal, world frame."""
+    t = int(S[k, S_TYPE])
+    g = int(S[k, S_GEOM])
+    px, py, pz = xpos[g, 0], xpos[g, 1], xpos[g, 2]
+    r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
+    r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
+    r20, r21, r22 = xmat[g, 6], xmat[g, 7], xmat[g, 8]
+    if t == GEOM_PLANE:
+        return (r02 * (x - px) + r12 * (y - py) + r22 * (z - pz), r02, r12, r22)
+    if t == GEOM_SPHERE:
+        radius = S[k, S_A]
+        dx, dy, dz = x - px, y - py, z - pz
+        n = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if n == 0.0:
+            return (-radius, r02, r12, r22)
+        return (n - radius, dx / n, dy / n, dz / n)
+    dx, dy, dz = x - px, y - py, z - pz
+    lx = r00 * dx + (r10 * dy + r20 * dz)
+    ly = r01 * dx + r11 * dy + r21 * dz
+    lz = r02 * dx + r12 * dy + r22 * dz
+    if t == GEOM_BOX:
+        sx = 1.0 if lx >= 0.0 else -1.0
+        sy = 1.0 if ly >= 0.0 else -1.0
+        sz = 1.0 if lz >= 0.0 else -1.0
+        qx, qy, qz = sx * lx - S[k, S_A], sy * ly - S[k, S_B], sz * lz - S[k, S_C]
+        if qx <= 0.0 and qy <= 0.0 and qz <= 0.0:
+            if qx >= qy and qx >= qz:
+                return (qx, sx * r00, sx * r10, sx * r20)
+            if qy >= qz:
+                return (qy, sy * r01, sy * r11, sy * r21)
+            return (qz, sz * r02, sz * r12, sz * r22)
+        ox = sx * qx if qx > 0.0 else 0.0
+        oy = sy * qy if qy > 0.0 else 0.0
+        oz = sz * qz if qz > 0.0 else 0.0
+        n = math.sqrt(ox * ox + oy * oy + oz * oz)
+        ox, oy, oz = ox / n, oy / n, oz / n
+        return (n, r00 * ox + r01 * oy + r02 * oz, r10 * ox + r11 * oy + r12 * oz,
+                r20 * ox + r21 * oy + r22 * oz)
+    if t == GEOM_CAPSULE:
+        d, nx, ny, nz = _capsule_local(S[k, S_A], S[k, S_B], lx, ly, lz)
+    elif t == GEOM_CYLINDER:
+        d, nx, ny, nz = _cylinder_local(S[k, S_A], S[k, S_B], lx, ly, lz)
+    elif t == GEOM_ELLIPSOID:
+        d, nx, ny, nz = _ellipsoid_local(S[k, S_A], S[k, S_B], S[k, S_C], lx, ly, lz)
+    else:
+        raise ValueError("shape_distance: unsupported shape type")
+    return (d,
+            r00 * nx + r01 * ny + r02 * nz,
+            r10 * nx + r11 * ny + r12 * nz,
+            r20 * nx + r21 * ny + r22 * nz)
+
+
+@njit(cache=True)
+def shape_sweep(S, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
+    """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
+    x0 by (dx, dy, dz) (m) into shape k; (-1.0, 0.0, 0.0, 0.0) when it touches nothing."""
+    if int(S[k, S_TYPE]) == GEOM_PLANE:
+        g = int(S[k, S_GEOM])
+        nx, ny, nz = xmat[g, 2], xmat[g, 5], xmat[g, 8]
+        gap = nx * (x0 - xpos[g, 0]) + ny * (y0 - xpos[g, 1]) + nz * (z0 - xpos[g, 2]) - r
+        approach = nx * dx + ny * dy + nz * dz
+        if approach >= -GRAZE * math.sqrt(dx * dx + dy * dy + dz * dz):
+            return (-1.0, 0.0, 0.0, 0.0)
+        if gap <= CONTACT_TOL:
+            return (0.0, nx, ny, nz)
+        lam = gap / -approach
+        if lam < 1.0:
+            return (lam, nx, ny, nz)
+        return (-1.0, 0.0, 0.0, 0.0)
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if length == 0.0:
+        return (-1.0, 0.0, 0.0, 0.0)
+    graze = GRAZE * length
+    lam = 0.0
+    nx, ny, nz = 0.0, 0.0, 0.0
+    for _ in range(MAX_ADVANCE_STEPS):
+        d, nx, ny, nz = shape_distance(S, xpos, xmat, k, x0 + lam * dx, y0 + lam * dy, z0 + lam * dz)
+        approach = -(nx * dx + ny * dy + nz * dz)
+        if approach <= graze:
+            return (-1.0, 0.0, 0.0, 0.0)
+        gap = d - r
+        if gap <= CONTACT_TOL:
+            return (lam, nx, ny, nz)
+        lam += gap / approach
+        if lam >= 1.0:
+            return (-1.0, 0.0, 0.0, 0.0)
+    return (lam, nx, ny, nz)
+
+
+@njit(cache=True)
+def shape_on_face(S, xmat, k, nx, ny, nz):
+    """True when world normal n lies on a planar face of shape k (plane always, box faces)."""
+    t = int(S[k, S_TYPE])
+    if t == GEOM_PLANE:
+        return True
+    if t == GEOM_BOX:
+        g = int(S[k, S_GEOM])
+        return (abs(xmat[g, 0] * nx + xmat[g, 3] * ny + xmat[g, 6] * nz) > FACE_PARALLEL
+                or abs(xmat[g, 1] * nx + xmat[g, 4] * ny + xmat[g, 7] * nz) > FACE_PARALLEL
+                or abs(xmat[g, 2] * nx + xmat[g, 5] * ny + xmat[g, 8] * nz) > FACE_PARALLEL)
+    return False
