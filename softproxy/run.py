@@ -45,10 +45,12 @@ def open_device(kind: str, scene: Scene) -> Device:
 
 
 def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_model: str | None = None,
-          audit: bool | None = None, realtime: bool = True) -> ServoLoop:
+          audit: bool | None = None, realtime: bool = True, compiled: bool = False) -> ServoLoop:
     """World + fingers + servo loop for `scene`, driven by `device`.
 
     `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog.
+    `compiled=True` runs the fingers as compiled code (`softproxy.compiled`; primitive shapes
+    only, the same answers).
     The fingers whose scene entry asks for `tactile` or `sensing` get their channels in
     `loop.sensors` (softproxy.fingertip_sensors); no other finger costs the tick anything.
     """
@@ -58,7 +60,7 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
         name = finger_model or params.model
         fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
     loop = ServoLoop(world, fingers, device, rate_hz or scene.rate_hz,
-                     audit=scene.audit if audit is None else audit, overrun_watchdog=realtime)
+                     audit=scene.audit if audit is None else audit, overrun_watchdog=realtime, compiled=compiled)
     try:
         attach_sensors(loop, scene.tactile, scene.sensing)
     except ValueError as exc:

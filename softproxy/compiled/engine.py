@@ -76,6 +76,14 @@ class CompiledFingers:
         self._counts = np.zeros(2, dtype=np.int64)
         self._device_finger = [f.params.device_finger for f in fingers]
         self.pack()
+        self._compile()
+
+    def _compile(self) -> None:
+        """Compile (or load from numba's cache) the tick now, not inside the first tick: one
+        call on copies of every array the tick writes."""
+        kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc.copy(), self._fixed,
+                    self.F.copy(), self.near.copy(), self.samples.copy(), 1e-3, False, False, 1.0, 1.0,
+                    scratch(), self._wrench.copy(), self._touched.copy(), self._pushed.copy(), self._counts.copy())
 
     def pack(self) -> None:
         """Copy every finger's state from its Python objects into the arrays."""
