@@ -1,11 +1,12 @@
 """`softproxy bench latency`: the full servo tick against a bare mj_step of the same scene.
 
 Two soft fingers hold the box of `two_finger_grasp` (device read + two god-objects +
-torsion + coupling + MuJoCo). Each tick is timed, and in the same run a bare `mj_step` is
-timed on a copy of the very same MuJoCo state, so the ratio compares like with like on a
-shared, noisy machine. Stage times come from timing subclasses swapped in for the god-object
-and torsion (one extra call each). A paced run at the scene's rate gives the deadline-miss
-rate. Prints a table, writes latency.json and latency.png to the output folder.
+torsion + coupling + MuJoCo). Each tick is timed, the Python engine's and the compiled
+one's (`ServoLoop(compiled=True)`) in turn, and in the same run a bare `mj_step` is timed on
+a copy of the very same MuJoCo state, so the ratios compare like with like on a shared,
+noisy machine. The Python tick's stage times come from timing subclasses swapped in for the
+god-object and torsion (one extra call each). A paced run of each engine at the scene's
+rate gives its deadline-miss rate. Prints a table, writes latency.json and latency.png.
 """
 
 from __future__ import annotations
@@ -52,22 +53,46 @@ def _percentiles(us: np.ndarray) -> dict:
             "max": round(float(us.max()), 2)}
 
 
+def _compiled_loop(scene):
+    """The same scene's loop with compiled fingers, or the reason there is none."""
+    try:
+        return build(scene, open_device("sim", scene), audit=False, realtime=False, compiled=True), ""
+    except (ImportError, ValueError) as exc:
+        return None, str(exc)
+
+
+def _paced(scene, seconds: float, compiled: bool) -> dict:
+    """Deadline misses of a loop paced in real time at the scene's rate."""
+    paced = build(scene, open_device("sim", scene), audit=False, compiled=compiled)
+    paced.run(int(seconds * paced.rate_hz), realtime=True)
+    return {"ticks": paced.ticks, "misses": paced.stats.misses,
+            "miss_rate": paced.stats.misses / max(paced.ticks, 1), "tick_us": paced.stats.summary_us()}
+
+
 def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "two_finger_grasp",
             progress=None) -> dict:
-    """Run the benchmark and return the result dict (times in µs)."""
+    """Run the benchmark and return the result dict (times in µs).
+
+    The Python tick, the compiled tick (`ServoLoop(compiled=True)`) and a bare `mj_step` are
+    timed in turn, tick by tick, in one process: each ratio compares like with like."""
     scene = load_scene(scene_name)
     loop = build(scene, open_device("sim", scene), audit=False, realtime=False)
+    fast, why_not = _compiled_loop(scene)
     ticks = int(duration_s * loop.rate_hz)
     m, d = loop.world.model, loop.world.data
     scratch = mujoco.MjData(m)
     warm = min(int(1.0 * loop.rate_hz), ticks // 4)  # squeeze and lift first: time the hold
     loop.run(warm)
     loop._started = True
+    if fast is not None:
+        fast.run(warm)
+        fast._started = True
     for f in loop.fingers:
         f.god.__class__ = _TimedGodObject
         if f.torsion is not None:
             f.torsion.__class__ = _TimedTorsion
     tick_us = np.empty(ticks)
+    fast_us = np.empty(ticks)
     step_us = np.empty(ticks)
     god_us = np.empty(ticks)
     torsion_us = np.empty(ticks)
@@ -78,6 +103,10 @@ def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "tw
         tick_us[i] = (_clock() - t0) * 1e6
         god_us[i] = _TimedGodObject.spent[0] * 1e6
         torsion_us[i] = _TimedTorsion.spent[0] * 1e6
+        if fast is not None:
+            t0 = _clock()
+            fast.tick()
+            fast_us[i] = (_clock() - t0) * 1e6
         mujoco.mj_copyData(scratch, m, d)
         t0 = _clock()
         mujoco.mj_step(m, scratch)
@@ -92,10 +121,9 @@ def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "tw
         device.read(loop.t, samples)
         t_dev[i] = (_clock() - t0) * 1e6
     loop.stop()
+    if fast is not None:
+        fast.stop()
 
-    paced = build(scene, open_device("sim", scene), audit=False)
-    paced_ticks = int(paced_s * paced.rate_hz)
-    paced.run(paced_ticks, realtime=True)
     tick = _percentiles(tick_us)
     step = _percentiles(step_us)
     stages = {
@@ -105,7 +133,7 @@ def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "tw
         "mj_step": step["p50"],
     }
     stages["coupling_and_loop"] = round(tick["p50"] - sum(stages.values()), 2)
-    return {
+    result = {
         "scene": scene_name,
         "fingers": len(loop.fingers),
         "rate_hz": loop.rate_hz,
@@ -114,13 +142,18 @@ def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "tw
         "mj_step_us": step,
         "ratio_p50": round(tick["p50"] / step["p50"], 2),
         "stages_us_p50": stages,
-        "paced_ticks": paced.ticks,
-        "deadline_misses": paced.stats.misses,
-        "deadline_miss_rate": paced.stats.misses / max(paced.ticks, 1),
-        "paced_tick_us": paced.stats.summary_us(),
+        "paced": _paced(scene, paced_s, False),
         "targets": {"ratio_p50": 3.0, "tick_p99_us": 50.0, "deadline_miss_rate": 1e-4},
         "_samples": {"tick_us": tick_us, "mj_step_us": step_us},
     }
+    if fast is None:
+        result["compiled"] = {"unavailable": why_not}
+    else:
+        ftick = _percentiles(fast_us)
+        result["compiled"] = {"tick_us": ftick, "ratio_p50": round(ftick["p50"] / step["p50"], 2),
+                              "paced": _paced(scene, paced_s, True)}
+        result["_samples"]["compiled_tick_us"] = fast_us
+    return result
 
 
 def chart(result: dict):
@@ -130,16 +163,21 @@ def chart(result: dict):
     hi = float(np.percentile(s["tick_us"], 99.5)) * 1.2
     bins = np.linspace(0, hi, 80)
     a.hist(s["mj_step_us"], bins=bins, alpha=0.7, label="bare mj_step")
-    a.hist(s["tick_us"], bins=bins, alpha=0.7, label="softproxy tick (2 fingers)")
+    a.hist(s["tick_us"], bins=bins, alpha=0.7, label="softproxy tick, Python (2 fingers)")
+    if "compiled_tick_us" in s:
+        a.hist(s["compiled_tick_us"], bins=bins, alpha=0.7, label="softproxy tick, compiled")
     a.axvline(result["mj_step_us"]["p50"] * 3, color="k", ls="--", lw=1, label="target: 3 x mj_step p50")
     a.set_xlabel("µs per tick")
     a.set_ylabel("ticks")
     a.legend()
-    a.set_title(f"tick p50 {result['tick_us']['p50']} µs = {result['ratio_p50']} x mj_step")
+    title = f"Python tick p50 = {result['ratio_p50']} x mj_step"
+    if "ratio_p50" in result["compiled"]:
+        title += f", compiled {result['compiled']['ratio_p50']} x"
+    a.set_title(title)
     st = result["stages_us_p50"]
     b.barh(list(st), list(st.values()))
     b.set_xlabel("µs (median per tick)")
-    b.set_title("where a tick goes")
+    b.set_title("where a Python tick goes")
     return fig
 
 
@@ -154,14 +192,21 @@ def main(args) -> int:
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
-    t, s = result["tick_us"], result["mj_step_us"]
+    t, s, c = result["tick_us"], result["mj_step_us"], result["compiled"]
     print(f"latency on {result['scene']} ({result['fingers']} fingers, {result['ticks_timed']} ticks timed)")
-    print(f"  {'':22s}{'p50':>9s}{'p99':>9s}{'max':>9s}   (µs)")
-    print(f"  {'softproxy tick':22s}{t['p50']:9.2f}{t['p99']:9.2f}{t['max']:9.2f}")
+    print(f"  {'':22s}{'p50':>9s}{'p99':>9s}{'max':>9s}{'/ mj_step':>11s}   (µs)")
+    print(f"  {'tick, Python':22s}{t['p50']:9.2f}{t['p99']:9.2f}{t['max']:9.2f}{result['ratio_p50']:11.2f}")
+    if "tick_us" in c:
+        ct = c["tick_us"]
+        print(f"  {'tick, compiled':22s}{ct['p50']:9.2f}{ct['p99']:9.2f}{ct['max']:9.2f}{c['ratio_p50']:11.2f}")
+    else:
+        print(f"  tick, compiled: unavailable ({c['unavailable']})")
     print(f"  {'bare mj_step':22s}{s['p50']:9.2f}{s['p99']:9.2f}{s['max']:9.2f}")
-    print(f"  ratio p50 {result['ratio_p50']} (target <= 3, floor <= 5); tick p99 {t['p99']} µs (target < 50)")
-    print(f"  deadline misses paced at {result['rate_hz']:g} Hz: {result['deadline_misses']} of "
-          f"{result['paced_ticks']} ({result['deadline_miss_rate']:.2e}; target < 1e-4)")
-    print("  stages (µs, median): " + ", ".join(f"{k} {v}" for k, v in result["stages_us_p50"].items()))
+    print("  targets: ratio p50 <= 3 (floor <= 5), tick p99 < 50 µs (floor < 100), deadline misses < 1e-4")
+    for name, paced in (("Python", result["paced"]), ("compiled", c.get("paced"))):
+        if paced is not None:
+            print(f"  deadline misses paced at {result['rate_hz']:g} Hz, {name}: {paced['misses']} of "
+                  f"{paced['ticks']} ({paced['miss_rate']:.2e})")
+    print("  Python tick's stages (µs, median): " + ", ".join(f"{k} {v}" for k, v in result["stages_us_p50"].items()))
     print(f"  wrote {json_path} and {png_path}")
     return 0
