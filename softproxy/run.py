@@ -81,12 +81,13 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
-              record: str | None = None) -> dict:
+              record: str | None = None, compiled: bool = False) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
     `on_tick(loop)` after every tick, outside the timed region. `record` saves every device
-    sample to that file (see `softproxy.recording`) once the run is over.
+    sample to that file (see `softproxy.recording`) once the run is over. `compiled` runs
+    the fingers as compiled code (see `build`).
     """
     original = device
     recorder = None
@@ -94,7 +95,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         rate = rate_hz or scene.rate_hz
         planned = duration_s if duration_s is not None else scene.duration_s
         device = recorder = RecordingDevice(device, int(planned * rate) + 2)
-    loop = build(scene, device, rate_hz, finger_model, realtime=realtime)
+    loop = build(scene, device, rate_hz, finger_model, realtime=realtime, compiled=compiled)
     if on_built is not None:
         on_built(loop)
     user_on_tick = on_tick
@@ -129,6 +130,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         "ticks": loop.ticks,
         "duration_s": loop.ticks * loop.period,
         "realtime": realtime,
+        "engine": "compiled" if compiled else "python",
     }
     if measure is not None:
         mujoco_data = loop.world.data

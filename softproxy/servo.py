@@ -181,9 +181,9 @@ class ServoLoop:
         compiled = self.compiled
         self.faults["invalid_sample"] += compiled.run(self.samples, ok, safe, self.audit, dt)
         device = self.device
-        for i, f in enumerate(self.fingers):
+        for (f, _), sent in zip(self._pairs, compiled.sent):
             try:
-                device.send(f.params.device_finger, *compiled.sent(i))
+                device.send(f.params.device_finger, *sent)
             except Exception:
                 self.faults["send_error"] += 1
 

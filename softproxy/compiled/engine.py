@@ -19,11 +19,11 @@ import numpy as np
 from softproxy.compiled import finger as kernel
 from softproxy.compiled.godobject import scratch
 from softproxy.compiled.layout import (
-    D_FX, F_B, F_B_TAU, F_BODY, F_COLUMNS, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K, F_MAX_FORCE,
+    F_B, F_B_TAU, F_BODY, F_COLUMNS, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K, F_MAX_FORCE,
     F_MAX_FORCE_SEEN, F_MAX_SPEED, F_MAX_TORQUE, F_NORMAL_FORCE, F_OX, F_OY, F_OZ, F_PENETRATION_MAX, F_PLACED,
     F_PX, F_PY, F_PZ, F_RAMP, F_SCALE, F_SLIDE_EVENTS, F_SOFT_START, F_SPIKE_RUN, F_SPIKES_REJECTED, F_STWIST,
     F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID, F_WAS_STICKING, F_XD, F_YD, F_ZD, G_BX, G_BY, G_BZ,
-    DEVICE_SEEN, FINGER_SEEN, GOD_SEEN, OUTPUT, TORSION_SEEN,
+    COUNTERS_SEEN, DEVICE_SEEN, GOD_SEEN, IN_X, OUTPUT, OUTPUT_AND_SENT, TORSION_SEEN,
     G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D, G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY, G_NZ, G_PLANES,
     G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING, G_X, G_Y, G_Z, PLANE_WIDTH, T_ALPHA_0, T_ALPHA_G,
     T_ALPHA_P, T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_D, T_MU_PRIME, T_MU_S, T_P_STAR, T_R0, T_RATIO,
@@ -64,26 +64,30 @@ class CompiledFingers:
         # views into mjData, kept (each attribute access builds a new array object)
         self._xpos, self._xmat, self._cvel = d.geom_xpos, d.geom_xmat, d.cvel
         self._xipos, self._xfrc = d.xipos, d.xfrc_applied
-        self._fixed = np.array([int(w) == 0 for w in m.body_weldid], dtype=np.bool_)
         n = len(fingers)
         self.F = np.zeros((n, F_COLUMNS))
         self.near = np.zeros((n, max(len(self.shapes), 1)), dtype=np.int64)
-        self.samples = np.zeros((n, 5))
         self._scratch = scratch()
         self._wrench = np.zeros((m.nbody, 6))
-        self._touched = np.zeros(m.nbody, dtype=np.int64)
-        self._pushed = np.zeros(m.nbody, dtype=np.int64)
+        self._bodies = np.zeros((3, m.nbody), dtype=np.int64)
+        self._bodies[kernel.FIXED] = [int(w) == 0 for w in m.body_weldid]  # welded to the world: never pushed
         self._counts = np.zeros(2, dtype=np.int64)
-        self._device_finger = [f.params.device_finger for f in fingers]
+        # the finger rows as one flat buffer of floats: a sample is written in with plain
+        # item stores (a numpy row assignment costs more than the stores it saves)
+        self._flat = memoryview(self.F).cast("B").cast("d")
+        self._inputs = [(i * F_COLUMNS + IN_X, f.params.device_finger) for i, f in enumerate(fingers)]
+        self.sent: list[list[float]] = [[0.0] * 6 for _ in fingers]
+        """Per finger, what its device finger is sent this tick: force (N) and torque (N·m),
+        clamped to the device, zero when unsafe or invalid."""
         self.pack()
         self._compile()
 
     def _compile(self) -> None:
         """Compile (or load from numba's cache) the tick now, not inside the first tick: one
         call on copies of every array the tick writes."""
-        kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc.copy(), self._fixed,
-                    self.F.copy(), self.near.copy(), self.samples.copy(), 1e-3, False, False, 1.0, 1.0,
-                    scratch(), self._wrench.copy(), self._touched.copy(), self._pushed.copy(), self._counts.copy())
+        kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc.copy(), self.F.copy(),
+                    self.near.copy(), 1e-3, False, False, 1.0, 1.0, scratch(), self._wrench.copy(),
+                    self._bodies.copy(), self._counts.copy())
 
     def pack(self) -> None:
         """Copy every finger's state from its Python objects into the arrays."""
@@ -131,13 +135,15 @@ class CompiledFingers:
 
     def mirror(self) -> None:
         """Write this tick's outputs back into the fingers (force and torque, contact point,
-        touched body, P, valid): what an application embedding the loop reads after a tick."""
-        F = self.F
-        for i, f in enumerate(self.fingers):
+        touched body, P, valid): what an application embedding the loop reads after a tick;
+        and what each device finger is to be sent into `sent`."""
+        sent = self.sent
+        for i, (f, r) in enumerate(zip(self.fingers, self.F[:, OUTPUT_AND_SENT].tolist())):
             (f.fx, f.fy, f.fz, f.torque, f.tx, f.ty, f.tz, f.px, f.py, f.pz, body, f.normal_force,
-             valid) = F[i, OUTPUT].tolist()
+             valid) = r[:13]
             f.body = int(body)
             f.valid = valid != 0.0
+            sent[i] = r[13:]
 
     def sync(self) -> None:
         """Write the whole state back into the fingers' Python objects (proxy, contact,
@@ -163,10 +169,11 @@ class CompiledFingers:
             f.dt, f._ramp = r[F_DT], r[F_RAMP]
             f.xd, f.yd, f.zd = r[DEVICE_SEEN]
             f._sx, f._sy, f._sz, f._stwist = r[F_SX], r[F_SY], r[F_SZ], r[F_STWIST]
-            (f.fx, f.fy, f.fz, f.torque, f.tx, f.ty, f.tz, f.px, f.py, f.pz, body, f.normal_force, valid,
-             f.max_force_seen, f.penetration_max, slides, spikes) = r[FINGER_SEEN]
+            (f.fx, f.fy, f.fz, f.torque, f.tx, f.ty, f.tz, f.px, f.py, f.pz, body, f.normal_force,
+             valid) = r[OUTPUT]
             f.body = int(body)
             f.valid = valid != 0.0
+            f.max_force_seen, f.penetration_max, slides, spikes = r[COUNTERS_SEEN]
             f.slide_events = int(slides)
             f.spikes_rejected = int(spikes)
             f._spike_run, f._was_sticking = int(r[F_SPIKE_RUN]), r[F_WAS_STICKING] != 0.0
@@ -182,33 +189,34 @@ class CompiledFingers:
         """The fingers' part of one tick from this tick's device samples (after mj_step1).
 
         `ok`: the device read succeeded. Returns how many samples were unusable (invalid,
-        not finite, or refused by their finger); the wrenches are in xfrc_applied after."""
-        rows = self.samples
+        not finite, or refused by their finger); the wrenches are in xfrc_applied after,
+        what each device finger is to be sent in `sent`."""
+        flat = self._flat
         unusable = 0
-        for i, j in enumerate(self._device_finger):
+        for k, j in self._inputs:
             s = samples[j]
-            usable = ok and s.valid and s.is_finite()
-            if usable:
-                rows[i, 0], rows[i, 1], rows[i, 2], rows[i, 3], rows[i, 4] = s.x, s.y, s.z, s.twist, 1.0
-            else:
-                rows[i, 4] = 0.0
-                unusable += ok
+            valid = ok and s.valid
+            flat[k] = s.x
+            flat[k + 1] = s.y
+            flat[k + 2] = s.z
+            flat[k + 3] = s.twist
+            flat[k + 4] = s.qw
+            flat[k + 5] = s.qx
+            flat[k + 6] = s.qy
+            flat[k + 7] = s.qz
+            flat[k + 8] = 1.0 if valid else 0.0
+            unusable += ok and not valid
         device = self.device
-        unusable += kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc, self._fixed,
-                                self.F, self.near, rows, dt, safe, audit, float(device.max_force),
-                                float(device.max_torque), self._scratch, self._wrench, self._touched, self._pushed,
-                                self._counts)
+        unusable += kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc, self.F,
+                                self.near, dt, safe, audit, float(device.max_force), float(device.max_torque),
+                                self._scratch, self._wrench, self._bodies, self._counts)
         self.mirror()
         return unusable
-
-    def sent(self, i: int) -> tuple[float, float, float, float, float, float]:
-        """What finger i's device finger is sent this tick (N, N·m), clamped, zero if unsafe."""
-        return tuple(self.F[i, D_FX:D_FX + 6].tolist())
 
     def clear_wrenches(self) -> None:
         """Remove every wrench the fingers put on the bodies (the safe state)."""
         xfrc = self._xfrc
         for j in range(int(self._counts[1])):
-            xfrc[self._pushed[j]] = 0.0
+            xfrc[self._bodies[kernel.PUSHED, j]] = 0.0
         self._wrench[:] = 0.0
         self._counts[:] = 0

@@ -15,7 +15,7 @@ from numba import njit
 
 from softproxy.compiled import godobject
 from softproxy.compiled.layout import (
-    D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ, F_B, F_B_TAU, F_BODY, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K,
+    IN_QW, IN_QX, IN_QY, IN_QZ, IN_TWIST, IN_VALID, IN_X, IN_Y, IN_Z, D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ, F_B, F_B_TAU, F_BODY, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K,
     F_MAX_FORCE, F_MAX_FORCE_SEEN, F_MAX_SPEED, F_MAX_TORQUE, F_NORMAL_FORCE, F_OX, F_OY, F_OZ,
     F_PENETRATION_MAX, F_PLACED, F_PX, F_PY, F_PZ, F_RAMP, F_SCALE, F_SLIDE_EVENTS, F_SOFT_START,
     F_SPIKE_RUN, F_SPIKES_REJECTED, F_STWIST, F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID,
@@ -255,11 +255,16 @@ def audit(S, xpos, xmat, f):
 
 
 # -- the world's wrenches (softproxy.world.World) ---------------------------------------------
+FIXED, TOUCHED, PUSHED = 0, 1, 2
+"""Rows of the `bodies` array: welded to the world (1/0), touched this tick, pushed last tick."""
+
+
 @njit(cache=True)
-def _push(wrench, touched, counts, fixed, body, fx, fy, fz, px, py, pz, tx, ty, tz):
+def _push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
     """`World.push`: force at p plus a pure torque, as a wrench about the world origin."""
-    if fixed[body]:
+    if bodies[FIXED, body]:
         return
+    touched = bodies[TOUCHED]
     seen = False
     for j in range(counts[0]):
         if touched[j] == body:
@@ -278,9 +283,10 @@ def _push(wrench, touched, counts, fixed, body, fx, fy, fz, px, py, pz, tx, ty, 
 
 
 @njit(cache=True)
-def _write_wrenches(xfrc, xipos, wrench, touched, pushed, counts):
+def _write_wrenches(xfrc, xipos, wrench, bodies, counts):
     """The wrench half of `World.end_step`: this tick's wrenches into xfrc_applied, last
     tick's cleared. counts = (touched this tick, pushed last tick)."""
+    touched, pushed = bodies[TOUCHED], bodies[PUSHED]
     for j in range(counts[1]):
         body = pushed[j]
         seen = False
@@ -326,31 +332,34 @@ def _clamp_for_device(f, safe, fmax, tmax):
 
 
 @njit(cache=True)
-def tick(S, xpos, xmat, cvel, xipos, xfrc, fixed, F, near, samples, dt, safe, check, fmax, tmax,
-         scratch, wrench, touched, pushed, counts):
+def tick(S, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies, counts):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2.
 
-    samples: one row per finger (x, y, z, twist, usable); an unusable sample (or a failed
-    read) holds the finger. Writes the fingers' wrenches into xfrc_applied and what each
-    device finger is sent into its D_ columns. Returns how many usable samples the fingers
-    still refused (spikes, garbage positions, a non-finite twist)."""
+    Each finger row holds this tick's device sample in its IN_ columns; a sample not valid
+    (or from a failed read) or not finite holds the finger. Writes the fingers' wrenches into
+    xfrc_applied and what each device finger is sent into its D_ columns. `bodies`: rows
+    FIXED (welded to the world), TOUCHED and PUSHED (body lists, lengths in `counts`).
+    Returns how many valid samples were refused: not finite (`DeviceSample.is_finite`), or
+    refused by their finger (spikes, garbage positions, a non-finite twist)."""
     refused = 0
     for i in range(F.shape[0]):
         f = F[i]
         row = near[i]
-        if samples[i, 4] == 0.0:
+        if f[IN_VALID] == 0.0:
+            hold(S, xpos, xmat, cvel, f, row)
+        elif not _finite(f[IN_X] + f[IN_Y] + f[IN_Z] + f[IN_QW] + f[IN_QX] + f[IN_QY] + f[IN_QZ] + f[IN_TWIST]):
+            refused += 1
             hold(S, xpos, xmat, cvel, f, row)
         else:
-            if not update(S, xpos, xmat, cvel, f, row, samples[i, 0], samples[i, 1], samples[i, 2],
-                          samples[i, 3], dt, scratch):
+            if not update(S, xpos, xmat, cvel, f, row, f[IN_X], f[IN_Y], f[IN_Z], f[IN_TWIST], dt, scratch):
                 refused += 1
             if safe:
                 clear_output(f)
             if f[F_BODY] >= 0.0:
-                _push(wrench, touched, counts, fixed, int(f[F_BODY]), -f[F_FX], -f[F_FY], -f[F_FZ],
+                _push(wrench, bodies, counts, int(f[F_BODY]), -f[F_FX], -f[F_FY], -f[F_FZ],
                       f[F_PX], f[F_PY], f[F_PZ], -f[F_TX], -f[F_TY], -f[F_TZ])
         if check:
             audit(S, xpos, xmat, f)
         _clamp_for_device(f, safe, fmax, tmax)
-    _write_wrenches(xfrc, xipos, wrench, touched, pushed, counts)
+    _write_wrenches(xfrc, xipos, wrench, bodies, counts)
     return refused

@@ -60,30 +60,34 @@ F_PX, F_PY, F_PZ = 68, 69, 70
 F_BODY = 71
 F_NORMAL_FORCE = 72
 F_VALID = 73
-F_MAX_FORCE_SEEN = 74
-F_PENETRATION_MAX = 75
-F_SLIDE_EVENTS = 76
-F_SPIKES_REJECTED = 77
-F_SPIKE_RUN = 78
-F_WAS_STICKING = 79
-F_HAS_TORSION = 80
-# torsion (softproxy.torsion.TorsionalFriction)
-T_IN_CONTACT = 81
-T_ALPHA_0, T_ALPHA_P, T_ALPHA_G = 82, 83, 84
-T_TORQUE, T_LIMIT = 85, 86
-T_SLIPPING = 87
-T_SLIP_EVENTS = 88
-T_K_TAU, T_MU_S, T_MU_D, T_GAMMA = 89, 90, 91, 92
-T_SATURATE, T_RATIO = 93, 94
-T_MU_PRIME, T_R0, T_P_STAR = 95, 96, 97
 # what the device is sent this tick (clamped to the device, zero when not valid or safe)
-D_FINGER = 98
-D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ = 99, 100, 101, 102, 103, 104
-F_COLUMNS = 105
+D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ = 74, 75, 76, 77, 78, 79
+F_MAX_FORCE_SEEN = 80
+F_PENETRATION_MAX = 81
+F_SLIDE_EVENTS = 82
+F_SPIKES_REJECTED = 83
+F_SPIKE_RUN = 84
+F_WAS_STICKING = 85
+F_HAS_TORSION = 86
+# torsion (softproxy.torsion.TorsionalFriction)
+T_IN_CONTACT = 87
+T_ALPHA_0, T_ALPHA_P, T_ALPHA_G = 88, 89, 90
+T_TORQUE, T_LIMIT = 91, 92
+T_SLIPPING = 93
+T_SLIP_EVENTS = 94
+T_K_TAU, T_MU_S, T_MU_D, T_GAMMA = 95, 96, 97, 98
+T_SATURATE, T_RATIO = 99, 100
+T_MU_PRIME, T_R0, T_P_STAR = 101, 102, 103
+# this tick's device sample (DeviceSample's fields), written by the engine before the tick
+IN_X, IN_Y, IN_Z, IN_TWIST = 104, 105, 106, 107
+IN_QW, IN_QX, IN_QY, IN_QZ = 108, 109, 110, 111
+IN_VALID = 112                   # 1.0 when the read succeeded and the device marked it valid
+F_COLUMNS = 113
 
 # runs of columns written back into the Python objects: OUTPUT every tick, the rest by sync
 OUTPUT = slice(F_FX, F_VALID + 1)
+OUTPUT_AND_SENT = slice(F_FX, D_TZ + 1)   # one read for the outputs and what the device is sent
 GOD_SEEN = slice(G_X, G_STICKING + 1)
 DEVICE_SEEN = slice(F_XD, F_ZD + 1)
-FINGER_SEEN = slice(F_FX, F_SPIKES_REJECTED + 1)
+COUNTERS_SEEN = slice(F_MAX_FORCE_SEEN, F_SPIKES_REJECTED + 1)
 TORSION_SEEN = slice(T_IN_CONTACT, T_SLIP_EVENTS + 1)

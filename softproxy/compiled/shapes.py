@@ -174,7 +174,7 @@ def shape_distance(S, xpos, xmat, k, x, y, z):
             return (-radius, r02, r12, r22)
         return (n - radius, dx / n, dy / n, dz / n)
     dx, dy, dz = x - px, y - py, z - pz
-    lx = r00 * dx + (r10 * dy + r20 * dz)
+    lx = r00 * dx + r10 * dy + r20 * dz
     ly = r01 * dx + r11 * dy + r21 * dz
     lz = r02 * dx + r12 * dy + r22 * dz
     if t == GEOM_BOX:
