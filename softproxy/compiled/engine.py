@@ -6,9 +6,11 @@ torsion, wrenches, the device clamp — as compiled code on flat arrays, reading
 straight from MuJoCo. The answers are the Python engine's to the last bit
 (tests/test_compiled.py), so the Python classes stay the reference.
 
-The arrays are the state while a loop runs compiled: after every tick the fingers' Python
-objects are written back (`mirror`), so viewers, recorders, sensors and reports read them
-as before; code that changes a finger by hand (place it, reset it) calls `pack()` after.
+The arrays are the state while a loop runs compiled. After every tick the fingers' outputs
+(force, torque, contact point, body, P, valid) are written back into their Python objects
+(`mirror`); `sync` writes back the rest (proxy, contact, torsion, counters, the solver's
+bookkeeping), which the loop does before sensors, `on_tick` callbacks and `stop`. Code
+that changes a finger by hand (place it, reset it) calls `pack()` after.
 Only worlds of primitive shapes run compiled (meshes stay in Python: `supported`).
 """
 
@@ -19,15 +21,15 @@ import numpy as np
 from softproxy.compiled import finger as kernel
 from softproxy.compiled.godobject import scratch
 from softproxy.compiled.layout import (
-    F_B, F_B_TAU, F_BODY, F_COLUMNS, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K, F_MAX_FORCE,
-    F_MAX_FORCE_SEEN, F_MAX_SPEED, F_MAX_TORQUE, F_NORMAL_FORCE, F_OX, F_OY, F_OZ, F_PENETRATION_MAX, F_PLACED,
-    F_PX, F_PY, F_PZ, F_RAMP, F_SCALE, F_SLIDE_EVENTS, F_SOFT_START, F_SPIKE_RUN, F_SPIKES_REJECTED, F_STWIST,
-    F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID, F_WAS_STICKING, F_XD, F_YD, F_ZD, G_BX, G_BY, G_BZ,
-    COUNTERS_SEEN, DEVICE_SEEN, GOD_SEEN, IN_X, OUTPUT, OUTPUT_AND_SENT, TORSION_SEEN,
-    G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D, G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY, G_NZ, G_PLANES,
-    G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING, G_X, G_Y, G_Z, PLANE_WIDTH, T_ALPHA_0, T_ALPHA_G,
-    T_ALPHA_P, T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_D, T_MU_PRIME, T_MU_S, T_P_STAR, T_R0, T_RATIO,
-    T_SATURATE, T_SLIP_EVENTS, T_SLIPPING, T_TORQUE,
+    COUNTERS_SEEN, DEVICE_SEEN, F_B, F_BODY, F_B_TAU, F_COLUMNS, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K,
+    F_MAX_FORCE, F_MAX_FORCE_SEEN, F_MAX_SPEED, F_MAX_TORQUE, F_NORMAL_FORCE, F_OX, F_OY, F_OZ,
+    F_PENETRATION_MAX, F_PLACED, F_PX, F_PY, F_PZ, F_RAMP, F_SCALE, F_SLIDE_EVENTS, F_SOFT_START,
+    F_SPIKES_REJECTED, F_SPIKE_RUN, F_STWIST, F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID,
+    F_WAS_STICKING, F_XD, F_YD, F_ZD, GOD_SEEN, G_BX, G_BY, G_BZ, G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D,
+    G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY, G_NZ, G_PLANES, G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING,
+    G_X, G_Y, G_Z, IN_X, OUTPUT, OUTPUT_AND_SENT, PLANE_WIDTH, TORSION_SEEN, T_ALPHA_0, T_ALPHA_G, T_ALPHA_P,
+    T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_D, T_MU_PRIME, T_MU_S, T_P_STAR, T_R0, T_RATIO, T_SATURATE,
+    T_SLIPPING, T_SLIP_EVENTS, T_TORQUE,
 )
 from softproxy.compiled.shapes import shape_table
 from softproxy.device import Device

@@ -260,17 +260,21 @@ FIXED, TOUCHED, PUSHED = 0, 1, 2
 
 
 @njit(cache=True)
+def _listed(bodies, n, body):
+    """True when body is among bodies[:n] (`body in list`)."""
+    for j in range(n):
+        if bodies[j] == body:
+            return True
+    return False
+
+
+@njit(cache=True)
 def _push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
     """`World.push`: force at p plus a pure torque, as a wrench about the world origin."""
     if bodies[FIXED, body]:
         return
     touched = bodies[TOUCHED]
-    seen = False
-    for j in range(counts[0]):
-        if touched[j] == body:
-            seen = True
-            break
-    if not seen:
+    if not _listed(touched, counts[0], body):
         touched[counts[0]] = body
         counts[0] += 1
     w = wrench[body]
@@ -289,12 +293,7 @@ def _write_wrenches(xfrc, xipos, wrench, bodies, counts):
     touched, pushed = bodies[TOUCHED], bodies[PUSHED]
     for j in range(counts[1]):
         body = pushed[j]
-        seen = False
-        for q in range(counts[0]):
-            if touched[q] == body:
-                seen = True
-                break
-        if not seen:
+        if not _listed(touched, counts[0], body):
             for k in range(6):
                 xfrc[body, k] = 0.0
     for j in range(counts[0]):
