@@ -147,6 +147,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         sys.stdout.flush()
         if views is not None:
             views.wait_window()
+    except SceneError as exc:  # found while building the loop (e.g. --compiled on a mesh scene)
+        print(f"softproxy run: {exc}", file=sys.stderr)
+        return 2
     except Exception as exc:
         from softproxy.viewer.launch import ViewerUnavailable
 

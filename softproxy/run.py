@@ -59,8 +59,13 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     for params in scene.fingers:
         name = finger_model or params.model
         fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
-    loop = ServoLoop(world, fingers, device, rate_hz or scene.rate_hz,
-                     audit=scene.audit if audit is None else audit, overrun_watchdog=realtime, compiled=compiled)
+    try:
+        loop = ServoLoop(world, fingers, device, rate_hz or scene.rate_hz,
+                         audit=scene.audit if audit is None else audit, overrun_watchdog=realtime, compiled=compiled)
+    except ImportError as exc:  # compiled=True without numba
+        raise SceneError(f"the compiled tick needs numba ({exc}): pip install numba") from None
+    except ValueError as exc:  # e.g. a scene the compiled tick cannot run, with the reason
+        raise SceneError(f"{scene.path}: {exc}") from None
     try:
         attach_sensors(loop, scene.tactile, scene.sensing)
     except ValueError as exc:

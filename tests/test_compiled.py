@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from devices.simulated import SimulatedDevice
+from softproxy.cli import main
 from softproxy.compiled import godobject, layout as L
 from softproxy.compiled.shapes import shape_table
 from softproxy.geometry import shapes_of
@@ -170,11 +171,14 @@ def test_the_compiled_god_object_is_the_python_one(geoms, floor, path, mu, radiu
         assert [shapes[k] for k in near[:int(g[L.G_NNEAR])]] == god.near
 
 
-def test_a_mesh_scene_is_refused_with_the_reason():
-    """Meshes stay in Python: asking for the compiled tick on a mesh scene names the mesh."""
+def test_a_mesh_scene_is_refused_with_the_reason(capsys):
+    """Meshes stay in Python: asking for the compiled tick on a mesh scene is an error naming
+    the scene and the mesh, and `softproxy run --compiled` says so without a traceback."""
     scene = load_scene("mesh_object")
-    with pytest.raises(ValueError, match="compiled.*mesh|mesh.*compiled|MeshShape|mesh"):
+    with pytest.raises(ValueError, match=r"mesh_object.*cannot run compiled.*'bowl' \(MeshShape\)"):
         build(scene, open_device("sim", scene), realtime=False, compiled=True)
+    assert main(["run", "mesh_object", "--headless", "--compiled"]) == 2
+    assert "cannot run compiled" in capsys.readouterr().err
 
 
 def test_stop_clears_the_compiled_wrenches_and_sends_zero():
