@@ -79,14 +79,15 @@ def test_every_primitive_scene_runs_the_same_compiled(scene_name):
 
 
 def test_noise_faults_and_spikes_run_the_same_compiled():
-    """The grasp with a noisy device that drops samples, sends NaN and spikes: the same
-    forces, the same faults counted, the same state; never NaN to the device."""
+    """The grasp with a noisy device that drops samples, sends NaN, spikes and stalls (the
+    read fails): the same forces, the same faults counted, the same state; never NaN to
+    the device."""
     loops, _ = _twins("two_finger_grasp", dict(noise_m=2e-4, noise_rad=0.01, seed=3,
-                                               faults={"nan": 0.02, "drop": 0.02, "spike": 0.02}))
+                                               faults={"nan": 0.02, "drop": 0.02, "spike": 0.02, "stall": 0.005}))
     _assert_same_run(loops, 3000, full_every=25)
     a, b = loops
     assert b.device.injected["nan"] > 0 and b.device.injected["spike"] > 0
-    assert b.faults["invalid_sample"] > 0
+    assert b.faults["invalid_sample"] > 0 and b.faults["device_error"] > 0
     assert b.device.nan_sends == 0
 
 
