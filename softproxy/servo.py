@@ -6,6 +6,11 @@ every finger; -F and -M·n onto the touched bodies; F and M to the device; MuJoC
 half-step. `tick()` can be called from another application's loop (lockstep, no threads);
 `run(..., realtime=True)` paces the ticks itself, sleeping then spinning to hold the period.
 
+`compiled=True` runs every finger's part of the tick as one compiled call
+(`softproxy.compiled`, the same answers to the last bit); the fingers' outputs are written
+back after each tick, the rest by `sync()`, which the loop calls before sensors, `on_tick`
+and `stop()`.
+
 The watchdog answers every fault with zero force for that tick and a count in `faults`:
 a device that raises, a NaN/invalid sample, a tick that overran its period badly (then the
 next tick renders zero). `stop()` (and leaving `run`) sends zero force to every finger.
