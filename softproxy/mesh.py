@@ -601,14 +601,6 @@ class MeshShape(Shape):
             return None
         return np.concatenate(chunks) if len(chunks) > 1 else chunks[0]
 
-    def _region(self, cx: float, cy: float, cz: float, radius: float):
-        """Ids (numpy) of the triangles whose bounding sphere meets the ball of `radius` (m) about c."""
-        ids = self._cells(cx, cy, cz, radius)
-        if ids is None:
-            return np.zeros(0, dtype=np.int64)
-        c = self._centre[ids] - np.array((cx, cy, cz))
-        return ids[np.sqrt(np.einsum("ij,ij->i", c, c)) - self._rhos[ids] <= radius]
-
     # -- certificates kept for the mesh's lifetime ------------------------------------------------
     def prepare(self, radius: float) -> None:
         """Build the kept certificates of every face and vertex (numpy, all at once) for a proxy
