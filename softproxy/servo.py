@@ -186,7 +186,7 @@ class ServoLoop:
         compiled = self.compiled
         self.faults["invalid_sample"] += compiled.run(self.samples, ok, safe, self.audit, dt)
         device = self.device
-        for (f, _), sent in zip(self._pairs, compiled.sent):
+        for f, sent in zip(self.fingers, compiled.sent):
             try:
                 device.send(f.params.device_finger, *sent)
             except Exception:

@@ -11,7 +11,7 @@ The arrays are the state while a loop runs compiled. After every tick the finger
 (`mirror`); `sync` writes back the rest (proxy, contact, torsion, counters, the solver's
 bookkeeping), which the loop does before sensors, `on_tick` callbacks and `stop`. Code
 that changes a finger by hand (place it, reset it) calls `pack()` after.
-Only worlds of primitive shapes run compiled (meshes stay in Python: `supported`).
+Only worlds of primitive shapes run compiled (meshes stay in Python: a mesh is refused).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from softproxy.compiled.layout import (
     F_SPIKES_REJECTED, F_SPIKE_RUN, F_STWIST, F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID,
     F_WAS_STICKING, F_XD, F_YD, F_ZD, GOD_SEEN, G_BX, G_BY, G_BZ, G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D,
     G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY, G_NZ, G_PLANES, G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING,
-    G_X, G_Y, G_Z, IN_X, OUTPUT, OUTPUT_AND_SENT, PLANE_WIDTH, TORSION_SEEN, T_ALPHA_0, T_ALPHA_G, T_ALPHA_P,
+    G_X, G_Y, G_Z, IN_X, OUTPUT_AND_SENT, PLANE_WIDTH, SENT_AT, TORSION_SEEN, T_ALPHA_0, T_ALPHA_G, T_ALPHA_P,
     T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_D, T_MU_PRIME, T_MU_S, T_P_STAR, T_R0, T_RATIO, T_SATURATE,
     T_SLIPPING, T_SLIP_EVENTS, T_TORQUE,
 )
@@ -37,31 +37,24 @@ from softproxy.finger import SoftFingerProxy
 from softproxy.world import World
 
 
-def supported(world: World, fingers: list[SoftFingerProxy]) -> str:
-    """Why these fingers cannot run compiled ('' when they can)."""
-    try:
-        shape_table(world.shapes)
-    except ValueError as exc:
-        return str(exc)
-    for f in fingers:
-        if f.god.shapes is not world.shapes:
-            return f"finger {f.params.name!r} touches shapes of its own, not the world's"
-    return ""
-
-
 class CompiledFingers:
     """The fingers of a `ServoLoop`, run by `run(...)` once per tick (after mj_step1)."""
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device) -> None:
-        why = supported(world, fingers)
-        if why:
-            raise ValueError(f"this scene cannot run compiled: {why}")
+        """ValueError, with the reason, for a world or fingers that cannot run compiled."""
+        try:
+            self.S = shape_table(world.shapes)
+        except ValueError as exc:
+            raise ValueError(f"this scene cannot run compiled: {exc}") from None
+        for f in fingers:
+            if f.god.shapes is not world.shapes:
+                raise ValueError(f"this scene cannot run compiled: finger {f.params.name!r} touches "
+                                 "shapes of its own, not the world's")
         self.world = world
         self.fingers = fingers
         self.device = device
         self.shapes = world.shapes
         self._index = {id(s): k for k, s in enumerate(self.shapes)}
-        self.S = shape_table(self.shapes)
         d, m = world.data, world.model
         # views into mjData, kept (each attribute access builds a new array object)
         self._xpos, self._xmat, self._cvel = d.geom_xpos, d.geom_xmat, d.cvel
@@ -142,15 +135,16 @@ class CompiledFingers:
         sent = self.sent
         for i, (f, r) in enumerate(zip(self.fingers, self.F[:, OUTPUT_AND_SENT].tolist())):
             (f.fx, f.fy, f.fz, f.torque, f.tx, f.ty, f.tz, f.px, f.py, f.pz, body, f.normal_force,
-             valid) = r[:13]
+             valid) = r[:SENT_AT]
             f.body = int(body)
             f.valid = valid != 0.0
-            sent[i] = r[13:]
+            sent[i] = r[SENT_AT:]
 
     def sync(self) -> None:
         """Write the whole state back into the fingers' Python objects (proxy, contact,
         torsion, counters, the solver's bookkeeping) and the shapes' poses: after it every
         attribute reads as after a Python tick, and the Python engine could take over."""
+        self.mirror()
         shapes = self.shapes
         for s in self.world.moving:
             s.refresh()
@@ -171,10 +165,6 @@ class CompiledFingers:
             f.dt, f._ramp = r[F_DT], r[F_RAMP]
             f.xd, f.yd, f.zd = r[DEVICE_SEEN]
             f._sx, f._sy, f._sz, f._stwist = r[F_SX], r[F_SY], r[F_SZ], r[F_STWIST]
-            (f.fx, f.fy, f.fz, f.torque, f.tx, f.ty, f.tz, f.px, f.py, f.pz, body, f.normal_force,
-             valid) = r[OUTPUT]
-            f.body = int(body)
-            f.valid = valid != 0.0
             f.max_force_seen, f.penetration_max, slides, spikes = r[COUNTERS_SEEN]
             f.slide_events = int(slides)
             f.spikes_rejected = int(spikes)

@@ -84,9 +84,9 @@ IN_QW, IN_QX, IN_QY, IN_QZ = 108, 109, 110, 111
 IN_VALID = 112                   # 1.0 when the read succeeded and the device marked it valid
 F_COLUMNS = 113
 
-# runs of columns written back into the Python objects: OUTPUT every tick, the rest by sync
-OUTPUT = slice(F_FX, F_VALID + 1)
-OUTPUT_AND_SENT = slice(F_FX, D_TZ + 1)   # one read for the outputs and what the device is sent
+# runs of columns written back into the Python objects: OUTPUT_AND_SENT every tick, the rest by sync
+OUTPUT_AND_SENT = slice(F_FX, D_TZ + 1)   # one read for the outputs (F_FX..F_VALID) and what is sent
+SENT_AT = D_FX - F_FX                     # where what is sent starts in that run
 GOD_SEEN = slice(G_X, G_STICKING + 1)
 DEVICE_SEEN = slice(F_XD, F_ZD + 1)
 COUNTERS_SEEN = slice(F_MAX_FORCE_SEEN, F_SPIKES_REJECTED + 1)
