@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from devices.simulated import SimulatedDevice
 from softproxy.cli import main
 from softproxy.compiled import godobject, layout as L
 from softproxy.compiled.shapes import shape_table
@@ -34,20 +33,14 @@ def _finger_state(f):
             _god_state(f.god))
 
 
-def _twins(scene_name, device_kwargs=None, ticks=None):
-    """The same scene built twice, driven by identical devices: one loop Python, one compiled."""
+def _twins(scene_name, device_config=None):
+    """The same scene built twice, driven by identical devices (the scene's [device] table
+    with `device_config` merged in): one loop Python, one compiled; and the scene's ticks."""
     scene = load_scene(scene_name)
-    loops = []
-    for compiled in (False, True):
-        if device_kwargs is None:
-            device = open_device("sim", scene)
-        else:
-            cfg = open_device("sim", scene)
-            device = SimulatedDevice([[(t, *p) for t, p in zip(times, poses)]
-                                      for times, poses in zip(cfg._times, cfg._poses)], **device_kwargs)
-        loops.append(build(scene, device, realtime=False, audit=True, compiled=compiled))
-    n = ticks or int(round(scene.duration_s * loops[0].rate_hz))
-    return loops, n
+    scene.device.update(device_config or {})
+    loops = [build(scene, open_device("sim", scene), realtime=False, audit=True, compiled=compiled)
+             for compiled in (False, True)]
+    return loops, int(round(scene.duration_s * loops[0].rate_hz))
 
 
 def _assert_same_run(loops, ticks, full_every=1):
@@ -93,7 +86,7 @@ def test_noise_faults_and_spikes_run_the_same_compiled():
 
 def test_the_watchdog_zero_force_tick_runs_the_same_compiled():
     """A tick after an overrun renders zero force in both engines, the proxy still moving."""
-    loops, _ = _twins("two_finger_grasp", ticks=1)
+    loops, _ = _twins("two_finger_grasp")
     a, b = loops
     for _ in range(800):
         a.tick()
