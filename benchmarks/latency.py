@@ -69,36 +69,12 @@ def _paced(scene, seconds: float, compiled: bool) -> dict:
             "miss_rate": paced.stats.misses / max(paced.ticks, 1), "tick_us": paced.stats.summary_us()}
 
 
-def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "two_finger_grasp",
-            progress=None) -> dict:
-    """Run the benchmark and return the result dict (times in µs).
-
-    The Python tick, the compiled tick (`ServoLoop(compiled=True)`) and a bare `mj_step` are
-    timed in turn, tick by tick, in one process: each ratio compares like with like."""
-    scene = load_scene(scene_name)
-    loop = build(scene, open_device("sim", scene), audit=False, realtime=False)
-    fast, why_not = _compiled_loop(scene)
-    ticks = int(duration_s * loop.rate_hz)
+def _timed_pass(loop, ticks: int, scratch, progress, done: float):
+    """Time `ticks` ticks of `loop`, each followed by a bare mj_step on a copy of its state
+    (into scratch): tick, mj_step, god-object and torsion times (µs, the last two only where
+    the timing subclasses are swapped in). `done`: the progress fraction at the start."""
+    tick_us, step_us, god_us, torsion_us = (np.empty(ticks) for _ in range(4))
     m, d = loop.world.model, loop.world.data
-    scratch = mujoco.MjData(m)
-    warm = min(int(1.0 * loop.rate_hz), ticks // 4)  # squeeze and lift first: time the hold
-    loop.run(warm)
-    loop._started = True
-    if fast is not None:
-        fast.run(warm)
-        fast._started = True
-    for f in loop.fingers:
-        f.god.__class__ = _TimedGodObject
-        if f.torsion is not None:
-            f.torsion.__class__ = _TimedTorsion
-    tick_us = np.empty(ticks)
-    fast_us = np.empty(ticks)
-    step_us = np.empty(ticks)
-    fast_step_us = np.empty(ticks)
-    god_us = np.empty(ticks)
-    torsion_us = np.empty(ticks)
-    # each engine in a pass of its own, each tick followed by a bare mj_step on a copy of its
-    # state: a tick of the other engine in between would evict this one's working set
     for i in range(ticks):
         _TimedGodObject.spent[0] = _TimedTorsion.spent[0] = 0.0
         t0 = _clock()
@@ -111,17 +87,36 @@ def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "tw
         mujoco.mj_step(m, scratch)
         step_us[i] = (_clock() - t0) * 1e6
         if progress is not None and i % 500 == 0:
-            progress(0.5 * i / ticks)
-    for i in range(ticks if fast is not None else 0):
-        t0 = _clock()
-        fast.tick()
-        fast_us[i] = (_clock() - t0) * 1e6
-        mujoco.mj_copyData(scratch, m, fast.world.data)
-        t0 = _clock()
-        mujoco.mj_step(m, scratch)
-        fast_step_us[i] = (_clock() - t0) * 1e6
-        if progress is not None and i % 500 == 0:
-            progress(0.5 + 0.5 * i / ticks)
+            progress(done + 0.5 * i / ticks)
+    return tick_us, step_us, god_us, torsion_us
+
+
+def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "two_finger_grasp",
+            progress=None) -> dict:
+    """Run the benchmark and return the result dict (times in µs).
+
+    The Python tick, then the compiled tick (`ServoLoop(compiled=True)`), each followed by a
+    bare `mj_step` of the same state, in one process: each ratio compares like with like."""
+    scene = load_scene(scene_name)
+    loop = build(scene, open_device("sim", scene), audit=False, realtime=False)
+    fast, why_not = _compiled_loop(scene)
+    ticks = int(duration_s * loop.rate_hz)
+    scratch = mujoco.MjData(loop.world.model)
+    warm = min(int(1.0 * loop.rate_hz), ticks // 4)  # squeeze and lift first: time the hold
+    loop.run(warm)
+    loop._started = True
+    if fast is not None:
+        fast.run(warm)
+        fast._started = True
+    for f in loop.fingers:
+        f.god.__class__ = _TimedGodObject
+        if f.torsion is not None:
+            f.torsion.__class__ = _TimedTorsion
+    # each engine in a pass of its own: a tick of the other engine in between would evict
+    # this one's working set
+    tick_us, step_us, god_us, torsion_us = _timed_pass(loop, ticks, scratch, progress, 0.0)
+    if fast is not None:
+        fast_us, fast_step_us, _, _ = _timed_pass(fast, ticks, scratch, progress, 0.5)
     # stage costs of the device and MuJoCo's two halves, timed alone on the same state
     device, samples = loop.device, loop.samples
     t_dev = np.empty(2000)
