@@ -318,8 +318,7 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=
     # 2. the edges (cylinders of radius r; their ends belong to the vertex balls)
     best = 1.0
     hit = None
-    feature = 1
-    for px, py, pz, ex, ey, ez, length in edges:
+    for feature, (px, py, pz, ex, ey, ez, length) in enumerate(edges, 1):
         wx, wy, wz = ax - px, ay - py, az - pz
         we = wx * ex + wy * ey + wz * ez
         de = dx * ex + dy * ey + dz * ez
@@ -339,7 +338,6 @@ def _sweep_triangle(t, edges, ax, ay, az, dx, dy, dz, r, dd, far2, graze, close=
             if 0.0 <= s <= length:
                 best = lam
                 hit = (wx + lam * dx - s * ex, wy + lam * dy - s * ey, wz + lam * dz - s * ez, feature)
-        feature += 1
     # 3. the vertices (balls of radius r)
     for k in (0, 3, 6):
         wx, wy, wz = ax - t[k], ay - t[k + 1], az - t[k + 2]

@@ -13,10 +13,9 @@ from softproxy.compiled.layout import (
     S_A, S_B, S_BODY, S_C, S_COLUMNS, S_CONVEX, S_FLAT, S_GEOM, S_RBOUND, S_STATIC, S_TYPE,
 )
 from softproxy.compiled.shapes import (
-    shape_distance, shape_on_face, shape_sweep, shape_table, shape_to_local, shape_to_world,
+    shape_distance, shape_on_face, shape_sweep, shape_tables, shape_to_local, shape_to_world,
 )
 from softproxy.geometry import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS, shapes_of
-from softproxy.mesh import MeshShape
 
 PRIMITIVES = [
     'type="sphere" size=".03"',
@@ -48,7 +47,13 @@ def scene():
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     shapes = shapes_of(m, d)
-    return m, d, shapes, shape_table(shapes)
+    S, T, C = shape_tables(shapes)
+    assert T.shape[0] == 0  # primitives only: empty mesh tables
+    return m, d, shapes, S
+
+
+NO_MESH = shape_tables([])[1:]
+"""The (empty) mesh tables T and C every shape query takes along."""
 
 
 def pose(scene, seed):
@@ -113,7 +118,7 @@ def check_distance(scene, k, x, y, z):
     _, d, shapes, S = scene
     x, y, z = float(x), float(y), float(z)
     py = outcome(shapes[k].distance, x, y, z)
-    nb = outcome(shape_distance, S, d.geom_xpos, d.geom_xmat, k, x, y, z)
+    nb = outcome(shape_distance, S, *NO_MESH, d.geom_xpos, d.geom_xmat, k, x, y, z)
     assert nb == py, (shapes[k].name, x, y, z)
 
 
@@ -142,7 +147,7 @@ def check_sweep(scene, k, x0, y0, z0, dx, dy, dz, r):
         py = bits((-1.0, 0.0, 0.0, 0.0) if hit is None else hit)
     except ArithmeticError as e:
         py = type(e)
-    nb = outcome(shape_sweep, S, d.geom_xpos, d.geom_xmat, k, x0, y0, z0, dx, dy, dz, r)
+    nb = outcome(shape_sweep, S, *NO_MESH, d.geom_xpos, d.geom_xmat, k, x0, y0, z0, dx, dy, dz, r)
     assert nb == py, (shapes[k].name, x0, y0, z0, dx, dy, dz, r)
     return hit if not isinstance(py, type) else None
 
@@ -308,7 +313,7 @@ def test_to_local_and_to_world(scene, seed, p):
 
 
 def test_shape_table_columns(scene):
-    """shape_table holds each shape's type, geom, body, flags, bound and sizes."""
+    """shape_tables hold each shape's type, geom, body, flags, bound and sizes."""
     m, _, shapes, S = scene
     assert S.shape == (len(shapes), S_COLUMNS) and S.dtype == np.float64
     kinds = {"PlaneShape": GEOM_PLANE, "SphereShape": GEOM_SPHERE, "CapsuleShape": GEOM_CAPSULE,
@@ -325,15 +330,19 @@ def test_shape_table_columns(scene):
     assert S[:, S_STATIC].sum() == 3 + len(PRIMITIVES)
 
 
-def test_shape_table_rejects_a_mesh():
-    """shape_table refuses a MeshShape with an error naming it."""
-    xml = ('<mujoco><asset><mesh name="tet" vertex="0 0 0  .1 0 0  0 .1 0  0 0 .1"/></asset>'
-           '<worldbody><geom name="floor" type="plane" size="1 1 .1"/>'
-           '<geom name="spiky_tetra" type="mesh" mesh="tet"/></worldbody></mujoco>')
-    m = mujoco.MjModel.from_xml_string(xml)
+def test_shape_tables_reject_a_shape_they_do_not_know():
+    """A Shape subclass (which may answer differently from its compiled twin) is refused
+    with an error naming it; the same world without it packs."""
+    from softproxy.geometry import SphereShape
+
+    class PaddedSphere(SphereShape):
+        pass
+
+    m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom name="floor" type="plane" size="1 1 .1"/>'
+                                       '<geom name="padded" type="sphere" size=".02"/></worldbody></mujoco>')
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    shapes = shapes_of(m, d, mesh_shape=MeshShape)
-    with pytest.raises(ValueError, match="spiky_tetra"):
-        shape_table(shapes)
-    assert shape_table(shapes[:1]).shape == (1, S_COLUMNS)
+    shapes = shapes_of(m, d)
+    with pytest.raises(ValueError, match="'padded' \\(PaddedSphere\\)"):
+        shape_tables(shapes[:1] + [PaddedSphere(m, d, 1, True)])
+    assert shape_tables(shapes)[0].shape == (2, S_COLUMNS)

@@ -15,9 +15,9 @@ from numba import njit
 
 _PACKAGE = Path(__file__).resolve().parent
 SOURCES = sorted(_PACKAGE.glob("*.py")) + [_PACKAGE.parent / f"{name}.py" for name in
-                                           ("geometry", "proxy", "finger", "fingertip")]
+                                           ("geometry", "proxy", "finger", "fingertip", "mesh")]
 """The files the kernels are built from: this package and the modules they import constants from."""
-KERNEL_MODULES = ("shapes", "godobject", "finger", "cache")
+KERNEL_MODULES = ("mesh", "shapes", "godobject", "finger", "cache")
 STAMP = "softproxy-compiled.stamp"
 
 

@@ -11,7 +11,8 @@ The arrays are the state while a loop runs compiled. After every tick the finger
 (`mirror`); `sync` writes back the rest (proxy, contact, torsion, counters, the solver's
 bookkeeping), which the loop does before sensors, `on_tick` callbacks and `stop`. Code
 that changes a finger by hand (place it, reset it) calls `pack()` after.
-Only worlds of primitive shapes run compiled (meshes stay in Python: a mesh is refused).
+Meshes run compiled too (`softproxy.compiled.mesh`), equal to the Python engine's to rounding
+rather than to the bit (where two triangles are equally near, either may answer).
 """
 
 from __future__ import annotations
@@ -19,19 +20,18 @@ from __future__ import annotations
 import numpy as np
 
 from softproxy.compiled import finger as kernel
-from softproxy.compiled.godobject import scratch
+from softproxy.compiled.godobject import pack_god, scratch
 from softproxy.compiled.layout import (
     COUNTERS_SEEN, DEVICE_SEEN, F_B, F_BODY, F_B_TAU, F_COLUMNS, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K,
     F_MAX_FORCE, F_MAX_FORCE_SEEN, F_MAX_SPEED, F_MAX_TORQUE, F_NORMAL_FORCE, F_OX, F_OY, F_OZ,
     F_PENETRATION_MAX, F_PLACED, F_PX, F_PY, F_PZ, F_RAMP, F_SCALE, F_SLIDE_EVENTS, F_SOFT_START,
     F_SPIKES_REJECTED, F_SPIKE_RUN, F_STWIST, F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID,
-    F_WAS_STICKING, F_XD, F_YD, F_ZD, GOD_SEEN, G_BX, G_BY, G_BZ, G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D,
-    G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY, G_NZ, G_PLANES, G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING,
-    G_X, G_Y, G_Z, IN_X, OUTPUT_AND_SENT, PLANE_WIDTH, SENT_AT, TORSION_SEEN, T_ALPHA_0, T_ALPHA_G, T_ALPHA_P,
-    T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_D, T_MU_PRIME, T_MU_S, T_P_STAR, T_R0, T_RATIO, T_SATURATE,
-    T_SLIPPING, T_SLIP_EVENTS, T_TORQUE,
+    F_WAS_STICKING, F_XD, F_YD, F_ZD, GOD_SEEN, G_BX, G_BY, G_BZ, G_LX, G_LY, G_LZ, G_NNEAR, G_NPLANES,
+    G_PLANES, G_ROOM, G_ROUNDING, IN_X, OUTPUT_AND_SENT, PLANE_WIDTH, SENT_AT, TORSION_SEEN, T_ALPHA_0,
+    T_ALPHA_G, T_ALPHA_P, T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_D, T_MU_PRIME, T_MU_S, T_P_STAR, T_R0,
+    T_RATIO, T_SATURATE, T_SLIPPING, T_SLIP_EVENTS, T_TORQUE,
 )
-from softproxy.compiled.shapes import shape_table
+from softproxy.compiled.shapes import shape_tables
 from softproxy.device import Device
 from softproxy.finger import SoftFingerProxy
 from softproxy.world import World
@@ -43,7 +43,7 @@ class CompiledFingers:
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device) -> None:
         """ValueError, with the reason, for a world or fingers that cannot run compiled."""
         try:
-            self.S = shape_table(world.shapes)
+            self.S, self.T, self.C = shape_tables(world.shapes)
         except ValueError as exc:
             raise ValueError(f"this scene cannot run compiled: {exc}") from None
         for f in fingers:
@@ -80,29 +80,16 @@ class CompiledFingers:
     def _compile(self) -> None:
         """Compile (or load from numba's cache) the tick now, not inside the first tick: one
         call on copies of every array the tick writes."""
-        kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc.copy(), self.F.copy(),
-                    self.near.copy(), 1e-3, False, False, 1.0, 1.0, scratch(), self._wrench.copy(),
-                    self._bodies.copy(), self._counts.copy())
+        kernel.tick(self.S.copy(), self.T, self.C.copy(), self._xpos, self._xmat, self._cvel, self._xipos,
+                    self._xfrc.copy(), self.F.copy(), self.near.copy(), 1e-3, False, False, 1.0, 1.0, scratch(),
+                    self._wrench.copy(), self._bodies.copy(), self._counts.copy())
 
     def pack(self) -> None:
         """Copy every finger's state from its Python objects into the arrays."""
         for i, f in enumerate(self.fingers):
             row = self.F[i]
-            god, tors = f.god, f.torsion
-            row[G_X], row[G_Y], row[G_Z] = god.x, god.y, god.z
-            row[G_CONTACT] = god.contact
-            row[G_NX], row[G_NY], row[G_NZ] = god.nx, god.ny, god.nz
-            row[G_SHAPE] = -1 if god.shape is None else self._index[id(god.shape)]
-            row[G_DEPTH], row[G_STICKING] = god.depth, god.sticking
-            row[G_LX], row[G_LY], row[G_LZ] = god.lx, god.ly, god.lz
-            row[G_BX], row[G_BY], row[G_BZ], row[G_ROOM] = god._bx, god._by, god._bz, god._room
-            row[G_ROUNDING] = god._rounding
-            row[G_NPLANES] = len(god.planes)
-            for j, (nx, ny, nz, c, s) in enumerate(god.planes):
-                row[G_PLANES + PLANE_WIDTH * j:G_PLANES + PLANE_WIDTH * (j + 1)] = (nx, ny, nz, c, self._index[id(s)])
-            row[G_RADIUS], row[G_MU_S], row[G_MU_D] = god.radius, god.mu_s, god.mu_d
-            row[G_NNEAR] = len(god.near)
-            self.near[i, :len(god.near)] = [self._index[id(s)] for s in god.near]
+            tors = f.torsion
+            pack_god(f.god, self._index, row, self.near[i])
             row[F_PLACED] = f.placed
             row[F_K], row[F_B], row[F_B_TAU] = f.k, f.b, f.b_tau
             row[F_MAX_FORCE], row[F_MAX_TORQUE] = f.max_force, f.max_torque
@@ -199,9 +186,9 @@ class CompiledFingers:
             flat[k + 8] = 1.0 if valid else 0.0
             unusable += ok and not valid
         device = self.device
-        unusable += kernel.tick(self.S, self._xpos, self._xmat, self._cvel, self._xipos, self._xfrc, self.F,
-                                self.near, dt, safe, audit, float(device.max_force), float(device.max_torque),
-                                self._scratch, self._wrench, self._bodies, self._counts)
+        unusable += kernel.tick(self.S, self.T, self.C, self._xpos, self._xmat, self._cvel, self._xipos,
+                                self._xfrc, self.F, self.near, dt, safe, audit, float(device.max_force),
+                                float(device.max_torque), self._scratch, self._wrench, self._bodies, self._counts)
         self.mirror()
         return unusable
 

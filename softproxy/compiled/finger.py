@@ -120,10 +120,10 @@ def _follow_body(S, cvel, f):
 
 
 @njit(cache=True)
-def place(S, xpos, xmat, f, near, x, y, z):
+def place(S, T, C, xpos, xmat, f, near, x, y, z):
     """`SoftFingerProxy.place`: False (finger left unplaced) outside the workspace."""
     xd, yd, zd = f[F_OX] + f[F_SCALE] * x, f[F_OY] + f[F_SCALE] * y, f[F_OZ] + f[F_SCALE] * z
-    if not godobject.reset(S, xpos, xmat, f, near, xd, yd, zd):
+    if not godobject.reset(S, T, C, xpos, xmat, f, near, xd, yd, zd):
         f[F_PLACED] = 0.0
         return False
     f[F_PLACED] = 1.0
@@ -135,23 +135,23 @@ def place(S, xpos, xmat, f, near, x, y, z):
 
 
 @njit(cache=True)
-def hold(S, xpos, xmat, cvel, f, near):
+def hold(S, T, C, xpos, xmat, cvel, f, near):
     """`SoftFingerProxy.hold`: no usable sample; zero force, the proxy follows its body."""
     if f[F_BODY] >= 0.0:
         _follow_body(S, cvel, f)
     if f[F_PLACED] != 0.0:
-        godobject.follow(S, xpos, xmat, f, near)
+        godobject.follow(S, T, C, xpos, xmat, f, near)
     clear_output(f)
 
 
 @njit(cache=True)
-def update(S, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
+def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     """`SoftFingerProxy.update` from a device sample (device frame, m, rad) over dt (s)."""
     f[F_DT] = dt
     if f[F_BODY] >= 0.0:
         _follow_body(S, cvel, f)
     if f[F_PLACED] == 0.0:
-        ok = place(S, xpos, xmat, f, near, x, y, z) and _finite(twist)
+        ok = place(S, T, C, xpos, xmat, f, near, x, y, z) and _finite(twist)
         clear_output(f)
         return ok
     xd = f[F_OX] + f[F_SCALE] * x
@@ -162,11 +162,11 @@ def update(S, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     if ex * ex + ey * ey + ez * ez > reach * reach and f[F_SPIKE_RUN] < SPIKE_PATIENCE:
         f[F_SPIKE_RUN] += 1.0
         f[F_SPIKES_REJECTED] += 1.0
-        godobject.follow(S, xpos, xmat, f, near)  # _rest: the finger is placed here
+        godobject.follow(S, T, C, xpos, xmat, f, near)  # _rest: the finger is placed here
         clear_output(f)
         return False
     f[F_SPIKE_RUN] = 0.0
-    if not godobject.update(S, xpos, xmat, f, near, xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3]) \
+    if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3]) \
             or not _finite(twist):
         clear_output(f)
         return False
@@ -240,13 +240,13 @@ def update(S, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
 
 
 @njit(cache=True)
-def audit(S, xpos, xmat, f):
+def audit(S, T, C, xpos, xmat, f):
     """`SoftFingerProxy.audit`: deepest the proxy sits inside any shape now (m)."""
     if f[F_PLACED] == 0.0:
         return 0.0
     worst = 0.0
     for s in range(S.shape[0]):
-        inside = f[G_RADIUS] - shape_distance(S, xpos, xmat, s, f[G_X], f[G_Y], f[G_Z])[0]
+        inside = f[G_RADIUS] - shape_distance(S, T, C, xpos, xmat, s, f[G_X], f[G_Y], f[G_Z])[0]
         if inside > worst:
             worst = inside
     if worst > f[F_PENETRATION_MAX]:
@@ -331,7 +331,8 @@ def _clamp_for_device(f, safe, fmax, tmax):
 
 
 @njit(cache=True)
-def tick(S, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies, counts):
+def tick(S, T, C, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies,
+         counts):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2.
 
     Each finger row holds this tick's device sample in its IN_ columns; a sample not valid
@@ -345,12 +346,12 @@ def tick(S, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax, tmax,
         f = F[i]
         row = near[i]
         if f[IN_VALID] == 0.0:
-            hold(S, xpos, xmat, cvel, f, row)
+            hold(S, T, C, xpos, xmat, cvel, f, row)
         elif not _finite(f[IN_X] + f[IN_Y] + f[IN_Z] + f[IN_QW] + f[IN_QX] + f[IN_QY] + f[IN_QZ] + f[IN_TWIST]):
             refused += 1
-            hold(S, xpos, xmat, cvel, f, row)
+            hold(S, T, C, xpos, xmat, cvel, f, row)
         else:
-            if not update(S, xpos, xmat, cvel, f, row, f[IN_X], f[IN_Y], f[IN_Z], f[IN_TWIST], dt, scratch):
+            if not update(S, T, C, xpos, xmat, cvel, f, row, f[IN_X], f[IN_Y], f[IN_Z], f[IN_TWIST], dt, scratch):
                 refused += 1
             if safe:
                 clear_output(f)
@@ -358,7 +359,7 @@ def tick(S, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax, tmax,
                 _push(wrench, bodies, counts, int(f[F_BODY]), -f[F_FX], -f[F_FY], -f[F_FZ],
                       f[F_PX], f[F_PY], f[F_PZ], -f[F_TX], -f[F_TY], -f[F_TZ])
         if check:
-            audit(S, xpos, xmat, f)
+            audit(S, T, C, xpos, xmat, f)
         _clamp_for_device(f, safe, fmax, tmax)
     _write_wrenches(xfrc, xipos, wrench, bodies, counts)
     return refused

@@ -1,15 +1,16 @@
 """The god-object solver of `softproxy.proxy`, compiled: the same steps on a finger's state row.
 
-A numba twin of `GodObject.update` / `follow` / `reset` for worlds of primitive shapes. Each
-function mirrors the Python method of the same name line by line, in the same order of
-floating-point operations, so the two agree to the last bit (tests/test_compiled.py runs
-them side by side). The Python class stays the reference and the documentation: read it
-for the why of every step; comments here only mark where the form differs.
+A numba twin of `GodObject.update` / `follow` / `reset`. Each function mirrors the Python
+method of the same name line by line, in the same order of floating-point operations, so the
+two agree to the last bit on primitives (tests/test_compiled.py runs them side by side) and
+to rounding on meshes (`softproxy.compiled.mesh`). The Python class stays the reference and
+the documentation: read it for the why of every step; comments here only mark where the form
+differs.
 
 State: `g` is the finger's row of the state array (columns in `layout`), `near` its row of
-the broad phase's shape list; shapes are rows of the table `S`, posed by MuJoCo's
-`geom_xpos` / `geom_xmat`. A list of constraint planes is an (n, 5) array of rows
-(nx, ny, nz, c, shape row) plus a count. Units: m.
+the broad phase's shape list; shapes are rows of the table `S` (a mesh's triangles and grid
+in the tables `T` and `C`), posed by MuJoCo's `geom_xpos` / `geom_xmat`. A list of
+constraint planes is an (n, 5) array of rows (nx, ny, nz, c, shape row) plus a count. Units: m.
 """
 
 from __future__ import annotations
@@ -186,7 +187,7 @@ def _on_static_faces(S, xmat, pl, n):
 
 
 @njit(cache=True)
-def gather_ball(S, xpos, xmat, g, near, cx, cy, cz, room):
+def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
     """`GodObject._gather_ball`."""
     g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] = cx, cy, cz, room
     reach = room + g[G_RADIUS]
@@ -207,13 +208,13 @@ def gather_ball(S, xpos, xmat, g, near, cx, cy, cz, room):
 
 
 @njit(cache=True)
-def push_out(S, xpos, xmat, g, near):
+def push_out(S, T, C, xpos, xmat, g, near):
     """`GodObject._push_out`."""
     r = g[G_RADIUS]
     for _ in range(3):
         moved = False
         for j in range(int(g[G_NNEAR])):
-            d, nx, ny, nz = shape_distance(S, xpos, xmat, near[j], g[G_X], g[G_Y], g[G_Z])
+            d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, near[j], g[G_X], g[G_Y], g[G_Z])
             gap = d - r
             if gap < 0.0:
                 push = -gap + CONTACT_TOL
@@ -226,7 +227,7 @@ def push_out(S, xpos, xmat, g, near):
 
 
 @njit(cache=True)
-def reset(S, xpos, xmat, g, near, x, y, z):
+def reset(S, T, C, xpos, xmat, g, near, x, y, z):
     """`GodObject.reset`; False (nothing changed) for a position outside the workspace."""
     if not (-WORKSPACE_LIMIT < x < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < y < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < z < WORKSPACE_LIMIT):
@@ -241,12 +242,12 @@ def reset(S, xpos, xmat, g, near, x, y, z):
     for s in range(S.shape[0]):
         near[s] = s
     g[G_NNEAR] = S.shape[0]
-    push_out(S, xpos, xmat, g, near)
+    push_out(S, T, C, xpos, xmat, g, near)
     return True
 
 
 @njit(cache=True)
-def _settle(S, xpos, xmat, g, near, xd, yd, zd, around_proxy):
+def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
     """`GodObject._settle`: returns the proxy position before the push."""
     shape = int(g[G_SHAPE])
     carrier = -1
@@ -255,27 +256,27 @@ def _settle(S, xpos, xmat, g, near, xd, yd, zd, around_proxy):
         g[G_X], g[G_Y], g[G_Z] = shape_to_world(S, xpos, xmat, shape, g[G_LX], g[G_LY], g[G_LZ])
     x, y, z = g[G_X], g[G_Y], g[G_Z]
     if around_proxy:
-        gather_ball(S, xpos, xmat, g, near, x, y, z, g[G_RADIUS] + 1e-3)
+        gather_ball(S, T, C, xpos, xmat, g, near, x, y, z, g[G_RADIUS] + 1e-3)
     else:
         ex, ey, ez = xd - x, yd - y, zd - z
-        gather_ball(S, xpos, xmat, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
+        gather_ball(S, T, C, xpos, xmat, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
                     0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + g[G_RADIUS] + 1e-3)
     for j in range(int(g[G_NNEAR])):
         s = near[j]
         if s != carrier and (carrier >= 0 or S[s, S_STATIC] == 0.0):
-            push_out(S, xpos, xmat, g, near)
+            push_out(S, T, C, xpos, xmat, g, near)
             break
     return x, y, z
 
 
 @njit(cache=True)
-def follow(S, xpos, xmat, g, near):
+def follow(S, T, C, xpos, xmat, g, near):
     """`GodObject.follow`: no device sample; stay on the body, out of what moved in."""
-    _settle(S, xpos, xmat, g, near, g[G_X], g[G_Y], g[G_Z], True)
+    _settle(S, T, C, xpos, xmat, g, near, g[G_X], g[G_Y], g[G_Z], True)
 
 
 @njit(cache=True)
-def _sweep(S, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
+def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
     """`GodObject._sweep`: (found, lam, nx, ny, nz, shape row) of the earliest hit."""
     r = g[G_RADIUS]
     found = False
@@ -290,7 +291,7 @@ def _sweep(S, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
                     break
             if behind:
                 continue
-        lam, nx, ny, nz = shape_sweep(S, xpos, xmat, s, x, y, z, dx, dy, dz, r)
+        lam, nx, ny, nz = shape_sweep(S, T, C, xpos, xmat, s, x, y, z, dx, dy, dz, r)
         if lam >= 0.0 and lam < best_lam:
             found = True
             best_lam, bnx, bny, bnz, bs = lam, nx, ny, nz, s
@@ -298,20 +299,20 @@ def _sweep(S, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
 
 
 @njit(cache=True)
-def _rests_on(S, xpos, xmat, g, pl, i, x, y, z, on_surface):
+def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
     """`GodObject._rests_on` for plane pl[i]."""
     nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
     if not abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL:
         return False
-    return on_surface or shape_distance(S, xpos, xmat, int(pl[i, 4]), x, y, z)[0] - g[G_RADIUS] <= LIFT_TOL
+    return on_surface or shape_distance(S, T, C, xpos, xmat, int(pl[i, 4]), x, y, z)[0] - g[G_RADIUS] <= LIFT_TOL
 
 
 @njit(cache=True)
-def _keep_resting(S, xpos, xmat, g, resting, nr, pl, n, x, y, z):
+def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
     """`GodObject._keep_resting`: resting[:nr] (self.planes) plus the planes of pl[:n] the
     proxy at p still rests on; the last three become the finger's planes."""
     for i in range(n):
-        if _rests_on(S, xpos, xmat, g, pl, i, x, y, z, False) and \
+        if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, False) and \
                 _plane_of(resting, nr, int(pl[i, 4]), pl[i, 0], pl[i, 1], pl[i, 2]) < 0:
             for k in range(PLANE_WIDTH):
                 resting[nr, k] = pl[i, k]
@@ -320,7 +321,7 @@ def _keep_resting(S, xpos, xmat, g, resting, nr, pl, n, x, y, z):
 
 
 @njit(cache=True)
-def _still_in_corner(S, xpos, xmat, g, xd, yd, zd, pl, n):
+def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
     """`GodObject._still_in_corner`."""
     if not _on_static_faces(S, xmat, pl, n):
         return False
@@ -341,23 +342,23 @@ def _still_in_corner(S, xpos, xmat, g, xd, yd, zd, pl, n):
 
 
 @njit(cache=True)
-def _still_stuck(S, xpos, xmat, g, near, xd, yd, zd, pl):
+def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
     """`GodObject._still_stuck`."""
     n = _load_planes(g, pl)
     if n == 3:
-        return _still_in_corner(S, xpos, xmat, g, xd, yd, zd, pl, n)
+        return _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n)
     shape = int(g[G_SHAPE])
     if n != 1 or S[shape, S_FLAT] == 0.0:
         return False
     x, y, z, r = g[G_X], g[G_Y], g[G_Z], g[G_RADIUS]
-    d, nx, ny, nz = shape_distance(S, xpos, xmat, shape, x, y, z)
+    d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, shape, x, y, z)
     if abs(d - r) > 1e-7:
         return False
     depth = nx * (x - xd) + ny * (y - yd) + nz * (z - zd)
     if depth <= 0.0:
         return False
     fx, fy, fz = xd + depth * nx, yd + depth * ny, zd + depth * nz
-    df, mx, my, mz = shape_distance(S, xpos, xmat, shape, fx, fy, fz)
+    df, mx, my, mz = shape_distance(S, T, C, xpos, xmat, shape, fx, fy, fz)
     if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
         return False
     sx, sy, sz = x - fx, y - fy, z - fz
@@ -365,7 +366,7 @@ def _still_stuck(S, xpos, xmat, g, near, xd, yd, zd, pl):
         return False
     for j in range(int(g[G_NNEAR])):
         s = near[j]
-        if s != shape and shape_sweep(S, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
+        if s != shape and shape_sweep(S, T, C, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
             return False
     p = G_PLANES
     g[p], g[p + 1], g[p + 2], g[p + 3], g[p + 4] = nx, ny, nz, nx * x + ny * y + nz * z, shape
@@ -376,7 +377,7 @@ def _still_stuck(S, xpos, xmat, g, near, xd, yd, zd, pl):
 
 
 @njit(cache=True)
-def _warm_planes(S, xpos, xmat, g, x, y, z, warm):
+def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
     """`GodObject._warm_planes` into warm; returns the count (0: solve cold)."""
     n = int(g[G_NPLANES])
     count = 0
@@ -392,7 +393,7 @@ def _warm_planes(S, xpos, xmat, g, x, y, z, warm):
             continue
         if S[s, S_CONVEX] == 0.0 or g[G_ROUNDING] != 0.0:
             return 0
-        d, nx, ny, nz = shape_distance(S, xpos, xmat, s, x, y, z)
+        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
         if d - g[G_RADIUS] > LIFT_TOL:
             return 0
         if count == 0 or _plane_of(warm, count, s, nx, ny, nz) < 0:
@@ -402,7 +403,7 @@ def _warm_planes(S, xpos, xmat, g, x, y, z, warm):
 
 
 @njit(cache=True)
-def _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
+def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
     """One pass of `GodObject._move`. Returns (restart, x, y, z, hx, hy, hz, straight, n):
     restart when a warm start must be solved again cold (the Python method's recursion);
     otherwise the end point, the first surface point, and the resting planes in pl[:n]."""
@@ -439,9 +440,9 @@ def _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kep
             break
         ex, ey, ez = tx - bx, ty - by, tz - bz
         if ex * ex + ey * ey + ez * ez > room2:
-            gather_ball(S, xpos, xmat, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
+            gather_ball(S, T, C, xpos, xmat, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
             room2 = g[G_ROOM] * g[G_ROOM]
-        hit, lam, nx, ny, nz, s = _sweep(S, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n)
+        hit, lam, nx, ny, nz, s = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n)
         if not hit:
             x, y, z = tx, ty, tz
             if n == 0 or (tx == gx and ty == gy and tz == gz):
@@ -450,7 +451,7 @@ def _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kep
             lifted = False
             for i in range(n):
                 si = int(pl[i, 4])
-                d, mx, my, mz = shape_distance(S, xpos, xmat, si, x, y, z)
+                d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, si, x, y, z)
                 if d - r <= LIFT_TOL:
                     for k in range(PLANE_WIDTH):
                         kept[nk, k] = pl[i, k]
@@ -509,7 +510,7 @@ def _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kep
         tx, ty, tz = qx, qy, qz
     nr = 0
     for i in range(n):
-        if _rests_on(S, xpos, xmat, g, pl, i, x, y, z, on_surfaces):
+        if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surfaces):
             for k in range(PLANE_WIDTH):
                 pl[nr, k] = pl[i, k]
             nr += 1
@@ -521,33 +522,33 @@ def _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kep
 
 
 @njit(cache=True)
-def _move(S, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
+def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
     """`GodObject._move`: (x, y, z, hx, hy, hz, straight, n), resting planes in pl[:n]."""
-    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz,
+    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz,
                                                               warm, nwarm, pl, kept)
     if restart:  # what the warm start assumed no longer holds: solve again from no planes
-        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, xpos, xmat, g, near, x, y, z, gx, gy, gz,
+        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz,
                                                                   warm, 0, pl, kept)
     return ex, ey, ez, hx, hy, hz, straight, n
 
 
 @njit(cache=True)
-def update(S, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
+def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
     """`GodObject.update`: move the proxy toward the device position (m, world).
 
     pl, saved, warm, kept: scratch plane lists of PLANE_ROOM rows. False on garbage input
     (the proxy then only follows its body)."""
     if not (-WORKSPACE_LIMIT < xd < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < yd < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < zd < WORKSPACE_LIMIT):
-        follow(S, xpos, xmat, g, near)
+        follow(S, T, C, xpos, xmat, g, near)
         return False
-    x, y, z = _settle(S, xpos, xmat, g, near, xd, yd, zd, False)
+    x, y, z = _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, False)
     if g[G_STICKING] != 0.0 and g[G_X] == x and g[G_Y] == y and g[G_Z] == z \
-            and _still_stuck(S, xpos, xmat, g, near, xd, yd, zd, pl):
+            and _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
         return True
     x, y, z = g[G_X], g[G_Y], g[G_Z]
-    nwarm = _warm_planes(S, xpos, xmat, g, x, y, z, warm)
-    fx, fy, fz, hx, hy, hz, straight, n = _move(S, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm, pl, kept)
+    nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
+    fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm, pl, kept)
     if n == 0:
         g[G_NPLANES] = 0.0
         g[G_X], g[G_Y], g[G_Z] = fx, fy, fz
@@ -572,7 +573,7 @@ def update(S, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
     if sticking:
         fx, fy, fz = hx, hy, hz
         if slide > 0.0:
-            _keep_resting(S, xpos, xmat, g, saved, 0, pl, n, hx, hy, hz)
+            _keep_resting(S, T, C, xpos, xmat, g, saved, 0, pl, n, hx, hy, hz)
     elif g[G_MU_D] > 0.0 and slide > 0.0:
         back = g[G_MU_D] * depth / slide
         tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
@@ -582,8 +583,8 @@ def update(S, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
             for j in range(n):  # the frictionless solve's planes, kept aside
                 for k in range(PLANE_WIDTH):
                     saved[j, k] = pl[j, k]
-            fx, fy, fz, _, _, _, _, m = _move(S, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept)
-            _keep_resting(S, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
+            fx, fy, fz, _, _, _, _, m = _move(S, T, C, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept)
+            _keep_resting(S, T, C, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
     g[G_X], g[G_Y], g[G_Z] = fx, fy, fz
     g[G_CONTACT] = 1.0
     g[G_NX], g[G_NY], g[G_NZ] = nx, ny, nz
@@ -593,6 +594,25 @@ def update(S, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
     if S[best, S_STATIC] == 0.0:
         g[G_LX], g[G_LY], g[G_LZ] = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
     return True
+
+
+def pack_god(god, index: dict, g: np.ndarray, near: np.ndarray) -> None:
+    """Copy a Python `GodObject`'s state into its finger row g and its broad-phase row near;
+    `index` maps id(shape) to the shape's row of the table."""
+    g[G_X], g[G_Y], g[G_Z] = god.x, god.y, god.z
+    g[G_CONTACT] = god.contact
+    g[G_NX], g[G_NY], g[G_NZ] = god.nx, god.ny, god.nz
+    g[G_SHAPE] = -1 if god.shape is None else index[id(god.shape)]
+    g[G_DEPTH], g[G_STICKING] = god.depth, god.sticking
+    g[G_LX], g[G_LY], g[G_LZ] = god.lx, god.ly, god.lz
+    g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] = god._bx, god._by, god._bz, god._room
+    g[G_ROUNDING] = god._rounding
+    g[G_NPLANES] = len(god.planes)
+    for j, (nx, ny, nz, c, s) in enumerate(god.planes):
+        g[G_PLANES + PLANE_WIDTH * j:G_PLANES + PLANE_WIDTH * (j + 1)] = (nx, ny, nz, c, index[id(s)])
+    g[G_RADIUS], g[G_MU_S], g[G_MU_D] = god.radius, god.mu_s, god.mu_d
+    g[G_NNEAR] = len(god.near)
+    near[:len(god.near)] = [index[id(s)] for s in god.near]
 
 
 def scratch() -> np.ndarray:

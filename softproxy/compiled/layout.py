@@ -8,17 +8,30 @@ its `GodObject` and its `TorsionalFriction`. Poses are read straight from MuJoCo
 """
 
 # -- shape table: one row per Shape, in the order of World.shapes -------------------------
-S_TYPE = 0       # MuJoCo geom type (mjtGeom): plane 0, sphere 2, capsule 3, ellipsoid 4, cylinder 5, box 6
+S_TYPE = 0       # MuJoCo geom type (mjtGeom): plane 0, sphere 2, capsule 3, ellipsoid 4, cylinder 5, box 6, mesh 7
 S_GEOM = 1       # geom id (row of geom_xpos / geom_xmat)
 S_BODY = 2       # body id
 S_STATIC = 3     # 1.0 when the shape never moves
-S_CONVEX = 4     # 1.0 (every primitive)
+S_CONVEX = 4     # 1.0 for every primitive, 0.0 for a mesh
 S_FLAT = 5       # 1.0 for plane and box
 S_RBOUND = 6     # bounding radius (m), inf for a plane
 S_A = 7          # sphere/capsule/cylinder radius, box hx, ellipsoid a (m)
 S_B = 8          # capsule/cylinder half-length, box hy, ellipsoid b (m)
 S_C = 9          # box hz, ellipsoid c (m)
-S_COLUMNS = 10
+# a mesh's row: where its triangles and its grid live in the mesh tables T and C
+# (`softproxy.compiled.mesh`), the grid in the geom frame; then what its queries keep
+S_T0 = 10        # its first row of T
+S_NT = 11        # its number of triangles
+S_CELLS = 12     # where its grid's cell starts begin in C (ncells + 1 entries)
+S_LOX, S_LOY, S_LOZ = 13, 14, 15   # the grid's lower corner (m, geom frame)
+S_H = 16         # cell size (m)
+S_DIMX, S_DIMY, S_DIMZ = 17, 18, 19   # cells per axis
+S_SIGNED = 20    # 1.0 for a watertight mesh (signed distance), 0.0 for an open one (unsigned)
+S_SHADING = 21   # 1.0 for force shading (interpolated vertex normals)
+S_HINT = 22      # row of T nearest the last distance query or touched last, -1 for none
+S_KEY = 23       # the last two distance queries kept, newest first, KEPT_WIDTH columns each (23..36):
+KEPT_WIDTH = 7   # the point (geom frame, m; NaN for none), signed distance (m), outward normal (geom frame)
+S_COLUMNS = S_KEY + 2 * KEPT_WIDTH
 
 GEOM_PLANE = 0
 GEOM_SPHERE = 2
@@ -26,6 +39,29 @@ GEOM_CAPSULE = 3
 GEOM_ELLIPSOID = 4
 GEOM_CYLINDER = 5
 GEOM_BOX = 6
+GEOM_MESH = 7
+
+# -- mesh triangle table T: one row per triangle, geom frame (softproxy.compiled.mesh) -------
+# the first 22 columns are `softproxy.mesh`'s triangle tuple: A, B, C, AB, AC, unit normal N,
+# AB·AB, AB·AC, AC·AC, 1 / (AB·AB AC·AC - (AB·AC)²)
+T_A, T_B, T_C, T_AB, T_AC, T_N = 0, 3, 6, 9, 12, 15
+T_AA, T_ABAC, T_CC, T_INV = 18, 19, 20, 21
+T_OFF = 22       # the plane's offset N·A (m)
+T_EDGES = 23     # edges AB, BC, CA: 3 × (start, unit direction, length), columns 23..43
+EDGE_WIDTH = 7
+T_PSEUDO = 44    # pseudo-normals of the features: face, edges AB BC CA, vertices A B C (3 each), 44..64
+T_VN = 65        # vertex normals at A, B, C for force shading, 65..73
+T_COLUMNS = 74
+
+# -- mesh grids C: one float64 array (indices stored as floats, exact below 2**53) ----------
+C_STAMP = 0
+"""C[0]: the number of the last scan; C[1 + row of T]: the scan that last read that triangle
+(a triangle is listed in every cell its bounding box overlaps, and read once per scan).
+Then per mesh its cell starts (where each cell's records begin in C, ncells + 1 of them) and
+its cells' records, RECORD_WIDTH floats each: the triangle's plane (nx, ny, nz, offset), its
+bounding ball (centre, radius; m) and its row of T, so that a scan reads a cell's bounds in
+one sequential pass and opens only the triangles they cannot rule out."""
+RECORD_WIDTH = 9
 
 # -- finger state: one row per finger -------------------------------------------------------
 # god-object (softproxy.proxy.GodObject)

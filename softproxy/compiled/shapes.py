@@ -1,10 +1,12 @@
-"""Numba twins of `softproxy.geometry`'s primitive shapes, for the compiled god-object.
+"""Numba twins of `softproxy.geometry`'s shapes, for the compiled god-object.
 
 Each function answers one `Shape` query (distance, sweep, on_face, to_local) for row k of a
-flat shape table (`shape_table`, columns in `softproxy.compiled.layout`) with the pose read
-straight from MuJoCo's `geom_xpos` / `geom_xmat`. Every function repeats the floating-point
-operations of the Python method in the same order, so the results are bit-identical; this is
-checked by tests/test_compiled_shapes.py. Change both sides together.
+flat shape table (`shape_tables`, columns in `softproxy.compiled.layout`) with the pose read
+straight from MuJoCo's `geom_xpos` / `geom_xmat`. On the primitives every function repeats
+the floating-point operations of the Python method in the same order, so the results are
+bit-identical; this is checked by tests/test_compiled_shapes.py. Change both sides together.
+Meshes are answered by `softproxy.compiled.mesh` from the mesh tables T and C (empty in a
+world without meshes), which every query takes along.
 
 Note: numba freezes the module-level constants (CONTACT_TOL, GRAZE, …) into its on-disk cache,
 which is keyed on this file only: after changing them in `softproxy.geometry`, touch this file
@@ -19,9 +21,11 @@ from numba import njit
 from softproxy import geometry
 from softproxy.geometry import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
 from softproxy.compiled.layout import (
-    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_PLANE, GEOM_SPHERE,
+    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE,
     S_A, S_B, S_BODY, S_C, S_COLUMNS, S_CONVEX, S_FLAT, S_GEOM, S_RBOUND, S_STATIC, S_TYPE,
 )
+from softproxy.compiled.mesh import mesh_distance, mesh_sweep, mesh_tables
+from softproxy.mesh import MeshShape
 
 # exact classes only: a subclass may answer differently from its compiled twin
 _TYPES = {
@@ -31,17 +35,19 @@ _TYPES = {
     geometry.EllipsoidShape: GEOM_ELLIPSOID,
     geometry.CylinderShape: GEOM_CYLINDER,
     geometry.BoxShape: GEOM_BOX,
+    MeshShape: GEOM_MESH,
 }
 
 
-def shape_table(shapes) -> np.ndarray:
-    """The shape table (nshapes × S_COLUMNS, float64) of a list of `softproxy.geometry` primitives."""
+def shape_tables(shapes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shape table S (nshapes × S_COLUMNS, float64) of a list of `softproxy.geometry`
+    shapes, and the mesh tables (T, C) its meshes' rows point into."""
     S = np.zeros((len(shapes), S_COLUMNS), dtype=np.float64)
     for k, s in enumerate(shapes):
         gtype = _TYPES.get(type(s))
         if gtype is None:
-            raise ValueError(f"shape {getattr(s, 'name', k)!r} ({type(s).__name__}) is not a primitive "
-                             "the compiled engine supports (plane, sphere, capsule, ellipsoid, cylinder, box)")
+            raise ValueError(f"shape {getattr(s, 'name', k)!r} ({type(s).__name__}) is not a shape the compiled "
+                             "engine supports (plane, sphere, capsule, ellipsoid, cylinder, box, mesh)")
         S[k, S_TYPE] = gtype
         S[k, S_GEOM] = s.geom
         S[k, S_BODY] = s.body
@@ -57,7 +63,8 @@ def shape_table(shapes) -> np.ndarray:
             S[k, S_A], S[k, S_B], S[k, S_C] = s.hx, s.hy, s.hz
         elif gtype == GEOM_ELLIPSOID:
             S[k, S_A], S[k, S_B], S[k, S_C] = s.a, s.b, s.c
-    return S
+    T, C = mesh_tables(shapes, S)
+    return S, T, C
 
 
 @njit(cache=True)
@@ -156,9 +163,11 @@ def _ellipsoid_local(a, b, c, x, y, z):
 
 
 @njit(cache=True)
-def shape_distance(S, xpos, xmat, k, x, y, z):
+def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside) from shape k and outward unit normal, world frame."""
     t = int(S[k, S_TYPE])
+    if t == GEOM_MESH:
+        return mesh_distance(S, T, C, xpos, xmat, k, x, y, z)
     g = int(S[k, S_GEOM])
     px, py, pz = xpos[g, 0], xpos[g, 1], xpos[g, 2]
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
@@ -210,10 +219,13 @@ def shape_distance(S, xpos, xmat, k, x, y, z):
 
 
 @njit(cache=True)
-def shape_sweep(S, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
+def shape_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by (dx, dy, dz) (m) into shape k; (-1.0, 0.0, 0.0, 0.0) when it touches nothing."""
-    if int(S[k, S_TYPE]) == GEOM_PLANE:
+    t = int(S[k, S_TYPE])
+    if t == GEOM_MESH:
+        return mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r)
+    if t == GEOM_PLANE:
         g = int(S[k, S_GEOM])
         nx, ny, nz = xmat[g, 2], xmat[g, 5], xmat[g, 8]
         gap = nx * (x0 - xpos[g, 0]) + ny * (y0 - xpos[g, 1]) + nz * (z0 - xpos[g, 2]) - r
@@ -233,7 +245,7 @@ def shape_sweep(S, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     lam = 0.0
     nx, ny, nz = 0.0, 0.0, 0.0
     for _ in range(MAX_ADVANCE_STEPS):
-        d, nx, ny, nz = shape_distance(S, xpos, xmat, k, x0 + lam * dx, y0 + lam * dy, z0 + lam * dz)
+        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, k, x0 + lam * dx, y0 + lam * dy, z0 + lam * dz)
         approach = -(nx * dx + ny * dy + nz * dz)
         if approach <= graze:
             return (-1.0, 0.0, 0.0, 0.0)
@@ -248,7 +260,8 @@ def shape_sweep(S, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
 
 @njit(cache=True)
 def shape_on_face(S, xmat, k, nx, ny, nz):
-    """True when world normal n lies on a planar face of shape k (plane always, box faces)."""
+    """True when world normal n lies on a planar face of shape k (plane always, box faces;
+    never on a mesh: see `softproxy.compiled.mesh`)."""
     t = int(S[k, S_TYPE])
     if t == GEOM_PLANE:
         return True

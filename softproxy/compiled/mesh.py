@@ -1,0 +1,583 @@
+"""Triangle-mesh contact for the compiled god-object: `softproxy.mesh`'s queries on flat arrays.
+
+`MeshShape` answers the god-object's queries on a mesh's own triangles in scalar Python, and
+spends most of its code on not reading triangles (certificates, walks, kept answers), because
+each read costs ~1 µs there. Compiled, a read costs ~10 ns, so this twin keeps only the
+geometry and a plain spatial grid:
+
+- `mesh_tables` packs every mesh of a world into two arrays: T, one row per triangle (its
+  vertices, edges, plane, the pseudo-normals of its features and its vertex normals, geom
+  frame; columns in `layout`), and C, the grid: per mesh, a uniform grid over its bounding
+  box, each triangle listed in every cell its bounding box overlaps.
+- `mesh_distance`: the exact nearest triangle, found in the cells within a cube about the
+  point: a cube of half-width R holds every triangle nearer than R. R starts at the distance
+  to the triangle nearest the last query (the hint), so one pass usually does; signed by the
+  angle-weighted pseudo-normal of the nearest feature on a watertight mesh, unsigned on an
+  open one, as in `softproxy.mesh`.
+- `mesh_sweep`: the earliest touch of a sphere (radius r) moving on a segment, over the
+  triangles in the cells the segment's box (grown by r) overlaps, each triangle inflated by r
+  (convex), exactly `softproxy.mesh._sweep_triangle`.
+
+The per-triangle routines (`_closest`, `_sweep_triangle`, `_shade`) repeat `softproxy.mesh`'s
+operations in the same order. Which triangle answers may differ where two are equally near
+(a shared edge or vertex), so the two engines agree to rounding on a mesh, not to the bit
+(tests/test_compiled_mesh.py). Not ported: `MeshShape.on_face` (a proxy held on a mesh face is
+solved again from no planes each tick, never warm-started: the same answer, one sweep more).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from softproxy.compiled.layout import (
+    C_STAMP, EDGE_WIDTH, KEPT_WIDTH, RECORD_WIDTH, S_CELLS, S_DIMX, S_DIMY, S_DIMZ, S_GEOM, S_H, S_HINT, S_KEY,
+    S_LOX, S_LOY, S_LOZ, S_NT, S_SHADING, S_SIGNED, S_T0, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_VN,
+)
+from softproxy.geometry import CONTACT_TOL, GRAZE
+from softproxy.mesh import POINT_RADIUS
+
+GRID_CELLS = 48
+"""Most grid cells per axis of a mesh's grid."""
+CELL_EDGES = 2.0
+"""A grid cell is this many mean edge lengths wide (a 5 mm proxy on a 10k-triangle, 10 cm
+sphere reads ~30-60 cells and ~100 triangles a query)."""
+
+
+# ---------------------------------------------------------------------------------------
+# Packing (numpy, at load)
+# ---------------------------------------------------------------------------------------
+
+def _grid(tri: np.ndarray, lengths: np.ndarray):
+    """A uniform grid over triangles (n, 3 vertices, 3): (lower corner, cell size, dims,
+    cell starts, triangle of each record), each triangle listed in every cell its box overlaps."""
+    tlo, thi = tri.min(axis=1), tri.max(axis=1)
+    lo, hi = tlo.min(axis=0), thi.max(axis=0)
+    h = max(CELL_EDGES * float(lengths.mean()), float((hi - lo).max()) / GRID_CELLS, 1e-9)
+    dims = np.minimum(np.floor((hi - lo) / h).astype(np.int64) + 1, GRID_CELLS)
+
+    def cell(p):
+        return np.clip(np.floor((p - lo) / h).astype(np.int64), 0, dims - 1)
+
+    ilo, ihi = cell(tlo), cell(thi)
+    span = ihi - ilo + 1
+    count = span.prod(axis=1)
+    tid = np.repeat(np.arange(len(tri)), count)
+    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    sy, sz = span[tid, 1], span[tid, 2]
+    ix = ilo[tid, 0] + local // (sy * sz)
+    iy = ilo[tid, 1] + (local // sz) % sy
+    iz = ilo[tid, 2] + local % sz
+    key = (ix * dims[1] + iy) * dims[2] + iz
+    order = np.argsort(key, kind="stable")
+    starts = np.searchsorted(key[order], np.arange(int(dims.prod()) + 1))
+    return lo, h, dims, starts, tid[order]
+
+
+def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
+    rows of the shape table S filled in (where their triangles and grid live). A world with
+    no mesh gets empty tables (the kernels' types stay the same)."""
+    from softproxy.mesh import MeshShape
+    meshes = [(k, s) for k, s in enumerate(shapes) if isinstance(s, MeshShape)]
+    ntri = sum(s.triangles for _, s in meshes)
+    rows, grids = [], []
+    t0 = 0
+    c0 = 1 + ntri  # C[0] is the scan counter, then one stamp per triangle, then the grids
+    for k, s in meshes:
+        t = np.array(s._tri)                                     # (n, 22)
+        edges = np.array(s._edges).reshape(len(t), 3 * EDGE_WIDTH)
+        pseudo = np.array(s._pn).reshape(len(t), 21)
+        planes = np.array(s._plane)                              # (n, 4): normal, offset
+        rows.append(np.column_stack([t, planes[:, 3], edges, pseudo, np.array(s._vn)]))
+        lo, h, dims, starts, tid = _grid(t[:, :9].reshape(-1, 3, 3), edges[:, [6, 13, 20]])
+        corners = t[:, :9].reshape(-1, 3, 3)
+        centre = corners.mean(axis=1)
+        rho = np.sqrt(((corners - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1) * (1.0 + 1e-12) + 1e-15
+        records = np.column_stack([planes[tid], centre[tid], rho[tid], tid + t0])
+        first = c0 + len(starts)  # where this mesh's records begin in C
+        S[k, S_T0], S[k, S_NT], S[k, S_CELLS] = t0, len(t), c0
+        S[k, S_LOX], S[k, S_LOY], S[k, S_LOZ] = lo
+        S[k, S_H] = h
+        S[k, S_DIMX], S[k, S_DIMY], S[k, S_DIMZ] = dims
+        S[k, S_SIGNED] = 1.0 if s.signed else 0.0
+        S[k, S_SHADING] = 1.0 if s.shading else 0.0
+        S[k, S_HINT] = -1.0
+        S[k, S_KEY:S_KEY + 3] = S[k, S_KEY + KEPT_WIDTH:S_KEY + KEPT_WIDTH + 3] = math.nan  # none kept
+        grids += [first + RECORD_WIDTH * starts, records.ravel()]
+        c0 = first + records.size
+        t0 += len(t)
+    T = np.concatenate(rows) if rows else np.zeros((0, T_COLUMNS))
+    assert T.shape[1] == T_COLUMNS
+    C = np.concatenate([np.zeros(1 + ntri)] + [g.astype(np.float64) for g in grids])
+    assert len(C) < 2 ** 53
+    return np.ascontiguousarray(T), C
+
+
+# ---------------------------------------------------------------------------------------
+# One triangle (softproxy.mesh's routines, same operations)
+# ---------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _closest(T, i, px, py, pz):
+    """`mesh._closest`: (squared distance, qx, qy, qz, feature) of triangle row i to p."""
+    t = T[i]
+    ax, ay, az, bx, by, bz, cx, cy, cz = t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8]
+    ux, uy, uz, vx, vy, vz, nx, ny, nz = t[9], t[10], t[11], t[12], t[13], t[14], t[15], t[16], t[17]
+    aa, ab, cc = t[18], t[19], t[20]
+    wx, wy, wz = px - ax, py - ay, pz - az
+    d1 = ux * wx + uy * wy + uz * wz
+    d2 = vx * wx + vy * wy + vz * wz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return (wx * wx + wy * wy + wz * wz, ax, ay, az, 4)
+    d3 = d1 - aa
+    d4 = d2 - ab
+    if d3 >= 0.0 and d4 <= d3:
+        ex, ey, ez = px - bx, py - by, pz - bz
+        return (ex * ex + ey * ey + ez * ez, bx, by, bz, 5)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        s = d1 / aa
+        qx, qy, qz = ax + s * ux, ay + s * uy, az + s * uz
+        ex, ey, ez = px - qx, py - qy, pz - qz
+        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 1)
+    d5 = d1 - ab
+    d6 = d2 - cc
+    if d6 >= 0.0 and d5 <= d6:
+        ex, ey, ez = px - cx, py - cy, pz - cz
+        return (ex * ex + ey * ey + ez * ez, cx, cy, cz, 6)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        s = d2 / cc
+        qx, qy, qz = ax + s * vx, ay + s * vy, az + s * vz
+        ex, ey, ez = px - qx, py - qy, pz - qz
+        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 3)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 >= d3 and d5 >= d6:
+        s = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        qx, qy, qz = bx + s * (cx - bx), by + s * (cy - by), bz + s * (cz - bz)
+        ex, ey, ez = px - qx, py - qy, pz - qz
+        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 2)
+    h = nx * wx + ny * wy + nz * wz
+    return (h * h, px - h * nx, py - h * ny, pz - h * nz, 0)
+
+
+@njit(cache=True)
+def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
+    """`mesh._sweep_triangle`: (lam, nx, ny, nz, feature) of the first touch of a sphere
+    (radius r) from a moving by d into triangle row i, geom frame; lam -1.0 when none."""
+    t = T[i]
+    nx, ny, nz = t[T_N], t[T_N + 1], t[T_N + 2]
+    h0 = nx * (ax - t[0]) + ny * (ay - t[1]) + nz * (az - t[2])
+    hd = nx * dx + ny * dy + nz * dz
+    h1 = h0 + hd
+    reach = r + CONTACT_TOL
+    if (h0 > reach and h1 > reach) or (h0 < -reach and h1 < -reach):
+        return (-1.0, 0.0, 0.0, 0.0, 0)
+    d2, qx, qy, qz, feature = _closest(T, i, ax, ay, az)
+    if d2 > far2:
+        return (-1.0, 0.0, 0.0, 0.0, 0)
+    if d2 <= reach * reach:
+        dist = math.sqrt(d2)
+        if dist > 1e-12:
+            mx, my, mz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
+        elif hd != 0.0:
+            s = -1.0 if hd > 0.0 else 1.0
+            mx, my, mz = s * nx, s * ny, s * nz
+        else:
+            return (-1.0, 0.0, 0.0, 0.0, 0)
+        if mx * dx + my * dy + mz * dz < -graze:
+            return (0.0, mx, my, mz, feature)
+        return (-1.0, 0.0, 0.0, 0.0, 0)
+    # 1. the face's slab
+    if h0 > r or h0 < -r:
+        s = 1.0 if h0 > 0.0 else -1.0
+        rate = s * hd
+        if rate >= -graze:
+            return (-1.0, 0.0, 0.0, 0.0, 0)
+        lam = (s * h0 - r) / -rate
+        if lam >= 1.0:
+            return (-1.0, 0.0, 0.0, 0.0, 0)
+        wx = ax + lam * dx - s * r * nx - t[0]
+        wy = ay + lam * dy - s * r * ny - t[1]
+        wz = az + lam * dz - s * r * nz - t[2]
+        d1 = t[9] * wx + t[10] * wy + t[11] * wz
+        e2 = t[12] * wx + t[13] * wy + t[14] * wz
+        inv = t[21]
+        v = (t[20] * d1 - t[19] * e2) * inv
+        w = (t[18] * e2 - t[19] * d1) * inv
+        if v >= 0.0 and w >= 0.0 and v + w <= 1.0:
+            return (lam, s * nx, s * ny, s * nz, 0)
+    # 2. the edges (cylinders of radius r)
+    best = 1.0
+    found = False
+    mx = my = mz = 0.0
+    feature = 1
+    for e in range(3):
+        c = T_EDGES + EDGE_WIDTH * e
+        px, py, pz, ex, ey, ez, length = t[c], t[c + 1], t[c + 2], t[c + 3], t[c + 4], t[c + 5], t[c + 6]
+        wx, wy, wz = ax - px, ay - py, az - pz
+        we = wx * ex + wy * ey + wz * ez
+        de = dx * ex + dy * ey + dz * ez
+        qa = dd - de * de
+        qb = wx * dx + wy * dy + wz * dz - we * de
+        if qa <= 0.0 or qb >= 0.0:
+            continue
+        qc = wx * wx + wy * wy + wz * wz - we * we - r * r
+        if qc <= 0.0:
+            continue
+        disc = qb * qb - qa * qc
+        if disc <= 0.0:
+            continue
+        lam = (-qb - math.sqrt(disc)) / qa
+        if lam < best:
+            s = we + lam * de
+            if 0.0 <= s <= length:
+                best = lam
+                found = True
+                mx, my, mz = wx + lam * dx - s * ex, wy + lam * dy - s * ey, wz + lam * dz - s * ez
+                feature = 1 + e
+    # 3. the vertices (balls of radius r)
+    for k in range(3):
+        wx, wy, wz = ax - t[3 * k], ay - t[3 * k + 1], az - t[3 * k + 2]
+        qb = wx * dx + wy * dy + wz * dz
+        if qb >= 0.0:
+            continue
+        qc = wx * wx + wy * wy + wz * wz - r * r
+        disc = qb * qb - dd * qc
+        if disc <= 0.0:
+            continue
+        lam = (-qb - math.sqrt(disc)) / dd
+        if lam < best:
+            best = lam
+            found = True
+            mx, my, mz = wx + lam * dx, wy + lam * dy, wz + lam * dz
+            feature = 4 + k
+    if not found:
+        return (-1.0, 0.0, 0.0, 0.0, 0)
+    n = math.sqrt(mx * mx + my * my + mz * mz)
+    mx, my, mz = mx / n, my / n, mz / n
+    if mx * dx + my * dy + mz * dz >= -graze:
+        return (-1.0, 0.0, 0.0, 0.0, 0)
+    return (best if best > 0.0 else 0.0, mx, my, mz, feature)
+
+
+@njit(cache=True)
+def _shade(T, i, qx, qy, qz, nx, ny, nz):
+    """`MeshShape._shade`: the vertex normals of triangle row i interpolated at q, on n's side."""
+    t = T[i]
+    wx, wy, wz = qx - t[0], qy - t[1], qz - t[2]
+    d1 = t[9] * wx + t[10] * wy + t[11] * wz
+    d2 = t[12] * wx + t[13] * wy + t[14] * wz
+    v = (t[20] * d1 - t[19] * d2) * t[21]
+    w = (t[18] * d2 - t[19] * d1) * t[21]
+    v = 0.0 if v < 0.0 else 1.0 if v > 1.0 else v
+    w = 0.0 if w < 0.0 else 1.0 - v if w > 1.0 - v else w
+    u = 1.0 - v - w
+    a = T_VN
+    sx = u * t[a] + v * t[a + 3] + w * t[a + 6]
+    sy = u * t[a + 1] + v * t[a + 4] + w * t[a + 7]
+    sz = u * t[a + 2] + v * t[a + 5] + w * t[a + 8]
+    if sx * t[15] + sy * t[16] + sz * t[17] < 0.0:
+        return (nx, ny, nz)
+    if sx * nx + sy * ny + sz * nz < 0.0:
+        sx, sy, sz = -sx, -sy, -sz
+    s = math.sqrt(sx * sx + sy * sy + sz * sz)
+    if s > 0.0:
+        return (sx / s, sy / s, sz / s)
+    return (nx, ny, nz)
+
+
+# ---------------------------------------------------------------------------------------
+# The grid
+# ---------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _cells(S, k, x0, y0, z0, x1, y1, z1):
+    """The range of mesh k's grid cells a box (geom frame, m) overlaps, clamped to the grid:
+    (ix0, ix1, iy0, iy1, iz0, iz1, whole), whole when that is every cell."""
+    h = S[k, S_H]
+    nx, ny, nz = int(S[k, S_DIMX]), int(S[k, S_DIMY]), int(S[k, S_DIMZ])
+    lx, ly, lz = S[k, S_LOX], S[k, S_LOY], S[k, S_LOZ]
+    ix0 = min(max(int(math.floor((x0 - lx) / h)), 0), nx - 1)
+    ix1 = min(max(int(math.floor((x1 - lx) / h)), 0), nx - 1)
+    iy0 = min(max(int(math.floor((y0 - ly) / h)), 0), ny - 1)
+    iy1 = min(max(int(math.floor((y1 - ly) / h)), 0), ny - 1)
+    iz0 = min(max(int(math.floor((z0 - lz) / h)), 0), nz - 1)
+    iz1 = min(max(int(math.floor((z1 - lz) / h)), 0), nz - 1)
+    whole = ix0 == 0 and iy0 == 0 and iz0 == 0 and ix1 == nx - 1 and iy1 == ny - 1 and iz1 == nz - 1
+    return ix0, ix1, iy0, iy1, iz0, iz1, whole
+
+
+@njit(cache=True)
+def _outside_grid(S, k, x0, y0, z0, x1, y1, z1):
+    """True when a box (geom frame, m) misses mesh k's grid box, so holds no triangle."""
+    h = S[k, S_H]
+    return (x1 < S[k, S_LOX] or y1 < S[k, S_LOY] or z1 < S[k, S_LOZ]
+            or x0 > S[k, S_LOX] + h * S[k, S_DIMX] or y0 > S[k, S_LOY] + h * S[k, S_DIMY]
+            or z0 > S[k, S_LOZ] + h * S[k, S_DIMZ])
+
+
+# ---------------------------------------------------------------------------------------
+# Queries (geom frame inside, world frame outside)
+# ---------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _column(S, k, ix, iy, x, y, z, radius):
+    """The cells (iz0, iz1) of column (ix, iy) of mesh k's grid that come within `radius` (m)
+    of p (geom frame); iz0 > iz1 when none does. A column's cells are contiguous in C, so
+    their records are read as one run."""
+    h = S[k, S_H]
+    x0, y0 = S[k, S_LOX] + ix * h, S[k, S_LOY] + iy * h
+    ex = x0 - x if x < x0 else x - x0 - h if x > x0 + h else 0.0
+    ey = y0 - y if y < y0 else y - y0 - h if y > y0 + h else 0.0
+    rest = radius * radius - ex * ex - ey * ey
+    if rest < 0.0:
+        return 1, 0
+    dz = math.sqrt(rest)
+    nz = int(S[k, S_DIMZ])
+    lz = S[k, S_LOZ]
+    if z + dz < lz or z - dz > lz + nz * h:
+        return 1, 0  # above or below the grid
+    iz0 = min(max(int(math.floor((z - dz - lz) / h)), 0), nz - 1)
+    iz1 = min(max(int(math.floor((z + dz - lz) / h)), 0), nz - 1)
+    return iz0, iz1
+
+
+@njit(cache=True)
+def _nearest(S, T, C, k, x, y, z):
+    """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame)."""
+    best2 = math.inf
+    qx = qy = qz = 0.0
+    bf = 0
+    bi = int(S[k, S_HINT])
+    if bi >= 0:
+        best2, qx, qy, qz, bf = _closest(T, bi, x, y, z)
+        half = math.sqrt(best2) * (1.0 + 1e-9) + 1e-12
+    else:
+        half = S[k, S_H]
+    ny, nz = int(S[k, S_DIMY]), int(S[k, S_DIMZ])
+    cells = int(S[k, S_CELLS])
+    while True:
+        whole = False
+        if not _outside_grid(S, k, x - half, y - half, z - half, x + half, y + half, z + half):
+            ix0, ix1, iy0, iy1, _, _, whole = _cells(S, k, x - half, y - half, z - half,
+                                                     x + half, y + half, z + half)
+            C[C_STAMP] += 1.0
+            stamp = C[C_STAMP]
+            if bi >= 0:
+                C[1 + bi] = stamp
+            best = math.sqrt(best2)
+            for ix in range(ix0, ix1 + 1):
+                for iy in range(iy0, iy1 + 1):
+                    # the cells of this column within the ball that may hold a nearer triangle
+                    c0, c1 = _column(S, k, ix, iy, x, y, z, best if best < half else half)
+                    if c0 > c1:
+                        continue
+                    row = cells + (ix * ny + iy) * nz
+                    for j in range(int(C[row + c0]), int(C[row + c1 + 1]), RECORD_WIDTH):
+                        h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
+                        if h >= best or -h >= best:
+                            continue  # its plane is already farther than the best
+                        # or the disc about its centre that holds it in its plane: the
+                        # height over the plane and the distance beyond the disc bound it
+                        ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
+                        beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
+                        if beyond > 0.0 and h * h + beyond * beyond >= best2:
+                            continue
+                        i = int(C[j + 8])
+                        if C[1 + i] == stamp:
+                            continue
+                        C[1 + i] = stamp
+                        d2, rx, ry, rz, f = _closest(T, i, x, y, z)
+                        if d2 < best2:
+                            best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
+                            best = math.sqrt(d2)
+        best = math.sqrt(best2)
+        if best <= half or whole:
+            break
+        # a triangle may be nearer than the best found, outside the cube: a cube that holds it
+        half = best * (1.0 + 1e-9) + 1e-12 if best2 < math.inf else 2.0 * half
+    S[k, S_HINT] = bi
+    return best, qx, qy, qz, bf, bi
+
+
+@njit(cache=True)
+def _local_distance(S, T, C, k, x, y, z):
+    """`MeshShape.local_distance`: signed distance (m) and outward normal at p, geom frame."""
+    best, qx, qy, qz, feature, i = _nearest(S, T, C, k, x, y, z)
+    if best > 0.0:
+        nx, ny, nz = (x - qx) / best, (y - qy) / best, (z - qz) / best
+    else:
+        nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
+    sign = 1.0
+    if S[k, S_SIGNED] != 0.0:
+        c = T_PSEUDO + 3 * feature
+        px, py, pz = T[i, c], T[i, c + 1], T[i, c + 2]
+        if (x - qx) * px + (y - qy) * py + (z - qz) * pz < 0.0:
+            sign = -1.0  # behind the nearest feature: inside; the normal still points out
+            nx, ny, nz = -nx, -ny, -nz
+        elif best == 0.0:
+            n = math.sqrt(px * px + py * py + pz * pz)
+            nx, ny, nz = px / n, py / n, pz / n
+    if S[k, S_SHADING] != 0.0 and feature <= 3:
+        nx, ny, nz = _shade(T, i, qx, qy, qz, nx, ny, nz)
+    return sign * best, nx, ny, nz
+
+
+@njit(cache=True)
+def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
+    """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
+    the outward unit normal, world frame: `MeshShape.distance`. The last two answers are kept,
+    keyed by the point in the geom frame, where the triangles never move (the god-object asks
+    again about the point it holds, and about the point it moved to)."""
+    g = int(S[k, S_GEOM])
+    r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
+    r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
+    r20, r21, r22 = xmat[g, 6], xmat[g, 7], xmat[g, 8]
+    dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
+    lx = r00 * dx + r10 * dy + r20 * dz
+    ly = r01 * dx + r11 * dy + r21 * dz
+    lz = r02 * dx + r12 * dy + r22 * dz
+    a, b = S_KEY, S_KEY + KEPT_WIDTH
+    if not (lx == S[k, a] and ly == S[k, a + 1] and lz == S[k, a + 2]):
+        if lx == S[k, b] and ly == S[k, b + 1] and lz == S[k, b + 2]:
+            for c in range(KEPT_WIDTH):  # the older one: swap the two
+                S[k, a + c], S[k, b + c] = S[k, b + c], S[k, a + c]
+        else:
+            for c in range(KEPT_WIDTH):
+                S[k, b + c] = S[k, a + c]
+            S[k, a + 3], S[k, a + 4], S[k, a + 5], S[k, a + 6] = _local_distance(S, T, C, k, lx, ly, lz)
+            S[k, a], S[k, a + 1], S[k, a + 2] = lx, ly, lz
+    nx, ny, nz = S[k, a + 4], S[k, a + 5], S[k, a + 6]
+    return (S[k, a + 3],
+            r00 * nx + r01 * ny + r02 * nz,
+            r10 * nx + r11 * ny + r12 * nz,
+            r20 * nx + r21 * ny + r22 * nz)
+
+
+@njit(cache=True)
+def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
+               best_lam, bnx, bny, bnz, bi, far2):
+    """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
+    returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far²."""
+    for j in range(j0, j1, RECORD_WIDTH):
+        # a segment that stays more than r off the plane, on one side, never reaches it
+        h0 = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
+        h1 = h0 + C[j] * ux + C[j + 1] * uy + C[j + 2] * uz
+        if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
+            continue
+        # nor one that stays more than r off the disc about its centre that holds it in its
+        # plane: at the segment's point p nearest that centre, the height over the plane and
+        # the distance beyond the disc bound the distance, and no point of the segment is
+        # nearer than that less |p - p'| <= length (the distance is 1-Lipschitz)
+        ex, ey, ez = C[j + 4] - ax, C[j + 5] - ay, C[j + 6] - az
+        s = (ex * ux + ey * uy + ez * uz) / dd
+        s = 0.0 if s < 0.0 else 1.0 if s > 1.0 else s
+        ex, ey, ez = ex - s * ux, ey - s * uy, ez - s * uz
+        hs = h0 + s * (h1 - h0)
+        beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - hs * hs, 0.0)) - C[j + 7]
+        if beyond < 0.0:
+            beyond = 0.0
+        bound = math.sqrt(hs * hs + beyond * beyond) - length
+        if bound > slab:
+            continue
+        i = int(C[j + 8])
+        if C[1 + i] == stamp:
+            continue
+        C[1 + i] = stamp
+        lam, mx, my, mz, _ = _sweep_triangle(T, i, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+        if lam >= 0.0 and lam < best_lam:
+            best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, i
+            far = reach + best_lam * length  # only the segment before this hit matters now
+            far2 = far * far
+    return best_lam, bnx, bny, bnz, bi, far2
+
+
+@njit(cache=True)
+def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
+    """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
+    x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none: `MeshShape.sweep`."""
+    dd = dx * dx + dy * dy + dz * dz
+    if dd == 0.0:
+        return (-1.0, 0.0, 0.0, 0.0)
+    if r < POINT_RADIUS:
+        r = POINT_RADIUS
+    length = math.sqrt(dd)
+    graze = GRAZE * length
+    reach = r + CONTACT_TOL
+    far = reach + length
+    far2 = far * far
+    g = int(S[k, S_GEOM])
+    r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
+    r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
+    r20, r21, r22 = xmat[g, 6], xmat[g, 7], xmat[g, 8]
+    px, py, pz = x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2]
+    ax = r00 * px + r10 * py + r20 * pz
+    ay = r01 * px + r11 * py + r21 * pz
+    az = r02 * px + r12 * py + r22 * pz
+    ux = r00 * dx + r10 * dy + r20 * dz
+    uy = r01 * dx + r11 * dy + r21 * dz
+    uz = r02 * dx + r12 * dy + r22 * dz
+    best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
+    hint = int(S[k, S_HINT])
+    if hint >= 0:
+        # pressed into the triangle touched last: touched at once, nothing comes earlier
+        lam, mx, my, mz, _ = _sweep_triangle(T, hint, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+        if lam == 0.0:
+            best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, hint
+    if bi < 0:
+        slab = reach + 1e-12
+        bx0, bx1 = min(ax, ax + ux) - slab, max(ax, ax + ux) + slab
+        by0, by1 = min(ay, ay + uy) - slab, max(ay, ay + uy) + slab
+        bz0, bz1 = min(az, az + uz) - slab, max(az, az + uz) + slab
+        if _outside_grid(S, k, bx0, by0, bz0, bx1, by1, bz1):
+            return (-1.0, 0.0, 0.0, 0.0)
+        ix0, ix1, iy0, iy1, iz0, iz1, _ = _cells(S, k, bx0, by0, bz0, bx1, by1, bz1)
+        h = S[k, S_H]
+        # a short segment: the columns' cells within the ball about its middle that holds the
+        # swept sphere; a long one: each cell of its box whose bounding ball meets the swept one
+        short = length <= h
+        mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
+        around = slab + 0.5 * length
+        cull2 = (slab + 0.8660254037844387 * h) ** 2
+        ny, nz = int(S[k, S_DIMY]), int(S[k, S_DIMZ])
+        cells = int(S[k, S_CELLS])
+        C[C_STAMP] += 1.0
+        stamp = C[C_STAMP]
+        for ix in range(ix0, ix1 + 1):
+            for iy in range(iy0, iy1 + 1):
+                row = cells + (ix * ny + iy) * nz
+                if short:
+                    c0, c1 = _column(S, k, ix, iy, mx, my, mz, around)
+                    if c0 <= c1:
+                        best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
+                            T, C, int(C[row + c0]), int(C[row + c1 + 1]), stamp, ax, ay, az, ux, uy, uz, r,
+                            dd, graze, slab, reach, length, best_lam, bnx, bny, bnz, bi, far2)
+                    continue
+                for iz in range(iz0, iz1 + 1):
+                    cx = S[k, S_LOX] + (ix + 0.5) * h - ax
+                    cy = S[k, S_LOY] + (iy + 0.5) * h - ay
+                    cz = S[k, S_LOZ] + (iz + 0.5) * h - az
+                    t = (cx * ux + cy * uy + cz * uz) / dd
+                    t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
+                    cx, cy, cz = cx - t * ux, cy - t * uy, cz - t * uz
+                    if cx * cx + cy * cy + cz * cz > cull2:
+                        continue
+                    best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
+                        T, C, int(C[row + iz]), int(C[row + iz + 1]), stamp, ax, ay, az, ux, uy, uz, r,
+                        dd, graze, slab, reach, length, best_lam, bnx, bny, bnz, bi, far2)
+        if bi < 0:
+            return (-1.0, 0.0, 0.0, 0.0)
+    S[k, S_HINT] = bi
+    if S[k, S_SHADING] != 0.0:
+        qx, qy, qz = ax + best_lam * ux - r * bnx, ay + best_lam * uy - r * bny, az + best_lam * uz - r * bnz
+        sx, sy, sz = _shade(T, bi, qx, qy, qz, bnx, bny, bnz)
+        if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
+            bnx, bny, bnz = sx, sy, sz
+    return (best_lam,
+            r00 * bnx + r01 * bny + r02 * bnz,
+            r10 * bnx + r11 * bny + r12 * bnz,
+            r20 * bnx + r21 * bny + r22 * bnz)
