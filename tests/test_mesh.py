@@ -1036,3 +1036,26 @@ def test_a_god_object_prepares_the_mesh_for_its_radius(tmp_path):
     finally:
         MeshShape._face_tables = tables
     assert not built
+
+
+def test_a_sweep_names_the_edge_it_touched():
+    """A sphere sliding parallel to edge AB into edge BC touches BC (feature 2), whatever the
+    edges before it in the loop did (a sweep parallel to AB skips AB's cylinder)."""
+    from softproxy.mesh import _sweep_triangle
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    a, b, c = v
+    n = np.array([0.0, 0.0, 1.0])
+    ab, ac = b - a, c - a
+    aa, abac, cc = ab @ ab, ab @ ac, ac @ ac
+    tri = (*a, *b, *c, *ab, *ac, *n, aa, abac, cc, 1.0 / (aa * cc - abac * abac))
+    edges = []
+    for s, e in ((a, b), (b, c), (c, a)):
+        length = float(np.linalg.norm(e - s))
+        edges.append((*s, *((e - s) / length), length))
+    start, move, r = (0.8, 0.8, 0.05), (-0.6, 0.0, 0.0), 0.1
+    dd = sum(m * m for m in move)
+    hit = _sweep_triangle(tri, edges, *start, *move, r, dd, (r + 0.6 + 1e-9) ** 2, 1e-9 * 0.6)
+    assert hit is not None and hit[4] == 2
+    # the touch is on BC's cylinder: the centre is r from the line x + y = 1 (in 3-d)
+    x = start[0] + hit[0] * move[0]
+    assert math.hypot((x + start[1] - 1.0) / math.sqrt(2.0), start[2]) == pytest.approx(r, abs=1e-12)
