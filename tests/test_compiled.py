@@ -1,4 +1,4 @@
-"""The compiled tick (`ServoLoop(compiled=True)`) gives the Python engine's answers to the last bit."""
+"""The compiled tick (`ServoLoop(compiled=True)`) gives the Python engine's answers: to the last bit on primitives, to rounding on meshes."""
 
 import math
 

@@ -7,6 +7,7 @@ brute-force pass over every triangle.
 """
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -36,7 +37,7 @@ def sheet(tmp):
     mesh = trimesh.Trimesh(plane.vertices, plane.faces[keep], process=True)
     mesh.vertices[:, 2] += 0.004 * np.sin(60.0 * mesh.vertices[:, 0]) * np.cos(45.0 * mesh.vertices[:, 1])
     with pytest.warns(UserWarning, match="open mesh"):
-        return mesh_model(__import__("pathlib").Path(tmp) / "sheet.obj", mesh, body='pos=".01 -.02 .03"',
+        return mesh_model(Path(tmp) / "sheet.obj", mesh, body='pos=".01 -.02 .03"',
                           geom='euler="15 -20 35"')
 
 
