@@ -46,12 +46,11 @@ GEOM_MESH = 7
 # AB·AB, AB·AC, AC·AC, 1 / (AB·AB AC·AC - (AB·AC)²)
 T_A, T_B, T_C, T_AB, T_AC, T_N = 0, 3, 6, 9, 12, 15
 T_AA, T_ABAC, T_CC, T_INV = 18, 19, 20, 21
-T_OFF = 22       # the plane's offset N·A (m)
-T_EDGES = 23     # edges AB, BC, CA: 3 × (start, unit direction, length), columns 23..43
+T_EDGES = 22     # edges AB, BC, CA: 3 × (start, unit direction, length), columns 22..42
 EDGE_WIDTH = 7
-T_PSEUDO = 44    # pseudo-normals of the features: face, edges AB BC CA, vertices A B C (3 each), 44..64
-T_VN = 65        # vertex normals at A, B, C for force shading, 65..73
-T_COLUMNS = 74
+T_PSEUDO = 43    # pseudo-normals of the features: face, edges AB BC CA, vertices A B C (3 each), 43..63
+T_VN = 64        # vertex normals at A, B, C for force shading, 64..72
+T_COLUMNS = 73
 
 # -- mesh grids C: one float64 array (indices stored as floats, exact below 2**53) ----------
 C_STAMP = 0

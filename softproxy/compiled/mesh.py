@@ -37,7 +37,7 @@ from softproxy.compiled.layout import (
     S_LOX, S_LOY, S_LOZ, S_NT, S_SHADING, S_SIGNED, S_T0, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_VN,
 )
 from softproxy.geometry import CONTACT_TOL, GRAZE
-from softproxy.mesh import POINT_RADIUS
+from softproxy.mesh import POINT_RADIUS, MeshShape
 
 GRID_CELLS = 48
 """Most grid cells per axis of a mesh's grid."""
@@ -80,7 +80,6 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
     rows of the shape table S filled in (where their triangles and grid live). A world with
     no mesh gets empty tables (the kernels' types stay the same)."""
-    from softproxy.mesh import MeshShape
     meshes = [(k, s) for k, s in enumerate(shapes) if isinstance(s, MeshShape)]
     ntri = sum(s.triangles for _, s in meshes)
     rows, grids = [], []
@@ -91,7 +90,7 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         edges = np.array(s._edges).reshape(len(t), 3 * EDGE_WIDTH)
         pseudo = np.array(s._pn).reshape(len(t), 21)
         planes = np.array(s._plane)                              # (n, 4): normal, offset
-        rows.append(np.column_stack([t, planes[:, 3], edges, pseudo, np.array(s._vn)]))
+        rows.append(np.column_stack([t, edges, pseudo, np.array(s._vn)]))
         lo, h, dims, starts, tid = _grid(t[:, :9].reshape(-1, 3, 3), edges[:, [6, 13, 20]])
         corners = t[:, :9].reshape(-1, 3, 3)
         centre = corners.mean(axis=1)
@@ -540,7 +539,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
         # a short segment: the columns' cells within the ball about its middle that holds the
         # swept sphere; a long one: each cell of its box whose bounding ball meets the swept one
         short = length <= h
-        mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
+        midx, midy, midz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
         around = slab + 0.5 * length
         cull2 = (slab + 0.8660254037844387 * h) ** 2
         ny, nz = int(S[k, S_DIMY]), int(S[k, S_DIMZ])
@@ -551,7 +550,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
             for iy in range(iy0, iy1 + 1):
                 row = cells + (ix * ny + iy) * nz
                 if short:
-                    c0, c1 = _column(S, k, ix, iy, mx, my, mz, around)
+                    c0, c1 = _column(S, k, ix, iy, midx, midy, midz, around)
                     if c0 <= c1:
                         best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
                             T, C, int(C[row + c0]), int(C[row + c1 + 1]), stamp, ax, ay, az, ux, uy, uz, r,

@@ -8,9 +8,8 @@ bit-identical; this is checked by tests/test_compiled_shapes.py. Change both sid
 Meshes are answered by `softproxy.compiled.mesh` from the mesh tables T and C (empty in a
 world without meshes), which every query takes along.
 
-Note: numba freezes the module-level constants (CONTACT_TOL, GRAZE, …) into its on-disk cache,
-which is keyed on this file only: after changing them in `softproxy.geometry`, touch this file
-(or clear softproxy/compiled/__pycache__).
+numba freezes the module-level constants (CONTACT_TOL, GRAZE, …) into its on-disk cache;
+`softproxy.compiled.cache` drops that cache when any file they come from changes.
 """
 
 import math
