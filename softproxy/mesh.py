@@ -1140,8 +1140,12 @@ class MeshShape(Shape):
     def _answer(self, x, y, z, best, qx, qy, qz, feature, tri) -> tuple[float, float, float, float]:
         """The signed distance and outward normal at p (geom frame) from its nearest point q
         (at distance `best`, m) on `feature` of triangle `tri`."""
-        if best > 0.0:
-            nx, ny, nz = (x - qx) / best, (y - qy) / best, (z - qz) / best
+        ex, ey, ez = x - qx, y - qy, z - qz
+        length = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if best > 0.0 and length > 0.0:
+            # by its own length, not by `best`: within ~1 nm of the surface p - q carries the
+            # rounding of p's coordinates (~1e-18 m), which would leave |n| off 1 by ~1e-9
+            nx, ny, nz = ex / length, ey / length, ez / length
         else:
             nx, ny, nz = self._tri[tri][15:18]
         sign = 1.0

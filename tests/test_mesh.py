@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from softproxy.geometry import shapes_of
 from softproxy.mesh import ABOVE_TOL, POINT_RADIUS, VERTEX_READ, MeshShape, MeshWarning, validate_mesh
@@ -174,6 +174,7 @@ coord = st.floats(-1.0, 1.0)
 
 @settings(max_examples=25, deadline=None)
 @given(st.sampled_from(["ball", "bowl"]), st.lists(st.tuples(coord, coord, coord), min_size=5, max_size=20))
+@example("bowl", [(0.0, 0.0, 0.0)] * 4 + [(0.0, 0.0, -0.5)])  # 0.9 nm over the bowl's floor
 def test_distance_and_normal_match_trimesh(tmp, which, unit_points):
     """Exact distance and outward normal against trimesh's closest point on random points, in
     the world frame; the sign says inside (winding number) wherever the point is not on the surface."""

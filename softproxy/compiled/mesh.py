@@ -407,8 +407,10 @@ def _nearest(S, T, C, k, x, y, z):
 def _local_distance(S, T, C, k, x, y, z):
     """`MeshShape.local_distance`: signed distance (m) and outward normal at p, geom frame."""
     best, qx, qy, qz, feature, i = _nearest(S, T, C, k, x, y, z)
-    if best > 0.0:
-        nx, ny, nz = (x - qx) / best, (y - qy) / best, (z - qz) / best
+    ex, ey, ez = x - qx, y - qy, z - qz
+    length = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if best > 0.0 and length > 0.0:  # by its own length, as in MeshShape._answer
+        nx, ny, nz = ex / length, ey / length, ez / length
     else:
         nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
     sign = 1.0
