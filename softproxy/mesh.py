@@ -1471,14 +1471,20 @@ class MeshShape(Shape):
         for i in few:
             if i == hint:
                 continue
+            close = None
+            if start is not None:
+                # before the slab test: a start lifted off by more than r may lie nearer to a
+                # triangle the segment never reaches than to the hint
+                close = _closest(tris[i], ax, ay, az)
+                if close[0] < start[0] * start[0]:
+                    start = (math.sqrt(close[0]), close[1], close[2], close[3], close[4], i)
             pnx, pny, pnz, off = planes[i]
             h0 = pnx * ax + pny * ay + pnz * az - off
             h1 = h0 + pnx * ux + pny * uy + pnz * uz
             if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
                 continue
-            close = _closest(tris[i], ax, ay, az)
-            if start is not None and close[0] < start[0] * start[0]:
-                start = (math.sqrt(close[0]), close[1], close[2], close[3], close[4], i)
+            if close is None:
+                close = _closest(tris[i], ax, ay, az)
             hit = _sweep_triangle(tris[i], edges[i], ax, ay, az, ux, uy, uz, r, dd, far2, graze, close)
             if hit is not None and hit[0] < best_lam:
                 best, best_lam, best_tri = hit, hit[0], i

@@ -163,7 +163,7 @@ def test_a_world_without_meshes_has_empty_mesh_tables():
     m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom type="sphere" size=".1"/></worldbody></mujoco>')
     d = mujoco.MjData(m)
     S, T, C = shape_tables(shapes_of(m, d))
-    assert T.shape == (0, L.T_COLUMNS) and C.tolist() == [0.0]
+    assert T.shape == (0, L.T_COLUMNS) and C.tolist() == [0.0] * L.C_STAMPS
 
 
 class CompiledMeshQueries:

@@ -31,7 +31,9 @@ S_SHADING = 21   # 1.0 for force shading (interpolated vertex normals)
 S_HINT = 22      # row of T nearest the last distance query or touched last, -1 for none
 S_KEY = 23       # the last two distance queries kept, newest first, KEPT_WIDTH columns each (23..36):
 KEPT_WIDTH = 7   # the point (geom frame, m; NaN for none), signed distance (m), outward normal (geom frame)
-S_COLUMNS = S_KEY + 2 * KEPT_WIDTH
+S_VERTS = 37     # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
+S_KEPT = 38      # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
+S_COLUMNS = 39
 
 GEOM_PLANE = 0
 GEOM_SPHERE = 2
@@ -50,17 +52,35 @@ T_EDGES = 22     # edges AB, BC, CA: 3 × (start, unit direction, length), colum
 EDGE_WIDTH = 7
 T_PSEUDO = 43    # pseudo-normals of the features: face, edges AB BC CA, vertices A B C (3 each), 43..63
 T_VN = 64        # vertex normals at A, B, C for force shading, 64..72
-T_COLUMNS = 73
+# the kept certificates' per-triangle part (softproxy.compiled.certificate)
+T_ADJ = 73       # the rows across edges AB, BC, CA (-1: an open edge), 73..75
+T_TV = 76        # its vertices A, B, C (vertex ids of its mesh), 76..78
+T_CLEAR = 79     # per side (front, back): where its list of triangles rising above its plane
+                 # starts in C and how many (-1: a concave patch, no certificate), 79..82
+T_COLUMNS = 83
 
 # -- mesh grids C: one float64 array (indices stored as floats, exact below 2**53) ----------
 C_STAMP = 0
-"""C[0]: the number of the last scan; C[1 + row of T]: the scan that last read that triangle
-(a triangle is listed in every cell its bounding box overlaps, and read once per scan).
+"""C[0]: the number of the last scan; C[C_STAMPS + row of T]: the scan that last read that
+triangle (a triangle is listed in every cell its bounding box overlaps, and read once per
+scan); C[C_FEW:C_STAMPS]: the triangles a certificate leaves to read (scratch, one query's).
 Then per mesh its cell starts (where each cell's records begin in C, ncells + 1 of them) and
 its cells' records, RECORD_WIDTH floats each: the triangle's plane (nx, ny, nz, offset), its
 bounding ball (centre, radius; m) and its row of T, so that a scan reads a cell's bounds in
 one sequential pass and opens only the triangles they cannot rule out."""
 RECORD_WIDTH = 9
+C_FEW = 1
+FEW_SLOTS = 16   # two faces' lists at an edge, STATIC_ABOVE (softproxy.mesh) each
+C_STAMPS = C_FEW + FEW_SLOTS
+# a mesh's vertex records in C (softproxy.compiled.certificate), from C[S_VERTS]:
+V_X = 0          # the vertex (m, geom frame), 0..2
+V_AXIS = 3       # its cone: axis (unit), cosine (2.0: no cone), 3..6
+V_COS = 6
+V_RING = 7       # where its ring starts in C and how many: per edge leaving it (vector (m), a row of T on it)
+V_FAN = 9        # where its fan starts and how many: the rows of T around it
+V_SINES = 11     # where its sin β table starts and how many: (sin β ascending, vertex id)
+V_THRESHOLD = 13  # 1 - (least sin β - margin)² (2.0: nothing certified by angle alone)
+VERTEX_WIDTH = 14
 
 # -- finger state: one row per finger -------------------------------------------------------
 # god-object (softproxy.proxy.GodObject)

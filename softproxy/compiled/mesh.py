@@ -32,12 +32,13 @@ import math
 import numpy as np
 from numba import njit
 
+from softproxy.compiled.certificate import certificate_tables, static_clear
 from softproxy.compiled.layout import (
-    C_STAMP, EDGE_WIDTH, KEPT_WIDTH, RECORD_WIDTH, S_CELLS, S_DIMX, S_DIMY, S_DIMZ, S_GEOM, S_H, S_HINT, S_KEY,
-    S_LOX, S_LOY, S_LOZ, S_NT, S_SHADING, S_SIGNED, S_T0, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_VN,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, KEPT_WIDTH, RECORD_WIDTH, S_CELLS, S_DIMX, S_DIMY, S_DIMZ, S_GEOM, S_H, S_HINT, S_KEY,
+    S_LOX, S_LOY, S_LOZ, S_NT, S_KEPT, S_SHADING, S_SIGNED, S_T0, S_VERTS, T_ADJ, T_COLUMNS, T_TV, V_AXIS, V_COS, V_RING, VERTEX_WIDTH, T_EDGES, T_N, T_PSEUDO, T_VN,
 )
 from softproxy.geometry import CONTACT_TOL, GRAZE
-from softproxy.mesh import POINT_RADIUS, MeshShape
+from softproxy.mesh import ABOVE_TOL, POINT_RADIUS, WALK_STEPS, MeshShape
 
 GRID_CELLS = 48
 """Most grid cells per axis of a mesh's grid."""
@@ -84,13 +85,12 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ntri = sum(s.triangles for _, s in meshes)
     rows, grids = [], []
     t0 = 0
-    c0 = 1 + ntri  # C[0] is the scan counter, then one stamp per triangle, then the grids
+    c0 = C_STAMPS + ntri  # the scan counter, the certificates' scratch, a stamp per triangle, then the grids
     for k, s in meshes:
         t = np.array(s._tri)                                     # (n, 22)
         edges = np.array(s._edges).reshape(len(t), 3 * EDGE_WIDTH)
         pseudo = np.array(s._pn).reshape(len(t), 21)
         planes = np.array(s._plane)                              # (n, 4): normal, offset
-        rows.append(np.column_stack([t, edges, pseudo, np.array(s._vn)]))
         lo, h, dims, starts, tid = _grid(t[:, :9].reshape(-1, 3, 3), edges[:, [6, 13, 20]])
         corners = t[:, :9].reshape(-1, 3, 3)
         centre = corners.mean(axis=1)
@@ -107,10 +107,15 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         S[k, S_KEY:S_KEY + 3] = S[k, S_KEY + KEPT_WIDTH:S_KEY + KEPT_WIDTH + 3] = math.nan  # none kept
         grids += [first + RECORD_WIDTH * starts, records.ravel()]
         c0 = first + records.size
+        columns, kept, S[k, S_KEPT] = certificate_tables(s, t0, c0)
+        rows.append(np.column_stack([t, edges, pseudo, np.array(s._vn), columns]))
+        S[k, S_VERTS] = c0
+        grids.append(kept)
+        c0 += len(kept)
         t0 += len(t)
     T = np.concatenate(rows) if rows else np.zeros((0, T_COLUMNS))
     assert T.shape[1] == T_COLUMNS
-    C = np.concatenate([np.zeros(1 + ntri)] + [g.astype(np.float64) for g in grids])
+    C = np.concatenate([np.zeros(C_STAMPS + ntri)] + [g.astype(np.float64) for g in grids])
     assert len(C) < 2 ** 53
     return np.ascontiguousarray(T), C
 
@@ -346,14 +351,82 @@ def _column(S, k, ix, iy, x, y, z, radius):
 
 
 @njit(cache=True)
+def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
+    """`MeshShape._walk`: from the hint's nearest point q to p on an edge or a vertex, step to a
+    nearer triangle (across the edge, or onto an edge leaving the vertex that rises above the
+    tangent plane there), WALK_STEPS at most, so that a certificate holds more often.
+    Returns (d2, qx, qy, qz, feature, hint)."""
+    verts = int(S[k, S_VERTS])
+    for _ in range(WALK_STEPS):
+        if feature == 0 or d2 <= 0.0:
+            break
+        if feature < 4:
+            step = int(T[hint, T_ADJ + feature - 1])
+        else:
+            rec = verts + VERTEX_WIDTH * int(T[hint, T_TV + feature - 4])
+            dist = math.sqrt(d2)
+            nx, ny, nz = (x - qx) / dist, (y - qy) / dist, (z - qz) / dist
+            if nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2] >= C[rec + V_COS]:
+                break
+            step = -1
+            r0 = int(C[rec + V_RING])
+            for j in range(r0, r0 + 4 * int(C[rec + V_RING + 1]), 4):
+                if nx * C[j] + ny * C[j + 1] + nz * C[j + 2] > ABOVE_TOL:
+                    step = int(C[j + 3])
+                    break
+        if step < 0:
+            break
+        c2, rx, ry, rz, f = _closest(T, step, x, y, z)
+        if c2 >= d2:
+            break
+        d2, qx, qy, qz, feature, hint = c2, rx, ry, rz, f, step
+    return d2, qx, qy, qz, feature, hint
+
+
+@njit(cache=True)
+def _from_hint(S, T, C, k, hint0, x, y, z):
+    """The nearest point to p (geom frame) on row hint0, or on the triangle across the edge it
+    lies on when that is nearer, walked on from there (`_walk`) when it moved or lies on a
+    vertex: (d2, qx, qy, qz, feature, row), as `MeshShape._nearest` and `sweep` begin."""
+    hint = hint0
+    d2, qx, qy, qz, f = _closest(T, hint, x, y, z)
+    if 1 <= f <= 3:
+        other = int(T[hint, T_ADJ + f - 1])
+        if other >= 0:
+            c2, rx, ry, rz, g = _closest(T, other, x, y, z)
+            if c2 < d2:
+                d2, qx, qy, qz, f, hint = c2, rx, ry, rz, g, other
+    if (f != 0 and hint != hint0) or f >= 4:
+        return _walk(S, T, C, k, hint, d2, qx, qy, qz, f, x, y, z)
+    return d2, qx, qy, qz, f, hint
+
+
+@njit(cache=True)
 def _nearest(S, T, C, k, x, y, z):
-    """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame)."""
+    """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame).
+
+    From the hint (`_from_hint`): when the kept certificates hold at its nearest point, the
+    few triangles they name (none on a convex patch) are all that may be nearer; else the
+    grid is scanned within the ball the hint's distance bounds."""
     best2 = math.inf
     qx = qy = qz = 0.0
     bf = 0
     bi = int(S[k, S_HINT])
     if bi >= 0:
-        best2, qx, qy, qz, bf = _closest(T, bi, x, y, z)
+        best2, qx, qy, qz, bf, bi = _from_hint(S, T, C, k, bi, x, y, z)
+        if best2 > 0.0:
+            best = math.sqrt(best2)
+            m = static_clear(S, T, C, k, bi, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, 2.0 * best)
+            if m >= 0:
+                hint = bi
+                for j in range(m):
+                    i = int(C[C_FEW + j])
+                    if i != hint:
+                        d2, rx, ry, rz, f = _closest(T, i, x, y, z)
+                        if d2 < best2:
+                            best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
+                S[k, S_HINT] = bi
+                return math.sqrt(best2), qx, qy, qz, bf, bi
         half = math.sqrt(best2) * (1.0 + 1e-9) + 1e-12
     else:
         half = S[k, S_H]
@@ -367,7 +440,7 @@ def _nearest(S, T, C, k, x, y, z):
             C[C_STAMP] += 1.0
             stamp = C[C_STAMP]
             if bi >= 0:
-                C[1 + bi] = stamp
+                C[C_STAMPS + bi] = stamp
             best = math.sqrt(best2)
             for ix in range(ix0, ix1 + 1):
                 for iy in range(iy0, iy1 + 1):
@@ -387,9 +460,9 @@ def _nearest(S, T, C, k, x, y, z):
                         if beyond > 0.0 and h * h + beyond * beyond >= best2:
                             continue
                         i = int(C[j + 8])
-                        if C[1 + i] == stamp:
+                        if C[C_STAMPS + i] == stamp:
                             continue
-                        C[1 + i] = stamp
+                        C[C_STAMPS + i] = stamp
                         d2, rx, ry, rz, f = _closest(T, i, x, y, z)
                         if d2 < best2:
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
@@ -404,9 +477,9 @@ def _nearest(S, T, C, k, x, y, z):
 
 
 @njit(cache=True)
-def _local_distance(S, T, C, k, x, y, z):
-    """`MeshShape.local_distance`: signed distance (m) and outward normal at p, geom frame."""
-    best, qx, qy, qz, feature, i = _nearest(S, T, C, k, x, y, z)
+def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
+    """`MeshShape._answer`: the signed distance (m) and outward normal at p (geom frame) from
+    its nearest point q (at distance `best`) on `feature` of row i."""
     ex, ey, ez = x - qx, y - qy, z - qz
     length = math.sqrt(ex * ex + ey * ey + ez * ez)
     if best > 0.0 and length > 0.0:  # by its own length, as in MeshShape._answer
@@ -429,11 +502,30 @@ def _local_distance(S, T, C, k, x, y, z):
 
 
 @njit(cache=True)
+def _local_distance(S, T, C, k, x, y, z):
+    """`MeshShape.local_distance`: signed distance (m) and outward normal at p, geom frame."""
+    best, qx, qy, qz, feature, i = _nearest(S, T, C, k, x, y, z)
+    return _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i)
+
+
+@njit(cache=True)
+def _keep(S, k, x, y, z, d, nx, ny, nz):
+    """Keep the answer (signed distance (m), outward normal) at p (geom frame) as the newest
+    of mesh k's two, the older dropped."""
+    a, b = S_KEY, S_KEY + KEPT_WIDTH
+    for c in range(KEPT_WIDTH):
+        S[k, b + c] = S[k, a + c]
+    S[k, a], S[k, a + 1], S[k, a + 2] = x, y, z
+    S[k, a + 3], S[k, a + 4], S[k, a + 5], S[k, a + 6] = d, nx, ny, nz
+
+
+@njit(cache=True)
 def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
     the outward unit normal, world frame: `MeshShape.distance`. The last two answers are kept,
     keyed by the point in the geom frame, where the triangles never move (the god-object asks
-    again about the point it holds, and about the point it moved to)."""
+    again about the point it holds, about the point it moved to, and about a sweep's start
+    whose nearest point the sweep proved)."""
     g = int(S[k, S_GEOM])
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
     r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
@@ -448,10 +540,8 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
             for c in range(KEPT_WIDTH):  # the older one: swap the two
                 S[k, a + c], S[k, b + c] = S[k, b + c], S[k, a + c]
         else:
-            for c in range(KEPT_WIDTH):
-                S[k, b + c] = S[k, a + c]
-            S[k, a + 3], S[k, a + 4], S[k, a + 5], S[k, a + 6] = _local_distance(S, T, C, k, lx, ly, lz)
-            S[k, a], S[k, a + 1], S[k, a + 2] = lx, ly, lz
+            d, nx, ny, nz = _local_distance(S, T, C, k, lx, ly, lz)
+            _keep(S, k, lx, ly, lz, d, nx, ny, nz)
     nx, ny, nz = S[k, a + 4], S[k, a + 5], S[k, a + 6]
     return (S[k, a + 3],
             r00 * nx + r01 * ny + r02 * nz,
@@ -486,9 +576,9 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
         if bound > slab:
             continue
         i = int(C[j + 8])
-        if C[1 + i] == stamp:
+        if C[C_STAMPS + i] == stamp:
             continue
-        C[1 + i] = stamp
+        C[C_STAMPS + i] = stamp
         lam, mx, my, mz, _ = _sweep_triangle(T, i, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
         if lam >= 0.0 and lam < best_lam:
             best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, i
@@ -498,9 +588,67 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
 
 
 @njit(cache=True)
+def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze):
+    """`MeshShape._world_hit`: the touch of row `tri` at fraction lam, its normal (geom frame)
+    shaded when asked and turned into the world frame; the triangle becomes the hint."""
+    S[k, S_HINT] = tri
+    if S[k, S_SHADING] != 0.0:
+        qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
+        sx, sy, sz = _shade(T, tri, qx, qy, qz, nx, ny, nz)
+        if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
+            nx, ny, nz = sx, sy, sz
+    return (lam,
+            xmat[g, 0] * nx + xmat[g, 1] * ny + xmat[g, 2] * nz,
+            xmat[g, 3] * nx + xmat[g, 4] * ny + xmat[g, 5] * nz,
+            xmat[g, 6] * nx + xmat[g, 7] * ny + xmat[g, 8] * nz)
+
+
+@njit(cache=True)
+def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
+               graze, lam, mx, my, mz):
+    """`MeshShape._sweep_few`: the end of `mesh_sweep` when a certificate left the m triangles
+    in C[C_FEW:] to read besides the hint: the earliest touch among them and the hint's own
+    (lam < 0: none). When sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature
+    sf) or one of theirs, and its answer is kept for `mesh_distance`."""
+    best_lam, bi = (lam, hint) if lam >= 0.0 else (1.0, -1)
+    si = hint
+    slab = r + CONTACT_TOL + 1e-12
+    for j in range(m):
+        i = int(C[C_FEW + j])
+        if i == hint:
+            continue
+        if sd2 >= 0.0:  # before the slab test: a triangle the segment never reaches may still be nearest
+            d2, qx, qy, qz, f = _closest(T, i, ax, ay, az)
+            if d2 < sd2:
+                sd2, sqx, sqy, sqz, sf, si = d2, qx, qy, qz, f, i
+        nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
+        h0 = nx * (ax - T[i, 0]) + ny * (ay - T[i, 1]) + nz * (az - T[i, 2])
+        h1 = h0 + nx * ux + ny * uy + nz * uz
+        if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
+            continue
+        hit, hx, hy, hz, _ = _sweep_triangle(T, i, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+        if hit >= 0.0 and hit < best_lam:
+            best_lam, mx, my, mz, bi = hit, hx, hy, hz, i
+    if sd2 >= 0.0:
+        d, nx, ny, nz = _answer(S, T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
+        _keep(S, k, ax, ay, az, d, nx, ny, nz)
+        S[k, S_HINT] = si
+    if bi < 0:
+        return (-1.0, 0.0, 0.0, 0.0)
+    return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, ax, ay, az, ux, uy, uz, r, graze)
+
+
+@njit(cache=True)
 def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
-    x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none: `MeshShape.sweep`."""
+    x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none: `MeshShape.sweep`.
+
+    From the hint (`_from_hint`), as `MeshShape.sweep`: touching it and pressed into it, the
+    touch is at once; touching it and moving along or away, or touching it on the way, or
+    near it and staying above its tangent plane, the kept certificates may leave only a few
+    triangles to sweep (and prove the start's nearest point, kept for `mesh_distance`);
+    else the grid is scanned: a short segment's columns within the ball about its middle
+    that holds the swept sphere, a long one's cells whose bounding ball meets the swept one."""
     dd = dx * dx + dy * dy + dz * dz
     if dd == 0.0:
         return (-1.0, 0.0, 0.0, 0.0)
@@ -523,19 +671,68 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     uy = r01 * dx + r11 * dy + r21 * dz
     uz = r02 * dx + r12 * dy + r22 * dz
     best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
-    hint = int(S[k, S_HINT])
-    if hint >= 0:
-        # pressed into the triangle touched last: touched at once, nothing comes earlier
-        lam, mx, my, mz, _ = _sweep_triangle(T, hint, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
-        if lam == 0.0:
-            best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, hint
-    if bi < 0:
-        slab = reach + 1e-12
-        bx0, bx1 = min(ax, ax + ux) - slab, max(ax, ax + ux) + slab
-        by0, by1 = min(ay, ay + uy) - slab, max(ay, ay + uy) + slab
-        bz0, bz1 = min(az, az + uz) - slab, max(az, az + uz) + slab
-        if _outside_grid(S, k, bx0, by0, bz0, bx1, by1, bz1):
-            return (-1.0, 0.0, 0.0, 0.0)
+    hint0 = int(S[k, S_HINT])
+    if hint0 >= 0:
+        d2, qx, qy, qz, feature, hint = _from_hint(S, T, C, k, hint0, ax, ay, az)
+        if d2 <= reach * reach and d2 > 1e-24:
+            dist = math.sqrt(d2)
+            nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
+            into = nx * ux + ny * uy + nz * uz
+            if into < -graze:  # pressed into the triangle it touches: nothing comes earlier
+                return _hit(S, T, k, xmat, g, hint, 0.0, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze)
+            if dist + into >= r - CONTACT_TOL:
+                # moving along or away, r above the hint's tangent plane: only the triangles
+                # reaching above it can be touched
+                m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, 2.0 * reach + length)
+                if m >= 0:
+                    return _sweep_few(S, T, C, xmat, k, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
+                                      r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
+        else:
+            lam, mx, my, mz, f = _sweep_triangle(T, hint, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+            if lam >= 0.0 and 1 <= f <= 3:
+                # touched on an edge: the neighbour across it may be touched first
+                other = int(T[hint, T_ADJ + f - 1])
+                if other >= 0:
+                    lam2, nx, ny, nz, f2 = _sweep_triangle(T, other, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                    if lam2 >= 0.0 and lam2 < lam:
+                        lam, mx, my, mz, f, hint = lam2, nx, ny, nz, f2, other
+            elif lam > 0.0 and f >= 4:
+                # touched on a vertex: a fan triangle on an edge rising above the tangent
+                # plane there holds a nearer point, so it was touched first
+                sx, sy, sz = ax + lam * ux, ay + lam * uy, az + lam * uz
+                c2, cx, cy, cz, cf = _closest(T, hint, sx, sy, sz)
+                if cf >= 4:
+                    walked = _walk(S, T, C, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
+                    if walked != hint:
+                        lam2, nx, ny, nz, f2 = _sweep_triangle(T, walked, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                        if lam2 >= 0.0 and lam2 < lam:
+                            lam, mx, my, mz, f, hint = lam2, nx, ny, nz, f2, walked
+            if lam >= 0.0:
+                if lam == 0.0:
+                    return _hit(S, T, k, xmat, g, hint, 0.0, mx, my, mz, ax, ay, az, ux, uy, uz, r, graze)
+                # up to the touch the sphere stays r above the tangent plane there
+                m = static_clear(S, T, C, k, hint, f, mx, my, mz, 2.0 * reach + lam * length)
+                if m >= 0:
+                    return _sweep_few(S, T, C, xmat, k, g, m, hint, -1.0, 0.0, 0.0, 0.0, 0, ax, ay, az, ux, uy, uz,
+                                      r, dd, far2, graze, lam, mx, my, mz)
+                best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, hint
+                far = reach + lam * length  # only the segment before this touch matters now
+                far2 = far * far
+            elif d2 > 1e-24 and d2 <= far2:
+                # near the hint, not touching it and not moving into it (lifted off a curved
+                # mesh): staying r above the tangent plane at q, only the few can be touched
+                dist = math.sqrt(d2)
+                nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
+                if dist + nx * ux + ny * uy + nz * uz >= r - CONTACT_TOL:
+                    m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, dist + reach + length)
+                    if m >= 0:
+                        return _sweep_few(S, T, C, xmat, k, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
+                                          uz, r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
+    slab = reach + 1e-12
+    bx0, bx1 = min(ax, ax + ux) - slab, max(ax, ax + ux) + slab
+    by0, by1 = min(ay, ay + uy) - slab, max(ay, ay + uy) + slab
+    bz0, bz1 = min(az, az + uz) - slab, max(az, az + uz) + slab
+    if not _outside_grid(S, k, bx0, by0, bz0, bx1, by1, bz1):
         ix0, ix1, iy0, iy1, iz0, iz1, _ = _cells(S, k, bx0, by0, bz0, bx1, by1, bz1)
         h = S[k, S_H]
         # a short segment: the columns' cells within the ball about its middle that holds the
@@ -548,6 +745,8 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
         cells = int(S[k, S_CELLS])
         C[C_STAMP] += 1.0
         stamp = C[C_STAMP]
+        if bi >= 0:
+            C[C_STAMPS + bi] = stamp
         for ix in range(ix0, ix1 + 1):
             for iy in range(iy0, iy1 + 1):
                 row = cells + (ix * ny + iy) * nz
@@ -570,15 +769,6 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
                     best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
                         T, C, int(C[row + iz]), int(C[row + iz + 1]), stamp, ax, ay, az, ux, uy, uz, r,
                         dd, graze, slab, reach, length, best_lam, bnx, bny, bnz, bi, far2)
-        if bi < 0:
-            return (-1.0, 0.0, 0.0, 0.0)
-    S[k, S_HINT] = bi
-    if S[k, S_SHADING] != 0.0:
-        qx, qy, qz = ax + best_lam * ux - r * bnx, ay + best_lam * uy - r * bny, az + best_lam * uz - r * bnz
-        sx, sy, sz = _shade(T, bi, qx, qy, qz, bnx, bny, bnz)
-        if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
-            bnx, bny, bnz = sx, sy, sz
-    return (best_lam,
-            r00 * bnx + r01 * bny + r02 * bnz,
-            r10 * bnx + r11 * bny + r12 * bnz,
-            r20 * bnx + r21 * bny + r22 * bnz)
+    if bi < 0:
+        return (-1.0, 0.0, 0.0, 0.0)
+    return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, ax, ay, az, ux, uy, uz, r, graze)

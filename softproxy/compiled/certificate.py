@@ -1,0 +1,191 @@
+"""The kept certificates of `softproxy.mesh` on flat arrays: which triangles can come nearer
+than a tangent plane.
+
+A point p whose nearest point found so far is q, on the hint triangle, at distance d, has no
+nearer triangle among those lying wholly behind the tangent plane at q (normal (p - q) / d).
+`MeshShape` keeps, for every face and side, the few triangles near it that rise above its
+plane (none on a convex patch), and for every vertex a cone of tangent planes that hold its
+fan behind them and a table of the vertices near it sorted by how far below the cone they
+lie (`MeshShape._static_clear`). This module packs those tables (`certificate_tables`) and
+asks them (`static_clear`): where they hold, a query reads the hint and those few triangles
+instead of every triangle in a ball of radius d, the ~100 thin triangles meeting at a
+uv-sphere's pole included. Where they do not (a concave patch, a reach beyond the one they
+were built for), the caller scans its grid.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from softproxy.compiled.layout import (
+    C_FEW, C_STAMP, C_STAMPS, S_KEPT, S_VERTS, T_ADJ, T_CLEAR, T_N, T_TV, V_COS, V_FAN, V_RING, V_SINES,
+    V_THRESHOLD, VERTEX_WIDTH,
+)
+from softproxy.mesh import ABOVE_TOL, STATIC_ABOVE, VERTEX_READ
+
+
+def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """The certificates of MeshShape `s` whose triangles are rows t0.. of T and whose tables
+    start at C[c0]: (its T_ADJ..T_CLEAR columns (triangles × 10), its part of C (vertex
+    records, then rings, fans, sin β tables and face lists), the reach (m) they hold over)."""
+    n, nv = s.triangles, len(s._vpos)
+    adj = np.array(s._adj, dtype=np.float64).reshape(n, 3)
+    adj = np.where(adj >= 0.0, adj + t0, -1.0)
+    verts = np.zeros((nv, VERTEX_WIDTH))
+    verts[:, 0:3] = s._vpos
+    verts[:, 3:V_COS + 1] = np.array(s._vcone).reshape(nv, 4)
+    at = c0 + verts.size
+    parts = [verts]  # its run starts are filled in below
+
+    def runs(lists, width, column):
+        """Append per-vertex lists (rows of `width` floats) after `at`; record where they start."""
+        nonlocal at
+        counts = np.array([len(x) for x in lists], dtype=np.int64)
+        flat = np.array([e for x in lists for e in x], dtype=np.float64).reshape(-1, width)
+        verts[:, column] = at + width * (np.cumsum(counts) - counts)
+        verts[:, column + 1] = counts
+        at += flat.size
+        parts.append(flat.ravel())
+        return flat
+
+    ring = runs(s._ring, 4, V_RING)               # (edge vector (m), a triangle on the edge)
+    ring[:, 3] += t0
+    fans = runs([sorted(f) for f in s._fan], 1, V_FAN)
+    fans += t0
+    radius, start, sines, ids = s._vtable
+    counts = np.diff(start)
+    verts[:, V_SINES] = at + 2 * start[:-1]
+    verts[:, V_SINES + 1] = counts
+    parts.append(np.column_stack([sines, ids]).astype(np.float64).ravel())
+    at += 2 * len(sines)
+    # MeshShape._vertex_clear's threshold on c²: every triangle certified by angle alone above it
+    least = np.ones(nv)
+    least[counts > 0] = sines[start[:-1][counts > 0]]
+    s0 = least - 1e-12
+    verts[:, V_THRESHOLD] = np.where(s0 > 0.0, 1.0 - s0 * s0, 2.0)
+    # per face and side, the few triangles rising above its plane (-1: a concave patch)
+    clear = np.zeros((n, 4))
+    listed = []
+    for i in range(n):
+        for col, key in ((0, i), (2, -1 - i)):
+            got = s._clear.get(key)
+            if got is None or got[1] is None or got[0] < radius:
+                clear[i, col + 1] = -1.0
+                continue
+            clear[i, col], clear[i, col + 1] = at, len(got[1])
+            listed += got[1]
+            at += len(got[1])
+    parts.append(np.array(listed, dtype=np.float64) + t0)
+    columns = np.column_stack([adj, np.array(s._tv, dtype=np.float64).reshape(n, 3), clear])
+    assert columns.shape[1] == T_CLEAR + 4 - T_ADJ
+    return columns, np.concatenate([p.ravel() for p in parts]), float(s._kept)
+
+
+@njit(cache=True)
+def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
+    """`softproxy.mesh._convex_edge`: the side (±1.0) of neighbour row o that the tangent plane
+    of normal n at a point on its edge with row i sees, when the plane holds both faces behind
+    it (a convex edge seen from outside); 0.0 when it does not."""
+    dot1 = nx * T[o, T_N] + ny * T[o, T_N + 1] + nz * T[o, T_N + 2]
+    side1 = 1.0 if dot1 >= 0.0 else -1.0
+    g = side0 * side1 * (T[i, T_N] * T[o, T_N] + T[i, T_N + 1] * T[o, T_N + 1] + T[i, T_N + 2] * T[o, T_N + 2])
+    det = 1.0 - g * g
+    a0, a1 = side0 * dot0, side1 * dot1
+    if det < 1e-12:
+        return side1 if g > 0.0 and a0 > 1.0 - 1e-9 else 0.0
+    if a0 - g * a1 < -1e-12 * det or a1 - g * a0 < -1e-12 * det:
+        return 0.0  # n outside the cone: a concave edge
+    return side1
+
+
+@njit(cache=True)
+def _face_few(T, C, i, side, at):
+    """Row i's list of triangles rising above its plane on `side`, copied to C[C_FEW + at:];
+    the new count, or -1 when it has none (a concave patch)."""
+    col = T_CLEAR if side > 0.0 else T_CLEAR + 2
+    count = int(T[i, col + 1])
+    if count < 0 or at + count > C_STAMPS - C_FEW:
+        return -1
+    start = int(T[i, col])
+    for j in range(count):
+        C[C_FEW + at + j] = C[start + j]
+    return at + count
+
+
+@njit(cache=True)
+def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
+    """`static_clear` when the nearest point is vertex `feature - 4` of row `hint`: the fan lies
+    behind the tangent plane when n is inside the vertex's cone (else every edge leaving it is
+    tested); a triangle off the fan does when its vertices lie more than the plane's tilt
+    below the cone (sin β, from the table); the fans of the few that may not and rise above
+    the plane are listed."""
+    vertex = int(T[hint, T_TV + feature - 4])
+    verts = int(S[k, S_VERTS])
+    rec = verts + VERTEX_WIDTH * vertex
+    c = nx * C[rec + 3] + ny * C[rec + 4] + nz * C[rec + 5]
+    if c <= 0.0:
+        return -1
+    if c < C[rec + V_COS]:
+        r0 = int(C[rec + V_RING])
+        for j in range(r0, r0 + 4 * int(C[rec + V_RING + 1]), 4):
+            if nx * C[j] + ny * C[j + 1] + nz * C[j + 2] > ABOVE_TOL:
+                return -1
+    if c * c > C[rec + V_THRESHOLD]:
+        return 0
+    s0, sn = int(C[rec + V_SINES]), int(C[rec + V_SINES + 1])
+    tilt = math.sqrt(1.0 - c * c) + 1e-12
+    m = 0
+    while m < sn and C[s0 + 2 * m] < tilt:  # bisect_left on sin β ascending
+        m += 1
+    if m > VERTEX_READ:
+        return -1
+    off = nx * C[rec] + ny * C[rec + 1] + nz * C[rec + 2] + ABOVE_TOL
+    C[C_STAMP] += 1.0
+    stamp = C[C_STAMP]
+    count = 0
+    for j in range(m):
+        w = verts + VERTEX_WIDTH * int(C[s0 + 2 * j + 1])
+        if nx * C[w] + ny * C[w + 1] + nz * C[w + 2] > off:
+            f0 = int(C[w + V_FAN])
+            for f in range(f0, f0 + int(C[w + V_FAN + 1])):
+                i = int(C[f])
+                if C[C_STAMPS + i] == stamp:
+                    continue
+                C[C_STAMPS + i] = stamp
+                if count == STATIC_ABOVE:
+                    return -1
+                C[C_FEW + count] = i
+                count += 1
+    return count
+
+
+@njit(cache=True)
+def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
+    """`MeshShape._static_clear`: how many triangles (rows of T, listed in C[C_FEW:]) within
+    `need` (m) of the nearest point on `feature` of row `hint` may reach above the tangent
+    plane there (normal n, geom frame, out of the hint); every other triangle that near lies
+    behind it. -1 when the certificates do not hold (a concave patch, or need beyond the
+    reach they were built for): then every triangle must be asked. A point p at distance d
+    has no nearer triangle off the list when need >= 2d; a sphere of radius r touching at p
+    and sliding by L on or above the plane enters none when need >= 2r + L."""
+    if need > S[k, S_KEPT]:
+        return -1
+    dot0 = nx * T[hint, T_N] + ny * T[hint, T_N + 1] + nz * T[hint, T_N + 2]
+    side0 = 1.0 if dot0 >= 0.0 else -1.0
+    if feature == 0:
+        return _face_few(T, C, hint, side0, 0)
+    if feature > 3:
+        return _vertex_few(S, T, C, k, hint, feature, nx, ny, nz)
+    other = int(T[hint, T_ADJ + feature - 1])
+    if other < 0:
+        return -1
+    side1 = _convex_edge(T, hint, other, nx, ny, nz, side0, dot0)
+    if side1 == 0.0:
+        return -1
+    m = _face_few(T, C, hint, side0, 0)
+    if m < 0:
+        return -1
+    return _face_few(T, C, other, side1, m)
