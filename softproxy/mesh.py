@@ -1311,9 +1311,10 @@ class MeshShape(Shape):
                 into = nx * ux + ny * uy + nz * uz
                 if into < -graze:
                     return self._world_hit(hint, (0.0, nx, ny, nz, feature), ax, ay, az, ux, uy, uz, r, graze)
-                # the segment stays r above the hint's tangent plane: only triangles reaching
-                # above it need reading
-                touching = dist + into >= r - CONTACT_TOL
+                # the segment stays r above the hint's tangent plane, from a start not pressed
+                # into it (a sphere that dips below the plane may overlap a triangle behind it):
+                # only triangles reaching above it need reading
+                touching = dist >= r - CONTACT_TOL and dist + into >= r - CONTACT_TOL
                 start = (dist, qx, qy, qz, feature, hint)
                 few = self._static_clear(hint, feature, nx, ny, nz, 2.0 * reach + length) if touching else None
                 if few is not None:

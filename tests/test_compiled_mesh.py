@@ -95,11 +95,14 @@ def test_force_shading_is_the_python_meshes():
 
 
 def brute_sweep(mesh, p, u, r):
-    """`softproxy.mesh._sweep_triangle` over every triangle: the earliest touch (lam, n) or None."""
+    """`softproxy.mesh._sweep_triangle` over every triangle: the earliest touch (lam, n) or None.
+    Its inputs are computed as the sweeps compute theirs (the segment's length from the world
+    vector): a touch that grazes a triangle moves by ~1e-8 of the segment with the last bit."""
     a = mesh.to_local(*p)
-    R = np.array([[mesh.r00, mesh.r01, mesh.r02], [mesh.r10, mesh.r11, mesh.r12], [mesh.r20, mesh.r21, mesh.r22]])
-    ul = (R.T @ np.asarray(u)).tolist()
-    dd = sum(c * c for c in ul)
+    dx, dy, dz = u
+    ul = (mesh.r00 * dx + mesh.r10 * dy + mesh.r20 * dz, mesh.r01 * dx + mesh.r11 * dy + mesh.r21 * dz,
+          mesh.r02 * dx + mesh.r12 * dy + mesh.r22 * dz)
+    dd = dx * dx + dy * dy + dz * dz
     length = math.sqrt(dd)
     r = max(r, POINT_RADIUS)
     far2 = (r + length + CONTACT_TOL) ** 2
@@ -227,3 +230,71 @@ def test_the_compiled_god_object_on_meshes(tmp, which, radius, mu, points):
         assert bool(g[L.G_CONTACT]) == god.contact and bool(g[L.G_STICKING]) == god.sticking
         planes = g[L.G_PLANES:L.G_PLANES + L.PLANE_WIDTH * int(g[L.G_NPLANES])].reshape(-1, L.PLANE_WIDTH)
         assert [(*p[:4], twin[int(p[4])]) for p in planes.tolist()] == god.planes
+
+
+def hugging_path(mesh, rng, steps, r):
+    """Points (world) near the surface of `mesh` for a sphere of radius r: a random walk whose
+    every point is pulled back to between 0.5 mm inside and 1 mm beyond touching, with steps
+    from 10 µm to 3 mm: what a proxy sliding, pressing and lifting off asks."""
+    p = around(mesh, rng, 1, 1.0)[0]
+    out = []
+    for i in range(steps):
+        p = p + rng.normal(size=3) * [1e-5, 3e-4, 3e-3][i % 3]
+        d, nx, ny, nz = mesh.distance(*p.tolist())
+        p = p - np.array((nx, ny, nz)) * (d - r - rng.uniform(-5e-4, 1e-3))
+        out.append(p.tolist())
+    return out
+
+
+def vertex_path(mesh, rng, steps, r):
+    """Points (world) about the mesh's vertices, where a vertex is the nearest feature: each
+    off a random vertex along a direction scattered about its normal, at r give or take 0.5 mm,
+    every other one a small step from the last (the vertex certificate, its cone and ring)."""
+    R = np.array([[mesh.r00, mesh.r01, mesh.r02], [mesh.r10, mesh.r11, mesh.r12], [mesh.r20, mesh.r21, mesh.r22]])
+    origin = np.array((mesh.px, mesh.py, mesh.pz))
+    out = []
+    for i in range(steps):
+        if i % 2 and out:
+            out.append((np.array(out[-1]) + rng.normal(size=3) * 2e-4).tolist())
+            continue
+        v = rng.integers(len(mesh._vpos))
+        u = mesh._vaxis[v] + rng.normal(size=3) * rng.choice([0.05, 0.3, 1.0])
+        u /= np.linalg.norm(u)
+        local = mesh._vpos[v] + u * max(0.0, r + rng.uniform(-5e-4, 5e-4))
+        out.append((R @ local + origin).tolist())
+    return out
+
+
+@pytest.mark.parametrize("which", sorted(MESHES))
+def test_queries_along_the_surface_are_the_python_meshes_and_brute_force(tmp, which):
+    """Sweeps and distances along paths that hug the surface and that hop about its vertices
+    (the vertex certificate), where the kept certificates
+    answer most queries (the hint, the walk to a nearer triangle, the few that rise above a
+    tangent plane): each sweep, compiled and MeshShape's, the same touch as a pass over every
+    triangle (1e-12 of the segment), each distance at the sweep's start (kept by the sweep) and end MeshShape's to
+    1e-12 m."""
+    m, d, shapes = MESHES[which](tmp)
+    S, T, C, k = tables(shapes)
+    mesh = shapes[k]
+    rng = np.random.default_rng(13)
+    hits = 0
+    for r in (0.0, 0.005, 0.008):
+        for path in (hugging_path(mesh, rng, 45, r), vertex_path(mesh, rng, 40, r)):
+            for p, q in zip(path, path[1:]):
+                u = [b - a for a, b in zip(p, q)]
+                want = brute_sweep(mesh, p, u, r)
+                got = mesh_sweep(S, T, C, d.geom_xpos, d.geom_xmat, k, *p, *u, r)
+                py = mesh.sweep(*p, *u, r)
+                if want is None:
+                    assert got[0] == -1.0 and py is None, (which, p, u, r, got, py)
+                else:
+                    assert abs(got[0] - want[0]) <= 1e-12, (which, p, u, r, got, want)
+                    assert py is not None and abs(py[0] - want[0]) <= 1e-12, (which, p, u, r, py, want)
+                    hits += 1
+                for x in (p, q):
+                    want_d = mesh.distance(*x)
+                    got_d = mesh_distance(S, T, C, d.geom_xpos, d.geom_xmat, k, *x)
+                    assert abs(got_d[0] - want_d[0]) <= 1e-12, (which, x, got_d, want_d)
+                    if abs(want_d[0]) > 1e-6:
+                        assert np.dot(got_d[1:], want_d[1:]) > 1.0 - 1e-9, (which, x, got_d, want_d)
+    assert hits > 20

@@ -680,9 +680,10 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
             into = nx * ux + ny * uy + nz * uz
             if into < -graze:  # pressed into the triangle it touches: nothing comes earlier
                 return _hit(S, T, k, xmat, g, hint, 0.0, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze)
-            if dist + into >= r - CONTACT_TOL:
-                # moving along or away, r above the hint's tangent plane: only the triangles
-                # reaching above it can be touched
+            if dist >= r - CONTACT_TOL and dist + into >= r - CONTACT_TOL:
+                # moving along or away, r above the hint's tangent plane from start to end (a
+                # sphere that dips below it may overlap a triangle behind it): only the
+                # triangles reaching above it can be touched
                 m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, 2.0 * reach + length)
                 if m >= 0:
                     return _sweep_few(S, T, C, xmat, k, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
