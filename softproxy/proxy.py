@@ -5,8 +5,12 @@ Salisbury's god-object, Ruspini's proxy): a sphere of radius r swept against eve
 (`softproxy.geometry`), stopping at the first surface it moves into, then sliding on up to
 three constraint planes — faces, edges, corners and concave creases — all within one
 tick; a plane the proxy slides off (a curved shape's tangent plane, a rounded edge's, a
-face's past the face's edge) is replaced by the shape's tangent plane under the proxy.
-Every sweep stays inside the ball whose shapes the tick's broad phase gathered. Friction
+face's past the face's edge) is replaced by the shape's tangent plane under the proxy;
+when the tick's MAX_ITERATIONS sweeps run out just after such a lift (a jump of
+centimetres deep into a curved surface), one more sweep straight toward the device puts
+the proxy back on the surface, in contact, rather than leaving it microns above with no
+force for a tick. Every sweep stays inside the ball whose shapes the tick's broad phase
+gathered. Friction
 follows the proxy literature's friction cone: the proxy sticks while the device stays
 inside the static cone (tangential offset ≤ μ_s × penetration) and otherwise slides to
 the edge of the dynamic cone.
@@ -121,6 +125,17 @@ def _plane_of(planes: list, s: Shape, nx: float, ny: float, nz: float) -> int:
         if p[4] is s and p[0] * nx + p[1] * ny + p[2] * nz > PARALLEL:
             return i
     return -1
+
+
+def _add_plane(planes: list, plane: tuple) -> None:
+    """Add a constraint plane (nx, ny, nz, c, shape) just hit: the same plane met again is
+    replaced, not doubled, and the oldest goes when there would be four."""
+    i = _plane_of(planes, plane[4], plane[0], plane[1], plane[2])
+    if i >= 0:
+        del planes[i]
+    planes.append(plane)
+    if len(planes) > 3:
+        del planes[0]
 
 
 def _touched(planes: list, nx: float, ny: float, nz: float) -> Shape:
@@ -518,7 +533,9 @@ class GodObject:
         # a warm start saves the sweeps that would have found its planes, one each, not the
         # budget of those that follow: it ends where a cold solve ends, for less
         bx, by, bz, room2 = self._bx, self._by, self._bz, self._room * self._room
+        following = False  # the last sweep slid along a tangent plane that then lifted off
         for _ in range(MAX_ITERATIONS - len(planes)):
+            following = False
             dx, dy, dz = tx - x, ty - y, tz - z
             if dx * dx + dy * dy + dz * dz < 1e-24:
                 break
@@ -566,6 +583,7 @@ class GodObject:
                 if target is None:
                     break
                 tx, ty, tz = target
+                following = True
                 continue
             lam, nx, ny, nz, s = hit
             x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
@@ -573,17 +591,26 @@ class GodObject:
                 first = (x, y, z)
             else:
                 straight = False
-            c = nx * x + ny * y + nz * z
-            i = _plane_of(planes, s, nx, ny, nz)  # the same plane met again: replaced, not doubled
-            if i >= 0:
-                del planes[i]
-            planes.append((nx, ny, nz, c, s))
-            if len(planes) > 3:
-                del planes[0]
+            _add_plane(planes, (nx, ny, nz, nx * x + ny * y + nz * z, s))
             target = _project(gx, gy, gz, planes)
             if target is None:
                 break
             tx, ty, tz = target
+        if following:
+            # the budget ran out just after the proxy lifted off a curved surface it was
+            # following (a jump of centimetres a tick deep into it): one sweep straight toward
+            # the goal puts it back on the surface, in contact, instead of microns above it
+            # with no force for a tick
+            dx, dy, dz = gx - x, gy - y, gz - z
+            hit = self._sweep(x, y, z, dx, dy, dz)
+            if hit is None:
+                x, y, z = gx, gy, gz
+            else:
+                lam, nx, ny, nz, s = hit
+                x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
+                if first is None:
+                    first = (x, y, z)
+                _add_plane(planes, (nx, ny, nz, nx * x + ny * y + nz * z, s))
         # keep only the planes the proxy still rests on (the loop may end before it checked)
         resting = []
         for p in planes:

@@ -201,7 +201,8 @@ coord = st.floats(-1.0, 1.0)
 def test_the_compiled_god_object_on_meshes(tmp, which, radius, mu, points):
     """Random proxy radius, friction and device path (steps of up to ~2 cm a tick) through a
     10k-triangle sphere, the bowl and a tilted ball, solved by the compiled god-object: never
-    more than 1e-6 m inside; and every field equal, tick by tick, to the Python `GodObject`
+    more than 1e-6 m inside, in contact whenever the device is inside (its sweep budget spent
+    following the surface, it ends on the surface, not above it); and every field equal, tick by tick, to the Python `GodObject`
     asking the same compiled mesh queries: the compiled solver is the Python one on meshes too
     (the queries themselves are checked above against MeshShape and brute force)."""
     m, d, shapes = MESHES[which](tmp)
@@ -225,6 +226,8 @@ def test_the_compiled_god_object_on_meshes(tmp, which, radius, mu, points):
         ok_c = godobject.update(S, T, C, d.geom_xpos, d.geom_xmat, g, near, *q.tolist(), *work)
         x, y, z = g[L.G_X], g[L.G_Y], g[L.G_Z]
         assert max(radius - s.distance(x, y, z)[0] for s in shapes) <= TOL
+        if min(s.distance(*q.tolist())[0] for s in shapes) < -1e-3:
+            assert g[L.G_CONTACT] == 1.0  # the device inside: the proxy holds it back, never lets go
         assert god.update(*q.tolist()) == ok_c
         assert (x, y, z) == (god.x, god.y, god.z)
         assert bool(g[L.G_CONTACT]) == god.contact and bool(g[L.G_STICKING]) == god.sticking

@@ -167,6 +167,25 @@ def _plane_of(pl, n, s, nx, ny, nz):
 
 
 @njit(cache=True)
+def _add_plane(pl, n, nx, ny, nz, c, s):
+    """`softproxy.proxy._add_plane` on pl[:n]: the new count."""
+    i = _plane_of(pl, n, s, nx, ny, nz)
+    if i >= 0:
+        for j in range(i, n - 1):
+            for k in range(PLANE_WIDTH):
+                pl[j, k] = pl[j + 1, k]
+        n -= 1
+    pl[n, 0], pl[n, 1], pl[n, 2], pl[n, 3], pl[n, 4] = nx, ny, nz, c, s
+    n += 1
+    if n > 3:
+        for j in range(n - 1):
+            for k in range(PLANE_WIDTH):
+                pl[j, k] = pl[j + 1, k]
+        n -= 1
+    return n
+
+
+@njit(cache=True)
 def _touched(pl, n, nx, ny, nz):
     """`proxy._touched`: the shape row whose plane is most aligned with n."""
     best, best_dot = int(pl[0, 4]), -2.0
@@ -434,7 +453,9 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             hx, hy, hz = x, y, z
             tx, ty, tz = qx, qy, qz
     bx, by, bz, room2 = g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] * g[G_ROOM]
+    following = False
     for _ in range(MAX_ITERATIONS - n):
+        following = False
         dx, dy, dz = tx - x, ty - y, tz - z
         if dx * dx + dy * dy + dz * dz < 1e-24:
             break
@@ -483,6 +504,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             if not found:
                 break
             tx, ty, tz = qx, qy, qz
+            following = True
             continue
         x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
         if not has_first:
@@ -490,24 +512,22 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             hx, hy, hz = x, y, z
         else:
             straight = False
-        c = nx * x + ny * y + nz * z
-        i = _plane_of(pl, n, s, nx, ny, nz)
-        if i >= 0:
-            for j in range(i, n - 1):
-                for k in range(PLANE_WIDTH):
-                    pl[j, k] = pl[j + 1, k]
-            n -= 1
-        pl[n, 0], pl[n, 1], pl[n, 2], pl[n, 3], pl[n, 4] = nx, ny, nz, c, s
-        n += 1
-        if n > 3:
-            for j in range(n - 1):
-                for k in range(PLANE_WIDTH):
-                    pl[j, k] = pl[j + 1, k]
-            n -= 1
+        n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s)
         found, qx, qy, qz = _project(gx, gy, gz, pl, n)
         if not found:
             break
         tx, ty, tz = qx, qy, qz
+    if following:  # the budget ran out just after a lift: straight toward the goal, as in Python
+        dx, dy, dz = gx - x, gy - y, gz - z
+        hit, lam, nx, ny, nz, s = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
+        if not hit:
+            x, y, z = gx, gy, gz
+        else:
+            x, y, z = x + lam * dx, y + lam * dy, z + lam * dz
+            if not has_first:
+                has_first = True
+                hx, hy, hz = x, y, z
+            n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s)
     nr = 0
     for i in range(n):
         if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surfaces):

@@ -1,28 +1,32 @@
 """Triangle-mesh contact for the compiled god-object: `softproxy.mesh`'s queries on flat arrays.
 
-`MeshShape` answers the god-object's queries on a mesh's own triangles in scalar Python, and
-spends most of its code on not reading triangles (certificates, walks, kept answers), because
-each read costs ~1 µs there. Compiled, a read costs ~10 ns, so this twin keeps only the
-geometry and a plain spatial grid:
+`MeshShape` answers the god-object's queries on a mesh's own triangles in scalar Python;
+this twin answers the same ones in numba, from two arrays that `mesh_tables` packs for
+every mesh of a world: T, one row per triangle (its vertices, edges, plane, the
+pseudo-normals of its features, its vertex normals, its neighbours and certificate lists,
+geom frame; columns in `layout`), and C (per mesh a uniform grid over its bounding box,
+each triangle listed in every cell its box overlaps, and the kept certificates of
+`softproxy.compiled.certificate`).
 
-- `mesh_tables` packs every mesh of a world into two arrays: T, one row per triangle (its
-  vertices, edges, plane, the pseudo-normals of its features and its vertex normals, geom
-  frame; columns in `layout`), and C, the grid: per mesh, a uniform grid over its bounding
-  box, each triangle listed in every cell its bounding box overlaps.
-- `mesh_distance`: the exact nearest triangle, found in the cells within a cube about the
-  point: a cube of half-width R holds every triangle nearer than R. R starts at the distance
-  to the triangle nearest the last query (the hint), so one pass usually does; signed by the
-  angle-weighted pseudo-normal of the nearest feature on a watertight mesh, unsigned on an
-  open one, as in `softproxy.mesh`.
-- `mesh_sweep`: the earliest touch of a sphere (radius r) moving on a segment, over the
-  triangles in the cells the segment's box (grown by r) overlaps, each triangle inflated by r
-  (convex), exactly `softproxy.mesh._sweep_triangle`.
+- `mesh_distance`: the exact nearest triangle. From the triangle nearest the last query
+  (the hint), walked to a nearer one across an edge or round a vertex; where the kept
+  certificates hold at its nearest point (a convex patch: a face's, an edge's or a vertex's
+  tangent plane with every other triangle near it behind it), the few triangles they name
+  are all that is read; else the grid cells within the ball the hint's distance bounds.
+  Signed by the angle-weighted pseudo-normal of the nearest feature on a watertight mesh,
+  unsigned on an open one, as in `softproxy.mesh`.
+- `mesh_sweep`: the earliest touch of a sphere (radius r) moving on a segment, each
+  triangle inflated by r (convex), exactly `softproxy.mesh._sweep_triangle`. Pressed into
+  the hint, the touch is at once; sliding on or lifting off it, or touching it on the way,
+  the certificates leave a few triangles to sweep; else the grid cells near the segment.
 
-The per-triangle routines (`_closest`, `_sweep_triangle`, `_shade`) repeat `softproxy.mesh`'s
-operations in the same order. Which triangle answers may differ where two are equally near
-(a shared edge or vertex), so the two engines agree to rounding on a mesh, not to the bit
-(tests/test_compiled_mesh.py). Not ported: `MeshShape.on_face` (a proxy held on a mesh face is
-solved again from no planes each tick, never warm-started: the same answer, one sweep more).
+The per-triangle routines (`_closest`, `_sweep_triangle`, `_shade`) and the query logic
+repeat `softproxy.mesh`'s operations in the same order. Which triangle answers may differ
+where two are equally near (a shared edge or vertex), so the two engines agree to rounding
+on a mesh, not to the bit (tests/test_compiled_mesh.py). Not ported: `MeshShape.on_face` (a
+proxy held on a mesh face is solved again from no planes each tick, never warm-started:
+the same answer, one sweep more) and the neighbourhood (the grid serves where no
+certificate holds: a concave patch such as the inside of a bowl).
 """
 
 from __future__ import annotations
