@@ -21,8 +21,8 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, S_KEPT, S_VERTS, T_ADJ, T_CLEAR, T_N, T_TV, V_COS, V_FAN, V_RING, V_SINES,
-    V_THRESHOLD, VERTEX_WIDTH,
+    C_FEW, C_STAMP, C_STAMPS, S_KEPT, S_VERTS, T_ADJ, T_CLEAR, T_N, T_TV, V_AXIS, V_COS, V_FAN, V_RING, V_SINES,
+    V_THRESHOLD, V_X, VERTEX_WIDTH,
 )
 from softproxy.mesh import ABOVE_TOL, STATIC_ABOVE, VERTEX_READ
 
@@ -35,8 +35,8 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     adj = np.array(s._adj, dtype=np.float64).reshape(n, 3)
     adj = np.where(adj >= 0.0, adj + t0, -1.0)
     verts = np.zeros((nv, VERTEX_WIDTH))
-    verts[:, 0:3] = s._vpos
-    verts[:, 3:V_COS + 1] = np.array(s._vcone).reshape(nv, 4)
+    verts[:, V_X:V_X + 3] = s._vpos
+    verts[:, V_AXIS:V_COS + 1] = np.array(s._vcone).reshape(nv, 4)
     at = c0 + verts.size
     parts = [verts]  # its run starts are filled in below
 
@@ -125,7 +125,7 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     vertex = int(T[hint, T_TV + feature - 4])
     verts = int(S[k, S_VERTS])
     rec = verts + VERTEX_WIDTH * vertex
-    c = nx * C[rec + 3] + ny * C[rec + 4] + nz * C[rec + 5]
+    c = nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2]
     if c <= 0.0:
         return -1
     if c < C[rec + V_COS]:
@@ -142,13 +142,13 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
         m += 1
     if m > VERTEX_READ:
         return -1
-    off = nx * C[rec] + ny * C[rec + 1] + nz * C[rec + 2] + ABOVE_TOL
+    off = nx * C[rec + V_X] + ny * C[rec + V_X + 1] + nz * C[rec + V_X + 2] + ABOVE_TOL
     C[C_STAMP] += 1.0
     stamp = C[C_STAMP]
     count = 0
     for j in range(m):
         w = verts + VERTEX_WIDTH * int(C[s0 + 2 * j + 1])
-        if nx * C[w] + ny * C[w + 1] + nz * C[w + 2] > off:
+        if nx * C[w + V_X] + ny * C[w + V_X + 1] + nz * C[w + V_X + 2] > off:
             f0 = int(C[w + V_FAN])
             for f in range(f0, f0 + int(C[w + V_FAN + 1])):
                 i = int(C[f])

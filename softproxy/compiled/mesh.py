@@ -38,8 +38,9 @@ from numba import njit
 
 from softproxy.compiled.certificate import certificate_tables, static_clear
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, KEPT_WIDTH, RECORD_WIDTH, S_CELLS, S_DIMX, S_DIMY, S_DIMZ, S_GEOM, S_H, S_HINT, S_KEY,
-    S_LOX, S_LOY, S_LOZ, S_NT, S_KEPT, S_SHADING, S_SIGNED, S_T0, S_VERTS, T_ADJ, T_COLUMNS, T_TV, V_AXIS, V_COS, V_RING, VERTEX_WIDTH, T_EDGES, T_N, T_PSEUDO, T_VN,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, KEPT_WIDTH, RECORD_WIDTH, S_CELLS, S_DIMX, S_DIMY, S_DIMZ, S_GEOM, S_H,
+    S_HINT, S_KEPT, S_KEY, S_LOX, S_LOY, S_LOZ, S_NT, S_SHADING, S_SIGNED, S_T0, S_VERTS, T_ADJ, T_COLUMNS,
+    T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, V_AXIS, V_COS, V_RING, VERTEX_WIDTH,
 )
 from softproxy.geometry import CONTACT_TOL, GRAZE
 from softproxy.mesh import ABOVE_TOL, POINT_RADIUS, WALK_STEPS, MeshShape
