@@ -10,10 +10,9 @@ when the tick's MAX_ITERATIONS sweeps run out just after such a lift (a jump of
 centimetres deep into a curved surface), one more sweep straight toward the device puts
 the proxy back on the surface, in contact, rather than leaving it microns above with no
 force for a tick. Every sweep stays inside the ball whose shapes the tick's broad phase
-gathered. Friction
-follows the proxy literature's friction cone: the proxy sticks while the device stays
-inside the static cone (tangential offset ≤ μ_s × penetration) and otherwise slides to
-the edge of the dynamic cone.
+gathered. Friction follows the proxy literature's friction cone: the proxy sticks while
+the device stays inside the static cone (tangential offset ≤ μ_s × penetration) and
+otherwise slides to the edge of the dynamic cone.
 
 The proxy is stored in the frame of the geom it touches, so a moving object carries it;
 an object that moves into it pushes it out. Units: m, N, N/m, N·s/m.
