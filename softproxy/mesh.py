@@ -755,7 +755,7 @@ class MeshShape(Shape):
                 return ()
             # the few vertices with sin β < sin α, each against the tangent plane; the triangles
             # on those above it are read
-            m = bisect.bisect_left(got[1], math.sqrt(1.0 - c * c) + 1e-12)
+            m = bisect.bisect_left(got[1], math.sqrt(max(0.0, 1.0 - c * c)) + 1e-12)  # c may round above 1
             if m > VERTEX_READ:
                 return None
             k3 = 3 * (feature - 4)

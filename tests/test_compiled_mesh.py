@@ -18,7 +18,7 @@ from softproxy.compiled import godobject, layout as L
 from softproxy.compiled.mesh import mesh_distance, mesh_sweep
 from softproxy.compiled.shapes import shape_tables
 from softproxy.geometry import CONTACT_TOL, GRAZE
-from softproxy.mesh import POINT_RADIUS, MeshShape, _sweep_triangle
+from softproxy.mesh import POINT_RADIUS, MeshShape, _closest, _sweep_triangle
 from softproxy.proxy import GodObject
 from test_mesh import TOL, bowl, mesh_model, sphere10k, tilted_ball
 
@@ -304,3 +304,49 @@ def test_queries_along_the_surface_are_the_python_meshes_and_brute_force(tmp, wh
                     if abs(want_d[0]) > 1e-6:
                         assert np.dot(got_d[1:], want_d[1:]) > 1.0 - 1e-9, (which, x, got_d, want_d)
     assert hits > 20
+
+
+def peak_in_a_wall():
+    """An open sheet: a convex peak (tip at the origin, falling 1 mm over 2 mm) ringed by a wall
+    2–2.5 mm high 3–6 mm out: straight above the tip the wall is nearer than the tip once the
+    point is ~4 mm up, and the tip's vertex table holds vertices above its cone (sin β < 0)."""
+    seg, radii, heights = 12, [0.001, 0.002, 0.003, 0.004, 0.006], [-0.0005, -0.001, 0.002, 0.0025, 0.0025]
+    v = [(0.0, 0.0, 0.0)] + [(r * math.cos(2 * math.pi * j / seg), r * math.sin(2 * math.pi * j / seg), h)
+                             for r, h in zip(radii, heights) for j in range(seg)]
+    f = [(0, 1 + j, 1 + (j + 1) % seg) for j in range(seg)]
+    for ring in range(1, len(radii)):
+        b0, b1 = 1 + (ring - 1) * seg, 1 + ring * seg
+        f += [t for j in range(seg) for t in ((b0 + j, b1 + j, b1 + (j + 1) % seg),
+                                               (b0 + j, b1 + (j + 1) % seg, b0 + (j + 1) % seg))]
+    return trimesh.Trimesh(np.array(v), np.array(f), process=False)
+
+
+def test_straight_above_a_peak_the_vertex_certificate_holds_at_its_cone_axis(tmp):
+    """A point straight above a convex vertex sees it along the cone's axis, where n·axis may
+    round to 1 + 2e-16: the vertex certificate's tilt sqrt(1 - c²) must not become NaN (the
+    compiled engine then certified the tip and answered up to 0.5 mm too far; MeshShape
+    raised ValueError). Both engines' distances equal a brute-force pass, the sheet randomly
+    turned and moved, each point asked after one on the tip's fan (the hint there)."""
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(2)
+    base = peak_in_a_wall()
+    for trial in range(12):
+        turn = Rotation.random(random_state=int(rng.integers(1e9))).as_matrix()
+        sheet_ = trimesh.Trimesh(base.vertices @ turn.T + rng.normal(size=3) * 0.01, base.faces, process=False)
+        with pytest.warns(UserWarning, match="open mesh"):
+            m, d, shapes = mesh_model(Path(tmp) / f"peak{trial}.obj", sheet_)
+        S, T, C, k = tables(shapes)
+        mesh = shapes[k]
+        R = np.array([[mesh.r00, mesh.r01, mesh.r02], [mesh.r10, mesh.r11, mesh.r12], [mesh.r20, mesh.r21, mesh.r22]])
+        origin = np.array((mesh.px, mesh.py, mesh.pz))
+        tip = int(np.flatnonzero(np.array([len(r) for r in mesh._ring]) == 12)[0])
+        axis, p0 = mesh._vaxis[tip], mesh._vpos[tip]
+        for _ in range(40):
+            fan = (R @ (p0 + axis * 3e-4) + origin).tolist()
+            q = (R @ (p0 + axis * rng.uniform(0.0035, 0.0055)) + origin).tolist()
+            a = mesh.to_local(*q)
+            want = math.sqrt(min(_closest(t, *a)[0] for t in mesh._tri))
+            mesh.distance(*fan)
+            mesh_distance(S, T, C, d.geom_xpos, d.geom_xmat, k, *fan)
+            assert abs(mesh.distance(*q)[0] - want) <= 1e-12, (trial, q)
+            assert abs(mesh_distance(S, T, C, d.geom_xpos, d.geom_xmat, k, *q)[0] - want) <= 1e-12, (trial, q)

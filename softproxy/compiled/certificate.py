@@ -21,10 +21,12 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, S_KEPT, S_VERTS, T_ADJ, T_CLEAR, T_N, T_TV, V_AXIS, V_COS, V_FAN, V_RING, V_SINES,
+    C_FEW, C_STAMP, C_STAMPS, FEW_SLOTS, S_KEPT, S_VERTS, T_ADJ, T_CLEAR, T_N, T_TV, V_AXIS, V_COS, V_FAN, V_RING, V_SINES,
     V_THRESHOLD, V_X, VERTEX_WIDTH,
 )
 from softproxy.mesh import ABOVE_TOL, STATIC_ABOVE, VERTEX_READ
+
+assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' lists (an edge's certificate)"
 
 
 def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, float]:
@@ -136,7 +138,7 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     if c * c > C[rec + V_THRESHOLD]:
         return 0
     s0, sn = int(C[rec + V_SINES]), int(C[rec + V_SINES + 1])
-    tilt = math.sqrt(1.0 - c * c) + 1e-12
+    tilt = math.sqrt(max(0.0, 1.0 - c * c)) + 1e-12  # c may round above 1 (NaN would certify all)
     m = 0
     while m < sn and C[s0 + 2 * m] < tilt:  # bisect_left on sin β ascending
         m += 1
