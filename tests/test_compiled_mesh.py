@@ -252,12 +252,16 @@ def hugging_path(mesh, rng, steps, r):
     return out
 
 
+def to_world(mesh, local):
+    """A point of the mesh's geom frame in the world (m), as a list."""
+    R = np.array([[mesh.r00, mesh.r01, mesh.r02], [mesh.r10, mesh.r11, mesh.r12], [mesh.r20, mesh.r21, mesh.r22]])
+    return (R @ np.asarray(local) + np.array((mesh.px, mesh.py, mesh.pz))).tolist()
+
+
 def vertex_path(mesh, rng, steps, r):
     """Points (world) about the mesh's vertices, where a vertex is the nearest feature: each
     off a random vertex along a direction scattered about its normal, at r give or take 0.5 mm,
     every other one a small step from the last (the vertex certificate, its cone and ring)."""
-    R = np.array([[mesh.r00, mesh.r01, mesh.r02], [mesh.r10, mesh.r11, mesh.r12], [mesh.r20, mesh.r21, mesh.r22]])
-    origin = np.array((mesh.px, mesh.py, mesh.pz))
     out = []
     for i in range(steps):
         if i % 2 and out:
@@ -267,7 +271,7 @@ def vertex_path(mesh, rng, steps, r):
         u = mesh._vaxis[v] + rng.normal(size=3) * rng.choice([0.05, 0.3, 1.0])
         u /= np.linalg.norm(u)
         local = mesh._vpos[v] + u * max(0.0, r + rng.uniform(-5e-4, 5e-4))
-        out.append((R @ local + origin).tolist())
+        out.append(to_world(mesh, local))
     return out
 
 
@@ -337,13 +341,11 @@ def test_straight_above_a_peak_the_vertex_certificate_holds_at_its_cone_axis(tmp
             m, d, shapes = mesh_model(Path(tmp) / f"peak{trial}.obj", sheet_)
         S, T, C, k = tables(shapes)
         mesh = shapes[k]
-        R = np.array([[mesh.r00, mesh.r01, mesh.r02], [mesh.r10, mesh.r11, mesh.r12], [mesh.r20, mesh.r21, mesh.r22]])
-        origin = np.array((mesh.px, mesh.py, mesh.pz))
         tip = int(np.flatnonzero(np.array([len(r) for r in mesh._ring]) == 12)[0])
         axis, p0 = mesh._vaxis[tip], mesh._vpos[tip]
         for _ in range(40):
-            fan = (R @ (p0 + axis * 3e-4) + origin).tolist()
-            q = (R @ (p0 + axis * rng.uniform(0.0035, 0.0055)) + origin).tolist()
+            fan = to_world(mesh, p0 + axis * 3e-4)
+            q = to_world(mesh, p0 + axis * rng.uniform(0.0035, 0.0055))
             a = mesh.to_local(*q)
             want = math.sqrt(min(_closest(t, *a)[0] for t in mesh._tri))
             mesh.distance(*fan)

@@ -96,8 +96,8 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         edges = np.array(s._edges).reshape(len(t), 3 * EDGE_WIDTH)
         pseudo = np.array(s._pn).reshape(len(t), 21)
         planes = np.array(s._plane)                              # (n, 4): normal, offset
-        lo, h, dims, starts, tid = _grid(t[:, :9].reshape(-1, 3, 3), edges[:, [6, 13, 20]])
         corners = t[:, :9].reshape(-1, 3, 3)
+        lo, h, dims, starts, tid = _grid(corners, edges[:, [6, 13, 20]])
         centre = corners.mean(axis=1)
         rho = np.sqrt(((corners - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1) * (1.0 + 1e-12) + 1e-15
         records = np.column_stack([planes[tid], centre[tid], rho[tid], tid + t0])
