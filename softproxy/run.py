@@ -90,16 +90,17 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
-    `on_tick(loop)` after every tick, outside the timed region. `record` saves every device
-    sample to that file (see `softproxy.recording`) once the run is over. `compiled` runs
+    `on_tick(loop)` after every tick, outside the timed region. `record` streams every device
+    sample to that file as the run goes (see `softproxy.recording`). `compiled` runs
     the fingers as compiled code (see `build`).
     """
     original = device
     recorder = None
-    if record is not None:
-        rate = rate_hz or scene.rate_hz
-        planned = duration_s if duration_s is not None else scene.duration_s
-        device = recorder = RecordingDevice(device, int(planned * rate) + 2)
+    if record is not None:  # opened before the run: an unwritable path fails now, naming it
+        try:
+            device = recorder = RecordingDevice(device, record, scene=scene.name, rate_hz=float(rate_hz or scene.rate_hz))
+        except ValueError as exc:
+            raise SceneError(f"--record {exc}") from None
     loop = build(scene, device, rate_hz, finger_model, realtime=realtime, compiled=compiled)
     if on_built is not None:
         on_built(loop)
@@ -125,9 +126,13 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
                 user_on_tick(lp)
     else:
         on_tick = user_on_tick
-    loop.run(ticks, realtime=realtime, on_tick=on_tick)
-    if recorder is not None:
-        recorder.save(record, scene=scene.name, rate_hz=loop.rate_hz)
+    try:
+        loop.run(ticks, realtime=realtime, on_tick=on_tick)
+    finally:
+        if recorder is not None:
+            recorder.finish()  # drain and close the file however the run ends (the caller closes the device)
+    if recorder is not None and recorder.error:
+        raise SceneError(f"--record {record}: {recorder.error}")
 
     result = {
         "scene": scene.name,
