@@ -14,6 +14,7 @@ Modules (only `render`, `offscreen` and `window` import GL; importing this packa
 - `render`    `SceneRenderer`: moderngl drawing of a state frame, text overlay
 - `offscreen` EGL standalone context + framebuffer: snapshots and video frames
 - `window`    glfw window: mouse orbit/zoom/pan, keys
-- `launch`    start the viewer process and wait until its window is up
+- `servo_watch` is the servo process still there (the viewer closes when it is gone)
+- `launch`    start the viewer process (isolated from the working directory); every wait bounded
 - `attach`    what `softproxy run` hangs on a run: window, snapshot, video
 """

@@ -4,9 +4,11 @@ Opens the scene's model itself, attaches to the shared-memory block the servo si
 publishes into, and shows it at display rate: in a glfw window, or (`--offscreen`) in an
 EGL framebuffer (tests, machines without a display; `--save-last FILE.png` keeps the last
 picture). It reports its state in the block's header (starting, running, failed, closed)
-so the servo side can tell the user when no window could open. It never prints a
-traceback (set SOFTPROXY_DEBUG=1 to see one). Exit codes: 0 done, 1 error, 2 bad
-arguments or block, 3 no display / no OpenGL.
+and bumps the block's heartbeat at every display-loop turn, so the servo side can tell the
+user when no window could open and never waits on a viewer that stopped responding. It
+closes itself within ~0.1 s once the servo process (`--parent PID`, else the block's
+publisher) is gone. It never prints a traceback (set SOFTPROXY_DEBUG=1 to see one). Exit
+codes: 0 done, 1 error, 2 bad arguments or block, 3 no display / no OpenGL.
 """
 
 from __future__ import annotations
@@ -38,10 +40,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--stall-ms", type=float, default=0.0, help="sleep this long after every frame (a frozen viewer)")
     p.add_argument("--save-last", default=None, help="offscreen: write the last frame to this PNG")
     p.add_argument("--max-seconds", type=float, default=None, help="offscreen: stop after this long")
+    p.add_argument("--parent", type=int, default=None, metavar="PID",
+                   help="the servo process: close once it is gone (default: the block's publisher)")
     return p
 
 
-def _offscreen(model, reader, names, args) -> int:
+def _offscreen(model, reader, names, args, servo) -> int:
     from softproxy.viewer.offscreen import EGLUnavailable, OffscreenRenderer, save_png
     from softproxy.viewer.state import VIEWER_FAILED, VIEWER_RUNNING
 
@@ -52,13 +56,13 @@ def _offscreen(model, reader, names, args) -> int:
         print(f"softproxy viewer: {exc}", file=sys.stderr)
         return 3
     reader.set_status(VIEWER_RUNNING, os.getpid())
-    parent = os.getppid()
     period = 1.0 / args.fps
     begin = time.perf_counter()
     image = frame = None
     try:
         while True:
             start = time.perf_counter()
+            reader.beat()
             finished = reader.closed  # read before the frame: the final frame is then drawn
             latest = reader.read()
             if latest is not None:
@@ -66,15 +70,14 @@ def _offscreen(model, reader, names, args) -> int:
             if frame is not None:
                 image = renderer.render(frame)
                 reader.count_frame()
-            if finished or os.getppid() != parent:
+            if finished or servo.gone():
                 break
             if args.max_seconds is not None and start - begin > args.max_seconds:
                 break
-            if args.stall_ms > 0:
-                time.sleep(args.stall_ms / 1000.0)
-            rest = period - (time.perf_counter() - start)
-            if rest > 0:
-                time.sleep(rest)
+            if args.stall_ms > 0 and servo.sleep(args.stall_ms / 1000.0):
+                break
+            if servo.sleep(period - (time.perf_counter() - start)):
+                break
         if args.save_last and image is not None:
             save_png(image, args.save_last)
     finally:
@@ -108,6 +111,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"softproxy viewer: cannot attach to shared memory {args.shm!r}: {exc}", file=sys.stderr)
         return 2
     _yield_cpu()
+    from softproxy.viewer.servo_watch import ServoWatch
+
+    servo = ServoWatch(args.parent if args.parent is not None else reader.servo_pid)
     code = 1
     try:
         from softproxy.scene import SceneError, load_scene
@@ -126,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         names = [f.name for f in scene.fingers]
         if args.offscreen:
-            code = _offscreen(model, reader, names, args)
+            code = _offscreen(model, reader, names, args, servo)
             return code
         from softproxy.viewer.window import NoDisplay, ViewerWindow
 
@@ -138,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
             return 3
         reader.set_status(VIEWER_RUNNING, os.getpid())
         try:
-            window.run(args.fps, args.stall_ms / 1000.0)
+            window.run(args.fps, args.stall_ms / 1000.0, servo)
         finally:
             window.close()
         code = 0
@@ -156,6 +162,7 @@ def main(argv: list[str] | None = None) -> int:
         if reader.header is not None and int(reader.header[H_VIEWER_STATUS]) != VIEWER_FAILED:
             reader.set_status(VIEWER_CLOSED)
         reader.close()
+        servo.close()
 
 
 if __name__ == "__main__":

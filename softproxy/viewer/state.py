@@ -5,7 +5,8 @@ No GL here: the servo process imports this module only.
 Memory layout of the `multiprocessing.shared_memory` block::
 
     int64 header[32]    SEQ (seqlock counter), MAGIC, NGEOM, NFINGER, CLOSED (run over),
-                        VIEWER_STATUS, VIEWER_FRAMES, VIEWER_PID, REQUEST[16] (command slot)
+                        VIEWER_STATUS, VIEWER_FRAMES, VIEWER_PID, REQUEST[16] (command slot),
+                        VIEWER_BEAT (heartbeat), SERVO_PID (the publisher's process)
     float64 state[...]  scalars (time, ticks, rates, tick p50/p99, faults, misses),
                         geom_xpos (ngeom x 3), geom_xmat (ngeom x 9), fingers (nfinger x 32)
 
@@ -21,10 +22,17 @@ The command slot: REQUEST[i] is the contact mode the viewer asks for finger i
 acknowledge and nothing to lose: the publisher polls it when it publishes (outside the
 timed tick) and switches a finger whose mode differs; the mode a finger really has is
 published back in its state record.
+
+The heartbeat: the viewer adds one to VIEWER_BEAT at every turn of its display loop (drawn,
+paused or waiting alike), so the servo side can tell a viewer that stopped responding
+(frozen, stopped, starved) from one waiting for its user, and never waits on the former.
+SERVO_PID is the publisher's process: a viewer started on its own watches it and closes
+when it is gone.
 """
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -42,6 +50,8 @@ MAX_FINGERS = 16
 # header slots (int64)
 SEQ, H_MAGIC, H_NGEOM, H_NFINGER, H_CLOSED, H_VIEWER_STATUS, H_VIEWER_FRAMES, H_VIEWER_PID = range(8)
 H_REQUEST = 8  # .. 8 + MAX_FINGERS
+H_VIEWER_BEAT = H_REQUEST + MAX_FINGERS  # the viewer's heartbeat: +1 per display-loop turn
+H_SERVO_PID = H_VIEWER_BEAT + 1          # the publisher's process id
 
 # viewer status values
 VIEWER_STARTING, VIEWER_RUNNING, VIEWER_FAILED, VIEWER_CLOSED = 0, 1, 2, 3
@@ -224,6 +234,27 @@ def set_contact_mode(finger, mode: int, saved_slips: dict | None = None) -> bool
 _CREATED: set[str] = set()  # blocks this process created (and its resource tracker unlinks)
 
 
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (it unlinks our blocks should this process die)
+    without it running the user's files: it is started as `python -c ...` in the working
+    directory, which would put that directory first on its sys.path (a `select.py` there runs).
+    PYTHONSAFEPATH=1 (Python >= 3.11) keeps the directory out; it is set only while the tracker
+    starts. Nothing happens if the tracker already runs."""
+    if os.name != "posix":
+        return
+    from multiprocessing import resource_tracker
+
+    before = os.environ.get("PYTHONSAFEPATH")
+    os.environ["PYTHONSAFEPATH"] = "1"
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        if before is None:
+            del os.environ["PYTHONSAFEPATH"]
+        else:
+            os.environ["PYTHONSAFEPATH"] = before
+
+
 def _attach(name: str) -> shared_memory.SharedMemory:
     """Attach to an existing block without letting this process's resource tracker unlink it."""
     try:
@@ -273,6 +304,7 @@ class StatePublisher(_Block):
     def __init__(self, layout: Layout, every: int = 17, name: str | None = None) -> None:
         if every < 1:
             raise ValueError(f"every must be >= 1 tick, got {every!r}")
+        _start_resource_tracker()
         shm = shared_memory.SharedMemory(create=True, size=layout.nbytes, name=name)
         _CREATED.add(shm.name)
         super().__init__(shm, layout)
@@ -281,6 +313,7 @@ class StatePublisher(_Block):
         self.header[H_NGEOM] = layout.ngeom
         self.header[H_NFINGER] = layout.nfinger
         self.header[H_REQUEST:H_REQUEST + MAX_FINGERS] = -1
+        self.header[H_SERVO_PID] = os.getpid()
         self.every = int(every)
         self.publishes = 0
         self.switches = 0
@@ -356,6 +389,16 @@ class StatePublisher(_Block):
     def viewer_frames(self) -> int:
         return int(self.header[H_VIEWER_FRAMES]) if self.header is not None else 0
 
+    @property
+    def viewer_beat(self) -> int:
+        """The viewer's heartbeat counter (it changes while the viewer's display loop turns)."""
+        return int(self.header[H_VIEWER_BEAT]) if self.header is not None else 0
+
+    @property
+    def viewer_pid(self) -> int:
+        """The viewer's process id once it runs (0 before)."""
+        return int(self.header[H_VIEWER_PID]) if self.header is not None else 0
+
     def close(self) -> None:
         """Unmap and unlink the block (a viewer still attached keeps its own mapping)."""
         if self.header is not None:
@@ -425,6 +468,15 @@ class StateReader(_Block):
 
     def count_frame(self) -> None:
         self.header[H_VIEWER_FRAMES] += 1
+
+    def beat(self) -> None:
+        """One turn of the display loop: the servo side sees the viewer is responsive."""
+        self.header[H_VIEWER_BEAT] += 1
+
+    @property
+    def servo_pid(self) -> int:
+        """The publisher's process id (0: unknown)."""
+        return int(self.header[H_SERVO_PID])
 
     def close(self) -> None:
         self._release()

@@ -5,11 +5,14 @@ Keys: space pauses the display (the servo keeps running), r resets the camera to
 scene, p switches the selected finger(s) between soft and point contact (a request through
 the shared memory's command slot, applied by the servo side's publisher), 1-9 select one
 finger, 0 or a select all, q or Esc close the window.
+
+The window closes by itself once the servo process is gone (a `ServoWatch`). It bumps the
+block's heartbeat at every turn of its loop, drawn or not (paused, minimised), so the
+servo side can wait for the user to close it without waiting on a frozen window.
 """
 
 from __future__ import annotations
 
-import os
 import time
 
 import glfw
@@ -17,6 +20,7 @@ import moderngl
 
 from softproxy.viewer.camera import OrbitCamera, framing
 from softproxy.viewer.render import SceneRenderer, overlay_lines
+from softproxy.viewer.servo_watch import ServoWatch
 from softproxy.viewer.state import F_MODE, POINT, SOFT, StateReader
 
 HELP = "drag orbit | right-drag pan | wheel zoom | space pause | r camera | p soft/point ({sel}) | 1-9,0 select | q quit"
@@ -67,7 +71,6 @@ class ViewerWindow:
         self._auto_frame = True
         self.frame = None
         self.paused = False
-        self._parent = os.getppid()
         self.selected = -1  # -1: every finger
         self.requested: dict[int, int] = {}
         self._drag = None
@@ -154,13 +157,15 @@ class ViewerWindow:
             parts.append("PAUSED (display only)")
         if self.reader.closed:
             parts.append("run finished")
-        elif os.getppid() != self._parent:
-            parts.append("the servo process is gone")
         return "  ".join(parts)
 
     def step(self) -> None:
-        """One display frame: events, the latest state (unless paused), draw, swap."""
+        """One display frame: heartbeat, events, the latest state (unless paused), draw, swap.
+        A minimised window is not drawn (some systems block its buffer swap until it shows)."""
+        self.reader.beat()
         glfw.poll_events()
+        if glfw.get_window_attrib(self.win, glfw.ICONIFIED):
+            return
         if not self.paused:
             frame = self.reader.read()
             if frame is not None:
@@ -181,17 +186,17 @@ class ViewerWindow:
         glfw.swap_buffers(self.win)
         self.reader.count_frame()
 
-    def run(self, fps: float = 60.0, stall_s: float = 0.0) -> None:
-        """Until the window closes: `step()` at `fps` (swap waits for vsync where there is one)."""
+    def run(self, fps: float = 60.0, stall_s: float = 0.0, servo: ServoWatch | None = None) -> None:
+        """Until the window closes or the `servo` process is gone: `step()` at `fps` (swap waits
+        for vsync where there is one); `stall_s` s of sleep after each frame (a frozen viewer)."""
+        servo = servo or ServoWatch(None)
         period = 1.0 / fps
-        while not glfw.window_should_close(self.win):
+        while not glfw.window_should_close(self.win) and not servo.gone():
             start = time.perf_counter()
             self.step()
-            if stall_s > 0.0:
-                time.sleep(stall_s)
-            rest = period - (time.perf_counter() - start)
-            if rest > 0.0:
-                time.sleep(rest)
+            if stall_s > 0.0 and servo.sleep(stall_s):
+                break
+            servo.sleep(period - (time.perf_counter() - start))
 
     def finger_label(self, i: int) -> str:
         return self.finger_names[i] if i < len(self.finger_names) else f"finger {i + 1}"
