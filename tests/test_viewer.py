@@ -1,4 +1,5 @@
-"""The viewer: offscreen pictures, the seqlock and command slot, a stalled viewer, no display.
+"""The viewer: offscreen pictures, the seqlock and command slot, a stalled or frozen viewer, no display,
+the viewer process isolated from the working directory and gone with its servo process.
 
 GL tests render through EGL (Mesa llvmpipe needs no display and no GPU); they are skipped,
 with the reason, only where no EGL context can be made.
@@ -371,9 +372,11 @@ print("window ok")
 """
 
 
-@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="no Xvfb to open a window in")
-def test_window_draws_and_keys_work(tmp_path):
-    """In its own process (an X error ends a process; EGL and GLX do not mix in one)."""
+@pytest.fixture
+def xvfb_display():
+    """An X display (Xvfb) for the length of a test; skip if there is no Xvfb."""
+    if shutil.which("Xvfb") is None:
+        pytest.skip("no Xvfb to open a window in")
     read_fd, write_fd = os.pipe()
     xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1024x768x24"],
                             pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -381,13 +384,18 @@ def test_window_draws_and_keys_work(tmp_path):
     try:
         with os.fdopen(read_fd) as pipe:
             display = ":" + pipe.readline().strip()
-        env = dict(os.environ, DISPLAY=display, PYTHONPATH=os.path.dirname(__file__))
-        out = subprocess.run([sys.executable, "-c", _WINDOW_SCRIPT], env=env, capture_output=True, text=True,
-                             timeout=120)
-        assert out.returncode == 0 and "window ok" in out.stdout, out.stderr
+        yield display
     finally:
         xvfb.terminate()
         xvfb.wait()
+
+
+def test_window_draws_and_keys_work(xvfb_display):
+    """In its own process (an X error ends a process; EGL and GLX do not mix in one)."""
+    env = dict(os.environ, DISPLAY=xvfb_display, PYTHONPATH=os.path.dirname(__file__))
+    out = subprocess.run([sys.executable, "-c", _WINDOW_SCRIPT], env=env, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0 and "window ok" in out.stdout, out.stderr
 
 
 def test_tick_percentiles_follow_the_ring_buffer():
@@ -399,3 +407,213 @@ def test_tick_percentiles_follow_the_ring_buffer():
     p50, p99 = state.tick_percentiles_us(stats, window=8)  # the last 8: 13..20
     assert p50 == pytest.approx(16.0) and p99 == pytest.approx(19.0)
     assert state.tick_percentiles_us(TickStats(4)) == (0.0, 0.0)
+
+
+# --- the viewer process: isolated, never waited on without a bound, gone with its servo ----
+TRAPS = ("argparse", "numpy", "softproxy", "mujoco", "moderngl", "glfw", "PIL", "select")
+
+
+def _small_session(loop, scene, **kw):
+    from softproxy.viewer.launch import ViewerSession
+
+    said = []
+    session = ViewerSession(loop, scene.path, offscreen=True, size=(160, 120), say=said.append, **kw)
+    return session, said
+
+
+def _alive(pid):
+    """The process exists and is not a zombie (an orphan's zombie may wait long for its reaper)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+    except OSError:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+
+def _end(pid):
+    """Test cleanup: a stopped or running process is killed."""
+    import signal
+
+    for sig in (signal.SIGCONT, signal.SIGKILL):
+        try:
+            os.kill(pid, sig)
+        except (ProcessLookupError, PermissionError):
+            return
+
+
+_TRAPPED_SERVO = """
+import sys
+from softproxy.run import build, open_device
+from softproxy.scene import load_scene
+from softproxy.viewer.launch import ViewerSession
+scene = load_scene("two_finger_grasp")
+loop = build(scene, open_device("sim", scene), realtime=False)
+session = ViewerSession(loop, scene.path, offscreen=True, size=(160, 120), save_last=sys.argv[1]).start(timeout=60)
+loop.run(300, on_tick=session)
+session.finish(loop)
+code = session.process.wait(30)
+frames = session.publisher.viewer_frames
+session.close()
+print(code, frames)
+"""
+
+
+def test_the_viewer_runs_none_of_the_files_in_the_working_directory(egl, tmp_path):
+    """A servo process started in a folder holding argparse.py, numpy.py, softproxy.py,
+    select.py ... that each leave a mark when imported starts its viewer (and the resource
+    tracker that unlinks its shared memory): neither imports any of them, and the viewer
+    still draws the run."""
+    work, marks = tmp_path / "work", tmp_path / "marks"
+    work.mkdir()
+    marks.mkdir()
+    for name in TRAPS:
+        (work / f"{name}.py").write_text(f"open({str(marks / name)!r}, 'w').close()\n")
+    servo = tmp_path / "servo.py"  # outside `work`: the servo script's own folder is not the trap
+    servo.write_text(_TRAPPED_SERVO)
+    shot = tmp_path / "last.png"
+    out = subprocess.run([sys.executable, str(servo), str(shot)], cwd=work, capture_output=True, text=True,
+                         timeout=120)
+    imported = sorted(os.listdir(marks))
+    assert imported == [], f"imported from the working directory: {imported}"
+    assert out.returncode == 0, out.stderr
+    code, frames = (int(v) for v in out.stdout.split())
+    assert code == 0 and frames >= 2, (code, frames, out.stderr)
+    assert np.asarray(Image.open(shot)).std() > 10, "the last frame is a picture"
+
+
+@pytest.mark.parametrize("freeze", ["stall", "sigstop"])
+def test_a_frozen_viewer_does_not_hold_the_cli(egl, freeze):
+    """A viewer that stops turning its loop (sleeps for ever, or SIGSTOP) makes `wait_closed`
+    give up once its heartbeat has been still for `stale_s`, and `close` stop it within its
+    bounds (SIGTERM, then SIGKILL for a stopped process); each says so in one line."""
+    import signal
+
+    scene = load_scene("two_finger_grasp")
+    loop = build(scene, open_device("sim", scene), realtime=False)
+    session, said = _small_session(loop, scene, stall_ms=1e7 if freeze == "stall" else 0.0)
+    pid = session.process.pid
+    try:
+        session.start(timeout=60)
+        if freeze == "sigstop":
+            os.kill(pid, signal.SIGSTOP)
+        loop.run(100, on_tick=session)
+        session.finish(loop)
+        t0 = time.monotonic()
+        assert session.wait_closed(timeout=5.0, stale_s=0.5) is None  # (the timeout: fail, not hang)
+        waited = time.monotonic() - t0
+        assert 0.5 <= waited < 1.5, waited
+        assert len(said) == 1 and "not responded" in said[0], said
+        t0 = time.monotonic()
+        session.close(timeout=0.3, stop_s=0.5)
+        closed = time.monotonic() - t0
+        assert closed < 0.3 + 2 * 0.5 + 0.5, closed
+        assert not _alive(pid)
+        assert session.process.proc.returncode == (-signal.SIGKILL if freeze == "sigstop" else -signal.SIGTERM)
+        assert len(said) == 1, said  # stopping a viewer already reported is not reported again
+    finally:
+        _end(pid)
+        session.close(timeout=0.1, stop_s=0.1)
+
+
+def test_closing_a_stopped_offscreen_viewer_is_bounded(egl):
+    """`close` without `wait_closed`: a SIGSTOPped offscreen viewer gets `timeout` s for its
+    last frame, is killed, and one line says it did not finish."""
+    import signal
+
+    scene = load_scene("two_finger_grasp")
+    loop = build(scene, open_device("sim", scene), realtime=False)
+    session, said = _small_session(loop, scene)
+    pid = session.process.pid
+    try:
+        session.start(timeout=60)
+        os.kill(pid, signal.SIGSTOP)
+        t0 = time.monotonic()
+        session.close(timeout=0.3, stop_s=0.5)
+        assert time.monotonic() - t0 < 0.3 + 2 * 0.5 + 0.5
+        assert not _alive(pid) and session.process.proc.returncode == -signal.SIGKILL
+        assert len(said) == 1 and "last frame" in said[0], said
+    finally:
+        _end(pid)
+
+
+def test_wait_closed_waits_for_a_viewer_that_keeps_responding(egl):
+    """A live viewer (heartbeat moving, run not finished) is waited for past `stale_s`, up to
+    the `timeout`, and nothing is said; a heartbeat counted per loop turn moves ~fps times a second."""
+    scene = load_scene("two_finger_grasp")
+    loop = build(scene, open_device("sim", scene), realtime=False)
+    session, said = _small_session(loop, scene)
+    try:
+        session.start(timeout=60)
+        beat = session.publisher.viewer_beat
+        t0 = time.monotonic()
+        assert session.wait_closed(timeout=1.5, stale_s=0.6) is None
+        waited = time.monotonic() - t0
+        assert 1.5 <= waited < 2.5 and said == [], (waited, said)
+        assert session.process.running()
+        assert session.publisher.viewer_beat - beat >= 10
+    finally:
+        session.close(timeout=5)
+    assert session.process.proc.returncode == 0, "the finished viewer left by itself"
+
+
+_ORPHAN_PARENT = """
+import sys, time
+from softproxy.run import build, open_device
+from softproxy.scene import load_scene
+from softproxy.viewer.launch import ViewerSession
+scene = load_scene("two_finger_grasp")
+loop = build(scene, open_device("sim", scene), realtime=False)
+window = sys.argv[1] == "window"
+session = ViewerSession(loop, scene.path, offscreen=not window, size=(320, 240)).start(timeout=60)
+loop.run(200, on_tick=session)
+print(session.process.pid, flush=True)
+time.sleep(120)
+"""
+
+
+def _viewer_outlives_no_servo(mode, env, tmp_path):
+    import signal
+
+    log = open(tmp_path / "parent.err", "w")
+    parent = subprocess.Popen([sys.executable, "-c", _ORPHAN_PARENT, mode], stdout=subprocess.PIPE, stderr=log,
+                              text=True, env=env)
+    pid = None
+    try:
+        line = parent.stdout.readline().strip()
+        assert line.isdigit(), (tmp_path / "parent.err").read_text()
+        pid = int(line)
+        time.sleep(0.3)
+        assert _alive(pid), "the viewer runs while its servo process does"
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(10)
+        t0 = time.monotonic()
+        while _alive(pid) and time.monotonic() - t0 < 5.0:
+            time.sleep(0.05)
+        gone_after = time.monotonic() - t0
+        assert not _alive(pid), "the viewer drew on after its servo process was killed"
+        return gone_after
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+            parent.wait()
+        if pid is not None:
+            _end(pid)
+        log.close()
+
+
+def test_an_orphaned_offscreen_viewer_closes_itself(egl, tmp_path):
+    """SIGKILL the servo process: its offscreen viewer notices (pidfd / parent pid) and exits."""
+    gone_after = _viewer_outlives_no_servo("offscreen", None, tmp_path)
+    assert gone_after < 3.0, gone_after
+
+
+def test_an_orphaned_viewer_window_closes_itself(xvfb_display, tmp_path):
+    """SIGKILL the servo process: the viewer's window closes by itself."""
+    gone_after = _viewer_outlives_no_servo("window", dict(os.environ, DISPLAY=xvfb_display), tmp_path)
+    assert gone_after < 3.0, gone_after

@@ -102,7 +102,8 @@ class RunViews:
             print(f"softproxy run: video of {n} frames at {self.fps:g} fps written to {self.video}", file=sys.stderr)
 
     def wait_window(self) -> None:
-        """The run is over: tell the window, and wait until the user closes it."""
+        """The run is over: tell the window, and wait until the user closes it (or it stops
+        responding: then one line says so and the run's command goes on)."""
         if self.session is None:
             return
         self.session.finish()
