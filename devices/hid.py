@@ -537,7 +537,7 @@ def list_devices(enumerate_fn=None, profiles: list[Profile] | None = None) -> li
     if enumerate_fn is None:
         enumerate_fn = _import_hid().enumerate
     if profiles is None:
-        profiles, _ = load_profiles()
+        profiles = load_profiles().profiles
     rows = []
     for info in enumerate_fn():
         profile_name, model = None, None
@@ -566,12 +566,15 @@ def list_devices(enumerate_fn=None, profiles: list[Profile] | None = None) -> li
 
 def devices_main(as_json: bool = False, *, enumerate_fn=None, out=None, err=None) -> int:
     """`softproxy devices [--json]`: print the connected HID devices and their profiles; 0, or 1
-    when HID devices cannot be enumerated."""
+    when HID devices cannot be enumerated. Broken profiles and profiles that shadow another
+    of the same name get one line each on `err` (and, shadowing, a "shadowing" list in the JSON)."""
     out = sys.stdout if out is None else out
     err = sys.stderr if err is None else err
-    profiles, errors = load_profiles()
+    profiles, errors, shadowing = load_profiles()
     for e in errors:
         print(f"softproxy devices: skipping a broken profile: {e}", file=err)
+    for sh in shadowing:
+        print(f"softproxy devices: warning: {sh.warning()}", file=err)
     try:
         rows = list_devices(enumerate_fn, profiles)
     except (DeviceError, OSError, ValueError) as exc:
@@ -580,7 +583,9 @@ def devices_main(as_json: bool = False, *, enumerate_fn=None, out=None, err=None
     if as_json:
         doc = {"devices": rows, "profiles": [{"name": p.name, "description": p.description, "ids": p.ids(),
                                              "renders_force": p.renders_force, "modes": list(p.modes),
-                                             "source": p.source} for p in profiles]}
+                                             "source": p.source} for p in profiles],
+               "shadowing": [{"name": sh.name, "source": sh.source, "shadowed": sh.shadowed,
+                              "warning": sh.warning()} for sh in shadowing]}
         print(json.dumps(doc, indent=2), file=out)
         return 0
     if not rows:

@@ -19,6 +19,14 @@ input (../shared/DESIGN.md, "Devices are untrusted input"):
   clamped to the profile's max_force / max_torque and to each field's count limits.
 * `load_profile(name_or_path)` / `parse_profile(doc, source)` validate a profile; every
   error is a `ProfileError` (a ValueError) naming the file, the field and what was expected.
+  Limits are bounded, not only finite: `max_force` <= MAX_FORCE_N (100 N), `max_torque` <=
+  MAX_TORQUE_NM (10 N·m), an input `scale` / `rate_scale` <= MAX_INPUT_SCALE (1e3 SI per
+  count), an output `scale` <= MAX_OUTPUT_SCALE (1e9 counts per N or N·m). A finger-sized
+  device renders a few newtons; a number beyond these is a typo or a unit slip, refused.
+* `load_profiles()` loads every profile found by name and says which file shadows which:
+  a profile in `$SOFTPROXY_HID_PROFILES` named like a shipped one (or like one in a later
+  folder) wins - that is how a user adapts a shipped profile - but never silently
+  (`ProfileSet.shadowing`; `softproxy devices` prints a warning line for each).
 
 Report offsets count bytes of the report's payload, i.e. after the report id byte of a
 numbered report (the layout a firmware author writes in the HID report descriptor).
@@ -55,7 +63,14 @@ WRENCH = ("fx", "fy", "fz", "tx", "ty", "tz")
 OUTPUT_SOURCES = WRENCH + ("twist", "sequence", "enable")
 MODES = ("position", "rate")
 REPORTING = ("periodic", "on_change")
-MAX_SCALE = 1e12
+MAX_FORCE_N = 100.0
+"""Largest `max_force` a profile may declare (N): several times a firm grip, far above a finger-sized device."""
+MAX_TORQUE_NM = 10.0
+"""Largest `max_torque` a profile may declare (N·m)."""
+MAX_INPUT_SCALE = 1e3
+"""Largest |scale| / |rate_scale| of an input field (m, rad, m/s or rad/s per count)."""
+MAX_OUTPUT_SCALE = 1e9
+"""Largest `scale` of an output field (counts per N or per N·m: 1e9 is a count per nN)."""
 FLOAT32_MAX = 3.4028234663852886e38
 
 
@@ -265,10 +280,11 @@ def _parse_input_field(source: str, where: str, name: str, spec, size: int) -> I
             raise _fail(source, f"{where}.type", f"an unsigned integer type (uint8/uint16/uint32) for `{name}`",
                         type_name)
         return InputField(name, offset, type_name, endian, 1.0, 1.0, 0.0)
-    scale_ok = lambda v: _is_num(v) and v != 0 and abs(v) <= MAX_SCALE  # noqa: E731
-    scale = _get(source, spec, where, "scale", scale_ok, f"a finite non-zero number, |scale| <= {MAX_SCALE:g}", 1.0)
+    scale_ok = lambda v: _is_num(v) and v != 0 and abs(v) <= MAX_INPUT_SCALE  # noqa: E731
+    scale = _get(source, spec, where, "scale", scale_ok,
+                 f"a finite non-zero number, |scale| <= {MAX_INPUT_SCALE:g} (SI units per count)", 1.0)
     rate_scale = _get(source, spec, where, "rate_scale", scale_ok,
-                      f"a finite non-zero number, |rate_scale| <= {MAX_SCALE:g}")
+                      f"a finite non-zero number, |rate_scale| <= {MAX_INPUT_SCALE:g} (SI units per second per count)")
     deadband = _get(source, spec, where, "deadband", lambda v: _is_num(v) and v >= 0, "a finite number >= 0", 0.0)
     return InputField(name, offset, type_name, endian, float(scale),
                       None if rate_scale is None else float(rate_scale), float(deadband))
@@ -294,8 +310,8 @@ def _parse_output_field(source: str, where: str, name: str, spec, size: int) -> 
         if "scale" in spec or "min" in spec or "max" in spec:
             raise ProfileError(f"{source}: {where}: a `{src}` field takes no scale, min or max")
         return OutputField(name, offset, type_name, endian, src, 1.0, 1.0, tlo, thi)
-    scale = _get(source, spec, where, "scale", lambda v: _is_num(v) and 0 < v <= MAX_SCALE,
-                 f"a finite number > 0 (counts per N or per N·m), <= {MAX_SCALE:g}")
+    scale = _get(source, spec, where, "scale", lambda v: _is_num(v) and 0 < v <= MAX_OUTPUT_SCALE,
+                 f"a finite number > 0 and <= {MAX_OUTPUT_SCALE:g} (counts per N, or per N·m for a torque)")
     if scale is None:
         raise ProfileError(f"{source}: {where}.scale is required (counts per N, or per N·m for a torque)")
     if kind == "int":  # symmetric by default: -32767..32767, so that -x is representable whenever x is
@@ -334,8 +350,11 @@ def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
     description = _get(source, doc, "", "description", lambda v: isinstance(v, str), "a string", "")
     mode = _get(source, doc, "", "mode", lambda v: v in MODES, f"one of {list(MODES)}", "position")
     nonneg = lambda v: _is_num(v) and v >= 0  # noqa: E731
-    max_force = float(_get(source, doc, "", "max_force", nonneg, "a finite number >= 0 (N)", 0.0))
-    max_torque = float(_get(source, doc, "", "max_torque", nonneg, "a finite number >= 0 (N·m)", 0.0))
+    max_force = float(_get(source, doc, "", "max_force", lambda v: nonneg(v) and v <= MAX_FORCE_N,
+                           f"a finite number >= 0 and <= {MAX_FORCE_N:g} (N; what the device renders safely)", 0.0))
+    max_torque = float(_get(source, doc, "", "max_torque", lambda v: nonneg(v) and v <= MAX_TORQUE_NM,
+                            f"a finite number >= 0 and <= {MAX_TORQUE_NM:g} (N·m; what the device renders safely)",
+                            0.0))
     finger_axis = _axis_vector(source, "finger_axis", doc.get("finger_axis", "z"))
 
     # [[match]]
@@ -541,22 +560,49 @@ def available_profiles() -> list[str]:
     return sorted(names)
 
 
-def load_profiles() -> tuple[list[Profile], list[str]]:
-    """Every profile found by name; a broken one is reported (second list), not fatal."""
-    profiles, errors = [], []
-    seen = set()
+class Shadowing(NamedTuple):
+    """A profile file that hides another of the same name: `source` is used, `shadowed` is not."""
+
+    name: str       # the name both files answer to (their file stem)
+    source: str     # the file found first (an earlier folder of `profile_dirs()`)
+    shadowed: str   # the file it hides (e.g. the shipped one)
+
+    def warning(self) -> str:
+        """One line for the user: which file is used, which is hidden, and how to keep both."""
+        return (f"profile {self.name!r} from {self.source} shadows {self.shadowed} (${PROFILE_PATH_ENV} is "
+                f"searched first); rename {Path(self.source).name} to keep both")
+
+
+class ProfileSet(NamedTuple):
+    """What `load_profiles()` found: usable profiles, broken ones (one line each), shadowed files."""
+
+    profiles: list
+    errors: list
+    shadowing: list
+
+
+def load_profiles() -> ProfileSet:
+    """Every profile found by name; a broken one is reported (`errors`), not fatal.
+
+    When two folders hold a profile of the same name, the earlier folder's wins (the one
+    `load_profile(name)` finds) and the pair is reported in `shadowing`, never dropped silently.
+    """
+    profiles, errors, shadowing = [], [], []
+    first: dict[str, Path] = {}
     for d in profile_dirs():
         if not d.is_dir():
             continue
         for p in sorted(d.glob("*.toml")):
-            if p.stem in seen:
-                continue  # an earlier folder shadows a later one
-            seen.add(p.stem)
+            if p.stem in first:
+                if p.resolve() != first[p.stem].resolve():  # a folder listed twice hides nothing
+                    shadowing.append(Shadowing(p.stem, str(first[p.stem]), str(p)))
+                continue
+            first[p.stem] = p
             try:
                 profiles.append(load_profile(str(p)))
             except ProfileError as exc:
                 errors.append(str(exc))
-    return profiles, errors
+    return ProfileSet(profiles, errors, shadowing)
 
 
 # ---------------------------------------------------------------------------------------
