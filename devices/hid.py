@@ -3,7 +3,8 @@
 `HidDevice` implements `softproxy.device.Device` for one finger over a transport with the
 subset of cython-hidapi's `hid.device` API it uses: `set_nonblocking`, `read(n)`,
 `write(bytes)`, `close` (and `open_path` in `HidDevice.open`). Tests drive it with a fake
-transport; `HidDevice.open(profile, path=None)` opens a real device through `hid`.
+transport; `HidDevice.open(profile, path=None)` opens a real device through `hid` and can
+reopen it by its path after a failure.
 
 Reading (`read(t, samples)`, once per servo tick, never blocks):
 * every pending report is drained (non-blocking reads, at most `max_reports_per_read`);
@@ -26,16 +27,43 @@ Reading (`read(t, samples)`, once per servo tick, never blocks):
     until a report with a good status arrives;
   - a malformed report (ReportError) arrived this tick (`bad_reports`, `last_report_error`).
   Report ids the profile does not use are counted in `ignored_reports` and skipped.
-* an OSError / IOError / ValueError from the transport means the device is gone: read
-  raises `DeviceError` with a message naming the device, now and on every later call
-  (the servo loop answers with zero force).
 
 Sending (`send(finger, fx, fy, fz, tx, ty, tz)`): the wrench is clamped to the device's
 max_force / max_torque, packed into the profile's output report (sequence +1 per report,
 enable = 1) and written. A non-finite component gives the zero-force report with enable = 0
 (counted in `nan_sends`). An input-only profile (no [output], max_force = max_torque = 0)
-renders nothing: send only counts. A failed write raises DeviceError. `close()` first
-writes the zero-force, enable = 0 report when the device renders force.
+renders nothing: send only counts.
+
+Failure and recovery. An exception from a transport call (cython-hidapi raises OSError
+or ValueError) or a negative write count is a failure: that read or send raises `DeviceError` naming the device (the servo
+loop renders zero force that tick). The device is not given up:
+* from the failure on, `send` writes no force: while failed it raises DeviceError at once,
+  and once the transport works again it writes the zero-force, enable = 0 report instead
+  of the force asked for, until `read` has produced a valid sample;
+* every `read` while failed first tries to get the zero-force report through (output
+  devices; an input-only one retries its read), and raises DeviceError while that fails.
+  When it goes through the device is back: the read goes on with a fresh start - the
+  values, sequence counter, status and stale clock from before the failure are forgotten,
+  so a periodic device's samples are invalid until a complete report arrives (an
+  on_change one starts at rest, as when opened). The first valid sample ends the failure
+  (`recoveries`); forces are rendered again from the next send;
+* a device from `HidDevice.open` also reopens its path (through the same `hid` module)
+  every REOPEN_INTERVAL_S of its clock while failed, the first time REOPEN_INTERVAL_S after
+  the failure (a transient error recovers on the same transport before that). The old
+  transport is closed first: on Linux a hidraw node held open keeps its number, and a
+  replugged device would come back under another one. When `hid.enumerate()` told at open
+  which device the path was (USB ids, serial, usage, interface), a reopen first checks that
+  the path still names that device: hidraw numbers are reused, and force reports must not
+  go to another device;
+* a device built on a given transport (no `reopen`) retries on that transport for as long
+  as it fails; after NO_REOPEN_NOTICE_ERRORS failures in a row its error message says, from
+  then on, that it will not be reopened.
+Counted in `failures` (working -> failed), `transport_errors` (every failed call),
+`reopens` and `recoveries`. `close()` always tries the zero-force, enable = 0 report
+(CLOSE_ZERO_ATTEMPTS writes, the second on a reopened transport when it can reopen),
+whatever happened before, never raises, then closes the transport. What a host cannot
+guarantee (a killed process, a pulled cable, power loss) the firmware must: the device
+drops to zero force when no output report arrives for 50 ms (devices/profiles/README.md).
 
 Configuration: `HidDevice.from_config(cfg, source=...)` takes a scene's [device] table
 (`type = "hid"`, `profile = "spacemouse"`, ...); `HidDevice.from_argument("spacemouse,mode=rate",
@@ -71,6 +99,17 @@ _CONFIG_KEYS = {"type", "profile", "path", "mode", "workspace_scale", "workspace
                 "twist_limit_rad", "stale_ms", "max_force_N", "max_torque_Nm"}
 MAX_DT = 0.1
 """Longest step (s) integrated at once in rate mode: a stalled loop does not make the finger jump."""
+REOPEN_INTERVAL_S = 0.2
+"""While failed, a device that can reopen its path tries every this many seconds of its clock: often
+enough that a replugged device is back at once for a person, rarely enough that the enumeration and
+open (milliseconds) do not take every tick."""
+NO_REOPEN_NOTICE_ERRORS = 100
+"""Failures in a row after which a device that cannot reopen (built on a given transport) says so."""
+CLOSE_ZERO_ATTEMPTS = 3
+"""Writes of the zero-force report `close()` tries before giving up on it."""
+_TRANSPORT_ERRORS = (Exception,)
+"""What a transport call may raise and is a failure of the device: cython-hidapi raises OSError or
+ValueError, but whatever a driver raises, the device goes to zero force first when it comes back."""
 
 
 def _import_hid():
@@ -94,6 +133,75 @@ def _path_text(path) -> str:
     return "" if path is None else str(path)
 
 
+def _raw_path(path) -> bytes | None:
+    if isinstance(path, str):
+        return path.encode()
+    return bytes(path) if isinstance(path, (bytes, bytearray)) else None
+
+
+_IDENTITY_KEYS = ("vendor_id", "product_id", "serial_number", "usage_page", "usage", "interface_number")
+
+
+def _identity(info: dict) -> tuple:
+    """What tells one HID interface from another in an `hid.enumerate()` entry."""
+    return tuple(info.get(k) for k in _IDENTITY_KEYS)
+
+
+def _open_transport(hid, raw_path: bytes, path_text: str, profile_name: str):
+    """An `hid.device` opened at `raw_path`, or DeviceError saying why (and how to fix access)."""
+    transport = hid.device()
+    try:
+        transport.open_path(raw_path)
+    except (OSError, ValueError, TypeError) as exc:
+        raise DeviceError(f"cannot open HID device {path_text!r} for profile {profile_name!r}: {exc} "
+                          "(on Linux, /dev/hidraw* needs a udev rule giving your user access)") from None
+    return transport
+
+
+class _Reopener:
+    """Opens the device at one path again (`HidDevice.open` gives one to the device it opens).
+
+    With the device's identity known, the path must still name that device: after a replug
+    the path may be another device's, and output reports are forces.
+    """
+
+    def __init__(self, hid, raw_path: bytes, profile_name: str, identity: tuple | None) -> None:
+        self.hid = hid
+        self.raw_path = raw_path
+        self.path_text = _path_text(raw_path)
+        self.profile_name = profile_name
+        self.identity = identity
+
+    def __call__(self):
+        if self.identity is not None:
+            here = [i for i in self.hid.enumerate() if _raw_path(i.get("path")) == self.raw_path]
+            if not here:
+                raise OSError(f"{self.path_text} is not connected")
+            now = _identity(here[0])
+            if now != self.identity:
+                raise OSError(f"{self.path_text} is now another device ({dict(zip(_IDENTITY_KEYS, now))})")
+        return _open_transport(self.hid, self.raw_path, self.path_text, self.profile_name)
+
+
+class _NoTransport:
+    """In place of a transport closed for a reopen that failed: every call fails as a vanished device's."""
+
+    def __init__(self, why: str) -> None:
+        self.why = why
+
+    def read(self, max_length, timeout_ms=0):
+        raise OSError(self.why)
+
+    def write(self, data):
+        raise OSError(self.why)
+
+    def set_nonblocking(self, value):
+        raise OSError(self.why)
+
+    def close(self) -> None:
+        pass
+
+
 class HidDevice:
     """One finger read from (and, with an [output], rendered on) a HID device described by a profile."""
 
@@ -103,7 +211,11 @@ class HidDevice:
                  workspace_offset=(0.0, 0.0, 0.0), workspace_half_m=(0.1, 0.1, 0.1),
                  twist_limit_rad: float = math.pi, stale_ms: float | None = None,
                  max_force: float | None = None, max_torque: float | None = None,
-                 clock=time.monotonic, max_reports_per_read: int = 256, label: str | None = None) -> None:
+                 clock=time.monotonic, max_reports_per_read: int = 256, label: str | None = None,
+                 reopen=None) -> None:
+        """`transport`: an open `hid.device` (or a fake one). `reopen`: None, or a callable
+        returning a new open transport to the same device, tried while the device is failed
+        (`HidDevice.open` passes one); without it the device retries on `transport`."""
         profile = load_profile(profile)
         self.profile = profile
         mode = profile.mode if mode is None else mode
@@ -161,7 +273,11 @@ class HidDevice:
         self._pos = list(self.workspace_offset)  # rate mode: integrated position
         self._twist = 0.0                        # rate mode: integrated twist
         self._out_seq = 0
-        self._failed: str | None = None
+        self._reopen = reopen
+        self._fault: str | None = None  # while failed: the message read and send raise
+        self._await_fresh = False       # from a failure to the next valid sample: no force is written
+        self._next_reopen = 0.0         # clock time of the next reopen attempt
+        self._errors_in_a_row = 0       # transport errors since the last read that went through
         self.closed = False
 
         self.reports = 0
@@ -177,8 +293,13 @@ class HidDevice:
         self.stale_samples = 0
         self.sends = 0
         self.nan_sends = 0
+        self.failures = 0
+        self.transport_errors = 0
+        self.reopens = 0
+        self.recoveries = 0
         self.status: int | None = None
         self.last_report_error = ""
+        self.last_reopen_error = ""
         self.last_output: bytes | None = None
 
         try:
@@ -205,14 +326,19 @@ class HidDevice:
                                   f"(ids {', '.join(profile.ids()) or 'none'}); `softproxy devices` lists the "
                                   "connected ones; give the device's path or add a [[match]] to the profile")
             path = found[0].get("path")
+            identity = _identity(found[0])
+        else:
+            identity = None
+            try:  # who the path is, so that a reopen can check it is still that device
+                here = [i for i in hid.enumerate() if _raw_path(i.get("path")) == _raw_path(path)]
+                identity = _identity(here[0]) if here else None
+            except (OSError, ValueError, TypeError):
+                pass
         raw_path = path.encode() if isinstance(path, str) else path
-        transport = hid.device()
-        try:
-            transport.open_path(raw_path)
-        except (OSError, ValueError, TypeError) as exc:
-            raise DeviceError(f"cannot open HID device {_path_text(path)!r} for profile {profile.name!r}: {exc} "
-                              "(on Linux, /dev/hidraw* needs a udev rule giving your user access)") from None
+        transport = _open_transport(hid, raw_path, _path_text(path), profile.name)
         kwargs.setdefault("label", f"{profile.name} at {_path_text(path)}")
+        if isinstance(raw_path, (bytes, bytearray)):
+            kwargs.setdefault("reopen", _Reopener(hid, bytes(raw_path), profile.name, identity))
         try:
             return cls(profile, transport, **kwargs)
         except BaseException:
@@ -338,10 +464,88 @@ class HidDevice:
 
     # -- the Device protocol -------------------------------------------------------------------
 
-    def _fail(self, what: str, exc: BaseException | None = None) -> DeviceError:
-        detail = f" ({type(exc).__name__}: {exc})" if exc is not None else ""
-        self._failed = f"{self.label}: HID device disappeared or failed while {what}{detail}; rendering zero force"
-        return DeviceError(self._failed)
+    # -- failure and recovery (see the module docstring) ---------------------------------------
+
+    def _fail(self, what: str, exc: BaseException) -> DeviceError:
+        """Enter (or stay in) the failed state after a transport error; the DeviceError to raise."""
+        self.transport_errors += 1
+        self._errors_in_a_row += 1
+        if not self._await_fresh:  # working until now: forget the device's state, plan the reopens
+            self._await_fresh = True
+            self.failures += 1
+            self._next_reopen = self._clock() + REOPEN_INTERVAL_S
+            self._forget_samples()
+        if self.profile.output is not None:
+            plan = "retrying, the zero-force report first"
+        else:
+            plan = "retrying"
+        if self._reopen is not None:
+            plan += f", reopening the device every {REOPEN_INTERVAL_S:g} s"
+            if self.last_reopen_error:
+                plan += f" (last reopen: {self.last_reopen_error})"
+        elif self._errors_in_a_row >= NO_REOPEN_NOTICE_ERRORS:
+            plan = (f"{self._errors_in_a_row} failures in a row; it will not be reopened (it was given a "
+                    f"transport, not opened by path): still {plan} on the same transport")
+        self._fault = (f"{self.label}: HID device disappeared or failed while {what} "
+                       f"({type(exc).__name__}: {exc}); rendering zero force; {plan}")
+        return DeviceError(self._fault)
+
+    def _forget_samples(self) -> None:
+        """Back to the state of a just-opened device: nothing from before a failure is trusted."""
+        self._values.clear()
+        if not self._periodic:
+            self._values.update(dict.fromkeys(self._axis_fields, 0.0))  # on_change: at rest
+        self._buttons = 0
+        self._seq = None
+        self._faulted = False
+        self.status = None
+        self._last_report_time = None
+        self._last_t = None
+
+    def _try_reopen(self) -> bool:
+        """Close the transport and open the device again by its path; True when it opened."""
+        try:
+            self._transport.close()
+        except Exception:  # a vanished device's handle may refuse to close
+            pass
+        transport = None
+        try:
+            transport = self._reopen()
+            transport.set_nonblocking(1)
+        except Exception as exc:  # whatever the module raises, the device stays failed
+            self.last_reopen_error = str(exc) or type(exc).__name__
+            if transport is not None:
+                try:
+                    transport.close()
+                except Exception:
+                    pass
+            self._transport = _NoTransport(f"not open: the last reopen failed: {self.last_reopen_error}")
+            return False
+        self._transport = transport
+        self.last_reopen_error = ""
+        self.reopens += 1
+        return True
+
+    def _write_zero(self, what: str) -> bool:
+        """Write the zero-force, enable = 0 report; False (and failed) when it did not go through."""
+        self._out_seq = (self._out_seq + 1) & 0xFFFFFFFF
+        try:
+            self._write(zero_output(self.profile, self._out_seq), what)
+        except DeviceError:
+            return False
+        return True
+
+    def _recover(self) -> bool:
+        """While failed: reopen when due, then get the zero-force report through; True when it did."""
+        if self._reopen is not None:
+            now = self._clock()
+            if now >= self._next_reopen:
+                self._next_reopen = now + REOPEN_INTERVAL_S
+                self._try_reopen()
+        if self.profile.output is not None and not self._write_zero("writing the zero-force report"):
+            return False
+        self._fault = None  # the read goes on from a fresh start; samples count from here
+        return True
 
     def _check_sequence(self, seq: int) -> bool:
         """True on a sequence anomaly (counted); the counter resynchronises on `seq`."""
@@ -363,8 +567,8 @@ class HidDevice:
     def read(self, t: float, samples: list[DeviceSample]) -> None:
         if self.closed:
             raise DeviceError(f"{self.label}: device is closed")
-        if self._failed:
-            raise DeviceError(self._failed)
+        if self._fault is not None and not self._recover():
+            raise DeviceError(self._fault)
         profile = self.profile
         transport = self._transport
         mode = self.mode
@@ -375,7 +579,7 @@ class HidDevice:
         for _ in range(self.max_reports_per_read):
             try:
                 data = transport.read(self._read_size)
-            except (OSError, ValueError) as exc:
+            except _TRANSPORT_ERRORS as exc:
                 raise self._fail("reading", exc) from None
             if not data:
                 break
@@ -464,14 +668,17 @@ class HidDevice:
             self.stale_samples += 1
         if not valid:
             self.invalid_samples += 1
+        if self._await_fresh:  # after a failure: the transport answered; a valid sample ends it
+            self._errors_in_a_row = 0
+            if valid:
+                self._await_fresh = False
+                self.recoveries += 1
 
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
         if finger != 0:
             raise DeviceError(f"{self.label} drives one finger (0), not finger {finger!r}")
         if self.closed:
             raise DeviceError(f"{self.label}: device is closed")
-        if self._failed:
-            raise DeviceError(self._failed)
         self.sends += 1
         try:
             finite = all(math.isfinite(v) for v in (fx, fy, fz, tx, ty, tz))
@@ -481,6 +688,12 @@ class HidDevice:
             self.nan_sends += 1  # the engine promises never to send this; the motors get zero
         if self.profile.output is None:
             return  # input-only device: renders nothing
+        if self._await_fresh:  # failed, or back but without a fresh sample yet: no force
+            if self._fault is not None:
+                raise DeviceError(self._fault)  # the next read retries
+            self._out_seq = (self._out_seq + 1) & 0xFFFFFFFF
+            self._write(zero_output(self.profile, self._out_seq), "sending zero force after a failure")
+            return
         self._out_seq = (self._out_seq + 1) & 0xFFFFFFFF
         report = build_output(self.profile, self._out_seq, fx, fy, fz, tx, ty, tz, enable=True,
                               max_force=self.max_force, max_torque=self.max_torque)
@@ -489,23 +702,27 @@ class HidDevice:
     def _write(self, report: bytes, what: str) -> None:
         try:
             n = self._transport.write(report)
-        except (OSError, ValueError) as exc:
+        except _TRANSPORT_ERRORS as exc:
             raise self._fail(what, exc) from None
         if isinstance(n, int) and n < 0:
             raise self._fail(what, OSError(f"write returned {n}"))
         self.last_output = report
 
     def close(self) -> None:
-        """Zero force (enable = 0) first when the device renders force, then release it. Never raises."""
+        """Zero force (enable = 0) first when the device renders force, whatever happened before
+        (up to CLOSE_ZERO_ATTEMPTS writes), then release it. Never raises."""
         if self.closed:
             return
         self.closed = True
-        if self.profile.output is not None and not self._failed:
-            self._out_seq = (self._out_seq + 1) & 0xFFFFFFFF
-            try:
-                self._write(zero_output(self.profile, self._out_seq), "sending zero force on close")
-            except DeviceError:
-                pass
+        try:
+            if self.profile.output is not None:
+                for attempt in range(CLOSE_ZERO_ATTEMPTS):
+                    if attempt == 1 and self._reopen is not None:
+                        self._try_reopen()  # the device may be back on a new handle
+                    if self._write_zero("sending zero force on close"):
+                        break
+        except Exception:  # a transport that raises anything else: still release it below
+            pass
         try:
             self._transport.close()
         except Exception:  # closing a vanished device must not mask what the caller is doing
@@ -521,7 +738,8 @@ class HidDevice:
         """Counters of what the device did (reports, faults, sends)."""
         return {name: getattr(self, name) for name in (
             "reports", "bad_reports", "ignored_reports", "status_faults", "sequence_errors", "dropped",
-            "duplicates", "out_of_order", "backlogs", "invalid_samples", "stale_samples", "sends", "nan_sends")}
+            "duplicates", "out_of_order", "backlogs", "invalid_samples", "stale_samples", "sends", "nan_sends",
+            "failures", "transport_errors", "reopens", "recoveries")}
 
     def __repr__(self) -> str:
         return f"HidDevice({self.label!r}, mode={self.mode!r}, max_force={self.max_force:g})"

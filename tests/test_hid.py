@@ -434,14 +434,21 @@ def test_disconnect_mid_run_raises_clean_device_error():
     msg = str(exc.value)
     assert "open_haptic at /dev/hidraw7" in msg and "disappeared" in msg and "read error" in msg
     assert "zero force" in msg
-    t.read_error = None  # even if the transport came back, this device stays failed
-    with pytest.raises(DeviceError, match="disappeared"):
-        dev.read(0.007, s)
-    with pytest.raises(DeviceError, match="disappeared"):
+    with pytest.raises(DeviceError, match="disappeared"):  # failed: no force written
         dev.send(0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
-    n = len(t.writes)
-    dev.close()  # no zero-force write to a vanished device, and no exception
-    assert len(t.writes) == n and t.closed
+    assert parse_output(dev.profile, t.writes[-1])["enable"] == 1 and len(t.writes) == 5
+    t.read_error = None  # the transport is back: zero force first, then a fresh sample
+    dev.read(0.007, s)
+    assert t.writes[-1] == zero_output(dev.profile, 6) and not s[0].valid  # nothing fresh yet
+    dev.send(0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    assert t.writes[-1] == zero_output(dev.profile, 7)  # no force before a valid sample
+    t.feed(oh_state(6))
+    dev.read(0.008, s)
+    assert s[0].valid and dev.recoveries == 1 and dev.failures == 1
+    dev.send(0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    assert parse_output(dev.profile, t.writes[-1])["fz"] == pytest.approx(1.0)
+    dev.close()
+    assert t.writes[-1] == zero_output(dev.profile, 9) and t.closed
 
 
 def test_write_failure_is_device_error():
@@ -951,8 +958,10 @@ def test_servo_loop_renders_through_hid_and_survives_disconnect():
     loop.run(5)
     assert loop.faults["device_error"] == 5
     assert loop.faults["send_error"] == 6  # 5 ticks + the zero force sent when a run ends
-    assert len(t.writes) == n  # nothing more written to a vanished device
+    after = [parse_output(dev.profile, w) for w in t.writes[n:]]  # the writes still go through:
+    assert len(after) == 4 and all(w["enable"] == 0 and w["fz"] == 0.0 for w in after)  # zero force only
     dev.close()
+    assert parse_output(dev.profile, t.writes[-1])["enable"] == 0
 
 
 # keep last: counts what the fuzz tests above parsed
