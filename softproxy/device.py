@@ -10,11 +10,21 @@ units; the scene's device mapping turns it into world coordinates.
 from __future__ import annotations
 
 import math
+from numbers import Integral
 from typing import Protocol, runtime_checkable
+
+from softproxy.device_guard import check_limits
 
 
 class DeviceError(RuntimeError):
     """A device failed or disappeared. The servo loop answers it with zero force."""
+
+
+def _scalar(v) -> float:
+    """v as a float; TypeError for anything but a single real number (bool, str, arrays, None)."""
+    if isinstance(v, (bool, str, bytes)) or getattr(v, "ndim", 0) != 0:
+        raise TypeError(f"not a number: {v!r}")
+    return float(v)
 
 
 class DeviceSample:
@@ -39,6 +49,31 @@ class DeviceSample:
         """True when every number in the sample is finite (no NaN/Inf from the device)."""
         return math.isfinite(self.x + self.y + self.z + self.qw + self.qx + self.qy + self.qz + self.twist)
 
+    def usable(self) -> bool:
+        """True when the sample is valid and every field a finite number. Fields that are
+        numbers of another type (int, numpy scalars) are made floats in place, so what the
+        engine reads is always a float; a field that is no number (None, str, an array,
+        10**400) or a `valid` that is no truth value marks the sample not valid. Never raises."""
+        x, y, z, tw, qw, qx, qy, qz = self.x, self.y, self.z, self.twist, self.qw, self.qx, self.qy, self.qz
+        valid = self.valid
+        if not (type(x) is float and type(y) is float and type(z) is float and type(tw) is float
+                and type(qw) is float and type(qx) is float and type(qy) is float and type(qz) is float):
+            try:  # a device handing over ints or numpy scalars is fine; None, str, arrays, 10**400 are not
+                x, y, z, tw, qw, qx, qy, qz = (_scalar(v) for v in (x, y, z, tw, qw, qx, qy, qz))
+            except (TypeError, ValueError, OverflowError):
+                self.valid = False
+                return False
+            self.x, self.y, self.z, self.twist, self.qw, self.qx, self.qy, self.qz = x, y, z, tw, qw, qx, qy, qz
+        if valid is not True:  # 1 and numpy's True say valid too; None, str, arrays, 10**400 do not
+            if not ((isinstance(valid, Integral) or getattr(valid, "dtype", None) == bool) and valid == 1):
+                self.valid = False
+                return False
+            self.valid = True
+        if not math.isfinite(x + y + z + tw + qw + qx + qy + qz):
+            self.valid = False
+            return False
+        return True
+
     def copy_from(self, other: "DeviceSample") -> None:
         for name in DeviceSample.__slots__:
             setattr(self, name, getattr(other, name))
@@ -57,8 +92,10 @@ class Device(Protocol):
     `fingers`: how many fingers the device drives. `max_force` (N) and `max_torque` (N·m)
     are what it can render; the loop clamps to them (0 = renders nothing).
     `read` fills one sample per finger for time `t` (s, the loop's clock) and may raise
-    DeviceError. `send` renders a force (N) and a torque (N·m) on one finger, both in the
-    device frame; it is always called with finite values within the clamps.
+    DeviceError; a sample field that is not a number makes that sample invalid (counted).
+    `send` renders a force (N) and a torque (N·m) on one finger, both in the device frame;
+    it is always called with finite values within the clamps. `close` stops rendering
+    (zero force) and releases the device; it may be called more than once.
     """
 
     fingers: int
@@ -70,3 +107,17 @@ class Device(Protocol):
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None: ...
 
     def close(self) -> None: ...
+
+
+def check_device(device) -> None:
+    """TypeError or ValueError naming the device unless it has what `Device` asks for:
+    `fingers` an integer ≥ 1, callable `read`, `send` and `close`, and force and torque
+    limits that are finite numbers (`softproxy.device_guard.check_limits`)."""
+    name = type(device).__name__
+    missing = [m for m in ("read", "send", "close") if not callable(getattr(device, m, None))]
+    if missing:
+        raise TypeError(f"device {name} is not a softproxy.Device: it has no {' or '.join(m + '()' for m in missing)}")
+    fingers = getattr(device, "fingers", None)
+    if isinstance(fingers, bool) or not isinstance(fingers, Integral) or fingers < 1:
+        raise ValueError(f"device {name}: fingers must be an integer >= 1, got {fingers!r}")
+    check_limits(device)

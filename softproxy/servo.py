@@ -21,17 +21,24 @@ cannot change the result.
 
 from __future__ import annotations
 
+import atexit
 import gc
 import math
 import time
+import weakref
 
 import numpy as np
 
-from softproxy.device import Device, DeviceSample
+from softproxy.device import Device, DeviceSample, check_device
+from softproxy.device_guard import guard_wrench
+from softproxy import termination
 from softproxy.finger import SoftFingerProxy
 from softproxy.world import World
 
-FAULTS = ("device_error", "invalid_sample", "overrun", "send_error")
+FAULTS = ("device_error", "invalid_sample", "overrun", "send_error", "unsafe_output")
+"""What `ServoLoop.faults` counts; each fault renders zero force on the fingers it touched.
+unsafe_output: a finger computed a wrench that is not finite (parameters at their extremes),
+or the device's limits were not numbers it can be clamped to (`softproxy.device_guard`)."""
 
 
 class TickStats:
@@ -67,14 +74,32 @@ class TickStats:
         return {"p50": round(float(p50) * 1e6, 2), "p99": round(float(p99) * 1e6, 2), "max": round(float(d.max()) * 1e6, 2)}
 
 
+_open_loops: "weakref.WeakSet[ServoLoop]" = weakref.WeakSet()
+"""Loops started and not yet closed: the exit hook closes them (zero force) at interpreter exit."""
+
+
+@atexit.register
+def _close_open_loops() -> None:
+    for loop in list(_open_loops):
+        loop.close()
+
+
 class ServoLoop:
-    """Couples fingers to a world through one device at a fixed rate (Hz)."""
+    """Couples fingers to a world through one device at a fixed rate (Hz).
+
+    Use it as `with ServoLoop(...) as loop:` (or call `close()`): leaving sends zero force and
+    closes the device. A loop left open is closed by an exit hook when the interpreter exits,
+    and while a loop is open SIGTERM and SIGHUP (where still at their defaults) end the
+    program through SystemExit, so the hook and every `finally` on the way run
+    (`softproxy.termination`; `handle_signals=False` leaves the signals alone).
+    """
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
-                 overrun_watchdog: bool = True, compiled: bool = False) -> None:
+                 overrun_watchdog: bool = True, compiled: bool = False, handle_signals: bool = True) -> None:
         if not (math.isfinite(rate_hz) and 10.0 <= rate_hz <= 100_000.0):
             raise ValueError(f"rate_hz must be between 10 and 100000, got {rate_hz!r}")
+        check_device(device)
         for f in fingers:
             if f.params.device_finger >= device.fingers:
                 raise ValueError(f"finger {f.params.name!r} uses device finger {f.params.device_finger}, "
@@ -96,7 +121,11 @@ class ServoLoop:
         self.ticks = 0
         self._safe_next = False  # the watchdog asks for one tick of zero force
         self._started = False
-        self.last_device_error = ""  # what the device said when it last failed
+        self.closed = False
+        self.handle_signals = handle_signals
+        self._signals = None  # this loop's claim on softproxy.termination's handlers: its release
+        self.last_device_error = ""  # what the device said when it last failed to read
+        self.last_send_error = ""  # ... and to send
         self.sensors = []  # fingertip sensor channels (softproxy.fingertip_sensors): tick(loop) each tick
         self.compiled = None
         """The `CompiledFingers` running the fingers when `compiled=True` (else None): the same
@@ -108,7 +137,12 @@ class ServoLoop:
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
+        if self.closed:
+            raise RuntimeError("this ServoLoop is closed (its device too): build a new one")
         self._started = True
+        _open_loops.add(self)
+        if self.handle_signals and self._signals is None and termination.install():
+            self._signals = weakref.finalize(self, termination.uninstall)  # also if dropped unclosed
         try:
             self.device.read(self.t, self.samples)
         except Exception:
@@ -118,7 +152,7 @@ class ServoLoop:
             return
         for f in self.fingers:
             s = self.samples[f.params.device_finger]
-            if not (s.valid and s.is_finite()):
+            if not s.usable():
                 f.placed = False  # placed at its first good sample instead
             else:
                 f.place(s.x, s.y, s.z)
@@ -127,7 +161,7 @@ class ServoLoop:
 
     def tick(self) -> None:
         """One servo tick at loop time `self.t`; advances time by one period."""
-        if not self._started:
+        if not self._started or self.closed:
             self.start()
         start = time.perf_counter()
         dt = self.period
@@ -166,7 +200,7 @@ class ServoLoop:
         """Every finger's part of the tick, in Python: update (or hold), wrench, device send."""
         world = self.world
         for f, s in self._pairs:
-            if not ok or not s.valid or not s.is_finite():
+            if not ok or not s.usable():
                 if ok:
                     self.faults["invalid_sample"] += 1
                 f.hold()
@@ -174,6 +208,9 @@ class ServoLoop:
                 if not f.update(s.x, s.y, s.z, s.twist, dt):
                     self.faults["invalid_sample"] += 1
                 if safe:  # the watchdog's zero-force tick: the proxy moved, nothing is rendered
+                    f.clear_output()
+                elif not math.isfinite(f.fx + f.fy + f.fz + f.tx + f.ty + f.tz):
+                    self.faults["unsafe_output"] += 1  # parameters at their extremes: neither body nor hand gets it
                     f.clear_output()
                 if f.body >= 0:
                     world.push(f.body, -f.fx, -f.fy, -f.fz, f.px, f.py, f.pz, -f.tx, -f.ty, -f.tz)
@@ -184,34 +221,40 @@ class ServoLoop:
     def _compiled_fingers(self, ok: bool, safe: bool, dt: float) -> None:
         """`_fingers` in one compiled call; then each device finger is sent what it computed."""
         compiled = self.compiled
-        self.faults["invalid_sample"] += compiled.run(self.samples, ok, safe, self.audit, dt)
+        invalid, unsafe = compiled.run(self.samples, ok, safe, self.audit, dt)
+        self.faults["invalid_sample"] += invalid
+        if unsafe:
+            self.faults["unsafe_output"] += unsafe
         device = self.device
         for f, sent in zip(self.fingers, compiled.sent):
             try:
                 device.send(f.params.device_finger, *sent)
-            except Exception:
-                self.faults["send_error"] += 1
+            except Exception as exc:
+                self._send_failed(exc)
 
     def _send(self, f: SoftFingerProxy, safe: bool) -> None:
-        """Send the finger's force and torque, clamped to what the device renders (zero if safe)."""
+        """Send the finger's force and torque, clamped to the finger's and the device's limits
+        (`guard_wrench`: zero, and a fault, for anything not finite); zero if safe or invalid."""
         device = self.device
         if safe or not f.valid:
             fx = fy = fz = tx = ty = tz = 0.0
         else:
-            fx, fy, fz, tx, ty, tz = f.fx, f.fy, f.fz, f.tx, f.ty, f.tz
-            fmax, tmax = device.max_force, device.max_torque
-            f2 = fx * fx + fy * fy + fz * fz
-            if f2 > fmax * fmax:
-                s = fmax / math.sqrt(f2) if fmax > 0.0 else 0.0
-                fx, fy, fz = fx * s, fy * s, fz * s
-            t2 = tx * tx + ty * ty + tz * tz
-            if t2 > tmax * tmax:
-                s = tmax / math.sqrt(t2) if tmax > 0.0 else 0.0
-                tx, ty, tz = tx * s, ty * s, tz * s
+            try:
+                good, fx, fy, fz, tx, ty, tz = guard_wrench(f.fx, f.fy, f.fz, f.tx, f.ty, f.tz, f.max_force,
+                                                            f.max_torque, device.max_force, device.max_torque)
+            except TypeError:  # a device limit that is no number at all
+                good = False
+                fx = fy = fz = tx = ty = tz = 0.0
+            if not good:
+                self.faults["unsafe_output"] += 1
         try:
             device.send(f.params.device_finger, fx, fy, fz, tx, ty, tz)
-        except Exception:
-            self.faults["send_error"] += 1
+        except Exception as exc:
+            self._send_failed(exc)
+
+    def _send_failed(self, exc: Exception) -> None:
+        self.faults["send_error"] += 1
+        self.last_send_error = str(exc) or type(exc).__name__
 
     def run(self, ticks: int, realtime: bool = False, on_tick=None, spin_s: float = 1.5e-3) -> None:
         """Run `ticks` ticks: lockstep (as fast as possible, deterministic) or paced in real time.
@@ -260,13 +303,39 @@ class ServoLoop:
             self.compiled.sync()
 
     def stop(self) -> None:
-        """The safe state: zero force to every finger, no finger wrench left on the bodies."""
-        if self.compiled is not None:  # the Python objects take the whole state back first
-            self.compiled.sync()
-            self.compiled.clear_wrenches()
-        self.world.clear_wrenches()
-        for f in self.fingers:
-            f.clear_output()
-            self._send(f, True)
-        if self.compiled is not None:
-            self.compiled.pack()
+        """The safe state: zero force to every finger first, then no finger wrench left on the
+        bodies. Termination signals wait until the zero force is sent (`termination.deferred`)."""
+        with termination.deferred():
+            for f in self.fingers:
+                self._send(f, True)
+            if self.compiled is not None:  # the Python objects take the whole state back first
+                self.compiled.sync()
+                self.compiled.clear_wrenches()
+            self.world.clear_wrenches()
+            for f in self.fingers:
+                f.clear_output()
+            if self.compiled is not None:
+                self.compiled.pack()
+
+    def close(self) -> None:
+        """`stop()`, then close the device; the loop cannot tick again. Safe to call twice."""
+        if self.closed:
+            return
+        with termination.deferred():
+            self.closed = True
+            _open_loops.discard(self)
+            try:
+                self.stop()
+            finally:
+                try:
+                    self.device.close()
+                except Exception as exc:  # the zero force went out first; say what closing said
+                    self.last_device_error = f"closing the device: {exc or type(exc).__name__}"
+                if self._signals is not None:
+                    self._signals()
+
+    def __enter__(self) -> "ServoLoop":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -15,9 +15,10 @@ from numba import njit
 
 _PACKAGE = Path(__file__).resolve().parent
 SOURCES = sorted(_PACKAGE.glob("*.py")) + [_PACKAGE.parent / f"{name}.py" for name in
-                                           ("geometry", "proxy", "finger", "fingertip", "mesh")]
+                                           ("geometry", "proxy", "finger", "fingertip", "mesh", "device_guard")]
 """The files the kernels are built from: this package and the modules they import constants from."""
-KERNEL_MODULES = ("mesh", "shapes", "godobject", "finger", "cache")
+KERNEL_MODULES = ("mesh", "shapes", "godobject", "finger", "cache", "certificate", "device_guard")
+"""Modules with cached kernels: `device_guard.guard_wrench` is compiled from the plain module."""
 STAMP = "softproxy-compiled.stamp"
 
 

@@ -17,6 +17,9 @@ rather than to the bit (where two triangles are equally near, either may answer)
 
 from __future__ import annotations
 
+import math
+from numbers import Real
+
 import numpy as np
 
 from softproxy.compiled import finger as kernel
@@ -164,33 +167,37 @@ class CompiledFingers:
                 tors.slipping = slipping != 0.0
                 tors.slip_events = int(slips)
 
-    def run(self, samples: list, ok: bool, safe: bool, audit: bool, dt: float) -> int:
+    def run(self, samples: list, ok: bool, safe: bool, audit: bool, dt: float) -> tuple[int, int]:
         """The fingers' part of one tick from this tick's device samples (after mj_step1).
 
-        `ok`: the device read succeeded. Returns how many samples were unusable (invalid,
-        not finite, or refused by their finger); the wrenches are in xfrc_applied after,
-        what each device finger is to be sent in `sent`."""
+        `ok`: the device read succeeded. Returns (unusable, unsafe): how many samples were
+        unusable (a field not a number, not finite, or refused by their finger) and how many
+        wrenches were refused as not finite; the wrenches are in xfrc_applied after, what
+        each device finger is to be sent in `sent`."""
         flat = self._flat
         unusable = 0
         for k, j in self._inputs:
             s = samples[j]
-            valid = ok and s.valid
-            flat[k] = s.x
-            flat[k + 1] = s.y
-            flat[k + 2] = s.z
-            flat[k + 3] = s.twist
-            flat[k + 4] = s.qw
-            flat[k + 5] = s.qx
-            flat[k + 6] = s.qy
-            flat[k + 7] = s.qz
-            flat[k + 8] = 1.0 if valid else 0.0
-            unusable += ok and not valid
+            if ok and s.usable():  # every field is now a finite float
+                flat[k] = s.x
+                flat[k + 1] = s.y
+                flat[k + 2] = s.z
+                flat[k + 3] = s.twist
+                flat[k + 4] = s.qw
+                flat[k + 5] = s.qx
+                flat[k + 6] = s.qy
+                flat[k + 7] = s.qz
+                flat[k + 8] = 1.0
+            else:
+                flat[k + 8] = 0.0
+                unusable += ok
         device = self.device
-        unusable += kernel.tick(self.S, self.T, self.C, self._xpos, self._xmat, self._cvel, self._xipos,
-                                self._xfrc, self.F, self.near, dt, safe, audit, float(device.max_force),
-                                float(device.max_torque), self._scratch, self._wrench, self._bodies, self._counts)
+        refused, unsafe = kernel.tick(self.S, self.T, self.C, self._xpos, self._xmat, self._cvel, self._xipos,
+                                      self._xfrc, self.F, self.near, dt, safe, audit, _limit(device.max_force),
+                                      _limit(device.max_torque), self._scratch, self._wrench, self._bodies,
+                                      self._counts)
         self.mirror()
-        return unusable
+        return unusable + refused, unsafe
 
     def clear_wrenches(self) -> None:
         """Remove every wrench the fingers put on the bodies (the safe state)."""
@@ -199,3 +206,16 @@ class CompiledFingers:
             xfrc[self._bodies[kernel.PUSHED, j]] = 0.0
         self._wrench[:] = 0.0
         self._counts[:] = 0
+
+
+def _limit(value) -> float:
+    """A device limit as the float the kernel takes; NaN (which the guard refuses) when it is
+    not a number at all."""
+    if isinstance(value, float):
+        return value
+    if isinstance(value, bool) or not isinstance(value, Real):
+        return math.nan
+    try:
+        return float(value)
+    except OverflowError:
+        return math.nan

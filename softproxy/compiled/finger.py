@@ -1,7 +1,8 @@
 """The fingers of one servo tick, compiled: coupling, torsion, wrench and device clamp.
 
 numba twins of `SoftFingerProxy.update` / `hold` / `place`, `TorsionalFriction`,
-`World.push` / the wrench half of `World.end_step` and `ServoLoop._send`'s clamp, on the
+`World.push` / the wrench half of `World.end_step` and `ServoLoop._send`'s clamp (the same
+`softproxy.device_guard.guard_wrench`, compiled), on the
 finger rows of the state array (columns in `layout`). Like `softproxy.compiled.godobject`
 they follow the Python methods step by step, in the same order of floating-point
 operations; the Python classes are the reference and say why. Units: m, N, N·m, rad, s.
@@ -13,6 +14,7 @@ import math
 
 from numba import njit
 
+from softproxy import device_guard
 from softproxy.compiled import godobject
 from softproxy.compiled.layout import (
     IN_QW, IN_QX, IN_QY, IN_QZ, IN_TWIST, IN_VALID, IN_X, IN_Y, IN_Z, D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ, F_B, F_B_TAU, F_BODY, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K,
@@ -312,22 +314,21 @@ def _write_wrenches(xfrc, xipos, wrench, bodies, counts):
     counts[0] = 0
 
 
+guard_wrench = njit(cache=True)(device_guard.guard_wrench)
+
+
 @njit(cache=True)
 def _clamp_for_device(f, safe, fmax, tmax):
-    """`ServoLoop._send`'s clamp: what the device is sent, zero when unsafe or invalid."""
+    """`ServoLoop._send`: what the device is sent, zero when unsafe or invalid; False when
+    the guard refused the wrench (not finite, or limits that are not numbers)."""
+    good = True
     if safe or f[F_VALID] == 0.0:
         fx = fy = fz = tx = ty = tz = 0.0
     else:
-        fx, fy, fz, tx, ty, tz = f[F_FX], f[F_FY], f[F_FZ], f[F_TX], f[F_TY], f[F_TZ]
-        f2 = fx * fx + fy * fy + fz * fz
-        if f2 > fmax * fmax:
-            s = fmax / math.sqrt(f2) if fmax > 0.0 else 0.0
-            fx, fy, fz = fx * s, fy * s, fz * s
-        t2 = tx * tx + ty * ty + tz * tz
-        if t2 > tmax * tmax:
-            s = tmax / math.sqrt(t2) if tmax > 0.0 else 0.0
-            tx, ty, tz = tx * s, ty * s, tz * s
+        good, fx, fy, fz, tx, ty, tz = guard_wrench(f[F_FX], f[F_FY], f[F_FZ], f[F_TX], f[F_TY], f[F_TZ],
+                                                    f[F_MAX_FORCE], f[F_MAX_TORQUE], fmax, tmax)
     f[D_FX], f[D_FY], f[D_FZ], f[D_TX], f[D_TY], f[D_TZ] = fx, fy, fz, tx, ty, tz
+    return good
 
 
 @njit(cache=True)
@@ -339,9 +340,11 @@ def tick(S, T, C, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax,
     (or from a failed read) or not finite holds the finger. Writes the fingers' wrenches into
     xfrc_applied and what each device finger is sent into its D_ columns. `bodies`: rows
     FIXED (welded to the world), TOUCHED and PUSHED (body lists, lengths in `counts`).
-    Returns how many valid samples were refused: not finite (`DeviceSample.is_finite`), or
-    refused by their finger (spikes, garbage positions, a non-finite twist)."""
+    Returns (refused, unsafe): how many valid samples were refused (not finite, or refused by
+    their finger: spikes, garbage positions, a non-finite twist), and how many wrenches were
+    not finite (zeroed before they reached a body or the device)."""
     refused = 0
+    unsafe = 0
     for i in range(F.shape[0]):
         f = F[i]
         row = near[i]
@@ -355,11 +358,15 @@ def tick(S, T, C, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax,
                 refused += 1
             if safe:
                 clear_output(f)
+            elif not _finite(f[F_FX] + f[F_FY] + f[F_FZ] + f[F_TX] + f[F_TY] + f[F_TZ]):
+                unsafe += 1
+                clear_output(f)
             if f[F_BODY] >= 0.0:
                 _push(wrench, bodies, counts, int(f[F_BODY]), -f[F_FX], -f[F_FY], -f[F_FZ],
                       f[F_PX], f[F_PY], f[F_PZ], -f[F_TX], -f[F_TY], -f[F_TZ])
         if check:
             audit(S, T, C, xpos, xmat, f)
-        _clamp_for_device(f, safe, fmax, tmax)
+        if not _clamp_for_device(f, safe, fmax, tmax):
+            unsafe += 1
     _write_wrenches(xfrc, xipos, wrench, bodies, counts)
-    return refused
+    return refused, unsafe

@@ -1,0 +1,50 @@
+"""The last guard at the device boundary: what reaches a motor is finite and within its clamps.
+
+Every wrench the servo loop sends to a device passes through `guard_wrench` last, whatever
+the parameters, the fingertip model or the device's own limits say: a force or torque that
+is not finite, a limit that is not a finite number in [0, MAX_LIMIT], becomes zero force and
+a counted fault (`unsafe_output`) instead of reaching `send()`. It is plain scalar Python
+that numba also compiles (the compiled tick calls the same function), so there is one guard.
+`check_limits` refuses such limits when a loop is built, so the fault is the exception.
+"""
+
+from __future__ import annotations
+
+import math
+from numbers import Real
+
+MAX_LIMIT = 1e6
+"""Largest force (N) or torque (N·m) limit a device may declare; more is a broken number."""
+MAX_SQUARE = 1e300
+"""A |F|² or |M|² above this (or NaN) means the wrench was computed from broken numbers."""
+
+
+def guard_wrench(fx, fy, fz, tx, ty, tz, finger_fmax, finger_tmax, device_fmax, device_tmax):
+    """(ok, fx, fy, fz, tx, ty, tz): the wrench scaled, direction kept, into |F| ≤ the smaller
+    force limit (N) and |M| ≤ the smaller torque limit (N·m) of the finger and the device;
+    ok False and all zero when any input is not finite or a limit is outside [0, MAX_LIMIT].
+    NaN fails every comparison, so each test below passes only on good numbers."""
+    fmax = finger_fmax if finger_fmax < device_fmax else device_fmax if device_fmax <= finger_fmax else math.nan
+    tmax = finger_tmax if finger_tmax < device_tmax else device_tmax if device_tmax <= finger_tmax else math.nan
+    f2 = fx * fx + fy * fy + fz * fz
+    t2 = tx * tx + ty * ty + tz * tz
+    if not (f2 <= MAX_SQUARE and t2 <= MAX_SQUARE and 0.0 <= fmax <= MAX_LIMIT and 0.0 <= tmax <= MAX_LIMIT):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if f2 > fmax * fmax:
+        s = fmax / math.sqrt(f2)
+        fx, fy, fz = fx * s, fy * s, fz * s
+    if t2 > tmax * tmax:
+        s = tmax / math.sqrt(t2)
+        tx, ty, tz = tx * s, ty * s, tz * s
+    return True, fx, fy, fz, tx, ty, tz
+
+
+def check_limits(device) -> None:
+    """ValueError naming the device unless its `max_force` (N) and `max_torque` (N·m) are
+    finite numbers in [0, MAX_LIMIT] (a NaN limit would switch a clamp off)."""
+    for name in ("max_force", "max_torque"):
+        value = getattr(device, name, None)
+        if isinstance(value, bool) or not isinstance(value, Real) or not (
+                math.isfinite(value) and 0.0 <= value <= MAX_LIMIT):
+            raise ValueError(f"device {type(device).__name__}: {name} must be a number in [0, {MAX_LIMIT:g}], "
+                             f"got {value!r}")
