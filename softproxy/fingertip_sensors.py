@@ -112,11 +112,35 @@ def _r(v: float, digits: int = 7) -> float:
     return round(v, digits) + 0.0
 
 
-def _positive(name: str, v, integer: bool = False):
+MAX_RATE_HZ = 100_000.0
+"""Highest channel rate, Hz: the servo loop's own highest rate (a channel runs at most every tick)."""
+MIN_RATE_HZ = 0.01
+"""Lowest channel rate, Hz (a frame every 100 s); below it the decimation count overflows."""
+MAX_HISTORY = 10_000
+"""Most frames a channel keeps for the run result (each tactile frame holds its image)."""
+MAX_CELLS = 64
+"""Most tactile cells per side (the paper's sensor has 10)."""
+MAX_SUPERSAMPLE = 8
+"""Most sample points per cell and side."""
+MAX_POINTS_PER_SIDE = 256
+"""Most sample points per side, cells × supersample: the spring fields are (side points)²
+arrays, ~10 MB here; 100000 cells asked for ~300 GB before this bound."""
+MAX_SUBSTEPS = 1000
+"""Most history sub-steps per tactile frame (a frame's cost is linear in them)."""
+MAX_FINGERTIP_M = 0.1
+"""Largest tactile fingertip radius and sensor side, m (a fingertip; mm typed as m is caught)."""
+YOUNGS_MODULUS_PA = (1.0, 1e12)
+"""Range of the tactile skin's Young's modulus E, Pa (the paper's 0.36 MPa; steel is 2e11)."""
+
+
+def _positive(name: str, v, integer: bool = False, at_most: float | None = None, unit: str = ""):
+    """`v` if a finite number (an integer if asked) > 0 and <= `at_most`; ValueError naming `name`."""
     if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
         raise ValueError(f"{name} must be {'an integer' if integer else 'a number'} > 0, got {v!r}")
     if not (math.isfinite(v) and v > 0):
         raise ValueError(f"{name} must be > 0, got {v!r}")
+    if at_most is not None and v > at_most:
+        raise ValueError(f"{name} must be at most {at_most:g}{f' {unit}' if unit else ''}, got {v!r}")
     return v
 
 
@@ -130,8 +154,10 @@ class _ChannelSpec:
     history: int = DEFAULT_HISTORY
 
     def __post_init__(self) -> None:
-        _positive("rate_hz", self.rate_hz)
-        _positive("history", self.history, integer=True)
+        _positive("rate_hz", self.rate_hz, at_most=MAX_RATE_HZ, unit="Hz")
+        if self.rate_hz < MIN_RATE_HZ:
+            raise ValueError(f"rate_hz must be at least {MIN_RATE_HZ:g} Hz, got {self.rate_hz!r}")
+        _positive("history", self.history, integer=True, at_most=MAX_HISTORY, unit="frames")
         object.__setattr__(self, "pad", _unit("pad", self.pad))
         object.__setattr__(self, "distal", _unit("distal", self.distal))
         _check_pad_distal(self.pad, self.distal)
@@ -151,12 +177,18 @@ class TactileSpec(_ChannelSpec):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _positive("youngs_modulus", self.youngs_modulus)
+        _positive("youngs_modulus", self.youngs_modulus, at_most=YOUNGS_MODULUS_PA[1], unit="Pa")
+        if self.youngs_modulus < YOUNGS_MODULUS_PA[0]:
+            raise ValueError(f"youngs_modulus must be at least {YOUNGS_MODULUS_PA[0]:g} Pa, got {self.youngs_modulus!r}")
         for name in ("radius", "side"):
             if getattr(self, name) is not None:
-                _positive(name, getattr(self, name))
-        for name in ("cells", "supersample", "max_substeps"):
-            _positive(name, getattr(self, name), integer=True)
+                _positive(name, getattr(self, name), at_most=MAX_FINGERTIP_M, unit="m")
+        _positive("cells", self.cells, integer=True, at_most=MAX_CELLS)
+        _positive("supersample", self.supersample, integer=True, at_most=MAX_SUPERSAMPLE)
+        _positive("max_substeps", self.max_substeps, integer=True, at_most=MAX_SUBSTEPS)
+        if self.cells * self.supersample > MAX_POINTS_PER_SIDE:
+            raise ValueError(f"cells × supersample must be at most {MAX_POINTS_PER_SIDE} sample points per side, "
+                             f"got {self.cells} × {self.supersample}")
         if self.indentation not in INDENTATION:
             raise ValueError(f"indentation must be one of {', '.join(INDENTATION)}, got {self.indentation!r}")
 

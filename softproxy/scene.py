@@ -2,8 +2,8 @@
 
 A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked):
 
-    [scene]            mjcf (required, path relative to the TOML), description, rate_hz (1000),
-                       duration_s (5.0), audit (true: track proxy penetration every tick),
+    [scene]            mjcf (required, path relative to the TOML), description, rate_hz (1000;
+                       10 to 100000 Hz), duration_s (5.0; at most 24 h), audit (true: track proxy penetration every tick),
                        force_shading (false: mesh contacts report the faceted normal; true:
                        the normal interpolated from the vertex normals)
     [measure]          object (body name), axis ([x, y, z]), start_s: the run reports how far
@@ -23,7 +23,9 @@ A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked
 
 Scenes are found by name in the folders registered under the `softproxy.scene_dirs` entry
 point (the shipped `scenes/` folder), or given as a path. Every error names the file, the
-field and what was expected.
+field and what was expected. `Scene.load_model` also checks the MJCF against what the servo
+loop can run: no RK4 integrator (the loop steps MuJoCo in two halves), no touchable geom of a
+type the fingers cannot touch (height fields, SDFs), a `[measure]` object that is a body.
 """
 
 from __future__ import annotations
@@ -40,6 +42,13 @@ import mujoco
 from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
 from softproxy.fingertip_sensors import SensingSpec, TactileSpec
+from softproxy.geometry import SHAPES, touchable
+
+MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
+"""Servo rates a run accepts, Hz (what `ServoLoop` can run)."""
+MAX_DURATION_S = 86_400.0
+"""Longest run a scene (duration_s) or `softproxy run --duration` may ask for, s (24 h); more is
+taken for a mistake (a run's recording and video grow with its length)."""
 
 _SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit", "force_shading"}
 _MEASURE_KEYS = {"object", "axis", "start_s"}
@@ -81,11 +90,38 @@ class Scene:
     sensing: list[SensingSpec | None] = field(default_factory=list)  # per finger; None = off
 
     def load_model(self) -> mujoco.MjModel:
-        """Compile the scene's MJCF; SceneError naming the file on failure."""
+        """Compile the scene's MJCF and check that the servo loop can run it (see the module
+        docstring); SceneError naming the file, the culprits and the fix otherwise."""
         try:
-            return mujoco.MjModel.from_xml_path(str(self.mjcf))
+            model = mujoco.MjModel.from_xml_path(str(self.mjcf))
         except Exception as exc:  # mujoco raises ValueError with the XML error in it
             raise SceneError(f"{self.mjcf}: MJCF does not compile: {exc}") from None
+        self._check_model(model)
+        return model
+
+    def _check_model(self, model: mujoco.MjModel) -> None:
+        if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
+            # mj_step1/mj_step2 (the two halves the fingers act between) are not valid for RK4
+            raise SceneError(f'{self.mjcf}: integrator "RK4" cannot run in the servo loop, which steps MuJoCo '
+                             f'in two halves (RK4 has no split step): use <option integrator="implicitfast"/> '
+                             f'(or "Euler")')
+        unsupported = []
+        for g in range(model.ngeom):
+            gtype = int(model.geom_type[g])
+            if touchable(model, g) and gtype not in SHAPES and gtype != int(mujoco.mjtGeom.mjGEOM_MESH):
+                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+                kind = mujoco.mjtGeom(gtype).name.removeprefix("mjGEOM_").lower()
+                unsupported.append(f"{name!r} ({kind})" if name else f"#{g} ({kind})")
+        if unsupported:
+            raise SceneError(f"{self.mjcf}: the fingers cannot touch geom(s) {', '.join(unsupported)} yet; to keep "
+                             f'such geoms in the scene set contype="0" conaffinity="0" on each (then nothing '
+                             f"collides with them, in MuJoCo either)")
+        if self.measure is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, self.measure.object) < 0:
+            bodies = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(1, model.nbody)]
+            named = [b for b in bodies if b]
+            listed = ", ".join(named[:12]) + (", ..." if len(named) > 12 else "") if named else "none named"
+            raise SceneError(f"{self.path}: measure.object {self.measure.object!r} is not a body of "
+                             f"{self.mjcf.name}; its bodies: {listed}")
 
 
 def scene_dirs() -> list[Path]:
@@ -117,16 +153,23 @@ def find_scene(name_or_path: str) -> Path:
     raise SceneError(f"no scene {name_or_path!r}: give a .toml path or one of: {known}")
 
 
-def _number(where: str, key: str, value, *, positive=False, non_negative=False) -> float:
+def _number(where: str, key: str, value, *, positive=False, non_negative=False, within=None) -> float:
+    """`value` as a finite float (> 0, >= 0, in `within` = (low, high, unit) if asked); SceneError otherwise."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SceneError(f"{where}: {key} must be a number, got {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # a TOML integer past a float's range
+        raise SceneError(f"{where}: {key} must be finite, got {value!r}") from None
     if not math.isfinite(value):
         raise SceneError(f"{where}: {key} must be finite, got {value!r}")
     if positive and value <= 0.0:
         raise SceneError(f"{where}: {key} must be > 0, got {value!r}")
     if non_negative and value < 0.0:
         raise SceneError(f"{where}: {key} must be >= 0, got {value!r}")
+    if within is not None and not within[0] <= value <= within[1]:
+        low, high, unit = within
+        raise SceneError(f"{where}: {key} must be between {low:g} and {high:g} {unit}, got {value!r}")
     return value
 
 
@@ -218,9 +261,11 @@ def load_scene(name_or_path: str) -> Scene:
     path = find_scene(name_or_path)
     where = str(path)
     try:
-        doc = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as exc:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise SceneError(f"{where}: not valid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise SceneError(f"{where}: not valid TOML: arrays or tables nested too deeply") from None
     unknown = set(doc) - {"scene", "measure", "finger_defaults", "finger", "device"}
     if unknown:
         raise SceneError(f"{where}: unknown table(s) {sorted(unknown)}")
@@ -232,8 +277,10 @@ def load_scene(name_or_path: str) -> Scene:
         raise SceneError(f"{where}: [scene] mjcf {s['mjcf']!r} does not exist ({mjcf})")
     scene = Scene(
         name=path.stem, path=path, mjcf=mjcf, description=str(s.get("description", "")),
-        rate_hz=_number(where, "scene.rate_hz", s.get("rate_hz", 1000.0), positive=True),
-        duration_s=_number(where, "scene.duration_s", s.get("duration_s", 5.0), positive=True),
+        rate_hz=_number(where, "scene.rate_hz", s.get("rate_hz", 1000.0), positive=True,
+                        within=(MIN_RATE_HZ, MAX_RATE_HZ, "Hz")),
+        duration_s=_number(where, "scene.duration_s", s.get("duration_s", 5.0), positive=True,
+                           within=(0.0, MAX_DURATION_S, "s")),
         audit=_flag(where, "scene.audit", s.get("audit", True)),
         force_shading=_flag(where, "scene.force_shading", s.get("force_shading", False)),
     )
@@ -253,10 +300,11 @@ def load_scene(name_or_path: str) -> Scene:
             raise SceneError(f"{where}: measure.axis must be [x, y, z], got {axis!r}")
         axis = [_number(where, "measure.axis", v) for v in axis]
         norm = math.sqrt(sum(v * v for v in axis))
-        if norm == 0.0:
-            raise SceneError(f"{where}: measure.axis must not be zero")
+        if not 0.0 < norm < math.inf:
+            raise SceneError(f"{where}: measure.axis must be a non-zero direction of finite length, got {axis!r}")
         if not isinstance(g.get("object"), str):
             raise SceneError(f"{where}: measure.object must be the name of a body")
         scene.measure = MeasureSpec(g["object"], tuple(v / norm for v in axis),
-                                    _number(where, "measure.start_s", g.get("start_s", 0.0), non_negative=True))
+                                    _number(where, "measure.start_s", g.get("start_s", 0.0), non_negative=True,
+                                            within=(0.0, MAX_DURATION_S, "s")))
     return scene

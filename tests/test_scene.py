@@ -50,6 +50,12 @@ def test_good_minimal_scene(tmp_path):
         (GOOD + "\n[measure]\nobject = \"box\"\naxis = [0, 0]\n", ["measure.axis"]),
         (GOOD + "\n[extras]\n", ["unknown table", "extras"]),
         ("[scene\nmjcf=", ["not valid TOML"]),
+        ("[scene]\nmjcf = " + "[" * 5000 + "]" * 5000, ["not valid TOML", "nested too deeply"]),
+        (GOOD.replace("[scene]", "[scene]\nduration_s = 1e7"), ["scene.duration_s", "86400"]),
+        (GOOD.replace("[scene]", "[scene]\nrate_hz = 5"), ["scene.rate_hz", "10", "100000"]),
+        (GOOD.replace('name = "a"', 'name = "a"\ndamping = 1e308'), ["finger[0]", "damping", "at most"]),
+        (GOOD.replace('name = "a"', 'name = "a"\nstiffness = 1e400'), ["finger[0].stiffness", "finite"]),
+        (GOOD.replace('name = "a"', 'name = "a"\ntactile = { cells = 100000 }'), ["finger[0].tactile", "cells"]),
     ],
 )
 def test_malformed_scene_names_file_and_field(tmp_path, toml, words):
@@ -70,3 +76,37 @@ def test_bad_mjcf_names_the_file(tmp_path):
 def test_unknown_scene_lists_the_known_ones():
     with pytest.raises(SceneError, match="two_finger_grasp"):
         load_scene("no_such_scene")
+
+
+HFIELDS = """<mujoco><asset><hfield name="hf" nrow="4" ncol="4" size="0.1 0.1 0.01 0.01"/></asset><worldbody>
+  <geom name="floor" type="plane" size="1 1 .1"/>
+  <geom name="hill" type="hfield" hfield="hf" pos="0.3 0 0"/>
+  <geom name="dune" type="hfield" hfield="hf" pos="-0.3 0 0"/>
+  <geom name="backdrop" type="hfield" hfield="hf" pos="0 0.3 0" contype="0" conaffinity="0"/>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize(
+    "toml, xml, words, absent",
+    [
+        (GOOD, GOOD_XML.replace("<worldbody>", '<option integrator="RK4"/><worldbody>'),
+         ["w.xml", "RK4", "implicitfast"], []),
+        (GOOD, HFIELDS, ["w.xml", "'hill' (hfield)", "'dune' (hfield)", 'contype="0" conaffinity="0"'], ["backdrop"]),
+        (GOOD + '\n[measure]\nobject = "box"\n', GOOD_XML.replace("</worldbody>", '<body name="lid"/></worldbody>'),
+         ["s.toml", "measure.object", "'box'", "lid"], []),
+    ],
+    ids=["rk4", "height-fields", "measured-body"],
+)
+def test_a_model_the_loop_cannot_run_is_refused_at_load(tmp_path, toml, xml, words, absent):
+    """An MJCF the servo loop cannot run is a SceneError from load_model, naming the file, every
+    culprit and the fix (RK4 has no split step; a touchable height field; a measured body the
+    model lacks); geoms kept out of contact are not culprits."""
+    scene = load_scene(write(tmp_path, toml, xml=xml))
+    with pytest.raises(SceneError) as err:
+        scene.load_model()
+    message = str(err.value)
+    assert "\n" not in message
+    for w in words:
+        assert w in message, (w, message)
+    for w in absent:
+        assert w not in message, (w, message)
