@@ -183,9 +183,16 @@ class SoftFingerProxy:
         return True
 
     def hold(self) -> None:
-        """No usable device sample this tick: zero force, the proxy only follows its body."""
+        """No usable device sample this tick: zero force, the proxy only follows its body.
+        The soft start's ramp winds down as fast as it winds up, so after an outage of T s
+        (a device error, invalid samples) the clamps come back from max·(1 − T/soft_start):
+        a finger that moved into an object meanwhile gets no kick; one lost sample costs
+        a hundredth of the clamp at 1 kHz (0.1 s soft start), not the grip."""
         if self.body >= 0:
             self._follow_body()
+        if self.soft_start > 0.0:
+            ramp = self._ramp - self.dt / self.soft_start
+            self._ramp = ramp if ramp > 0.0 else 0.0
         self._rest()
 
     def _rest(self) -> None:

@@ -61,7 +61,8 @@ class PressingDevice:
 
 def loop_on_plane(device, compiled=False, **params):
     world = World(mujoco.MjModel.from_xml_string(PLANE))
-    fingers = [SoftFingerProxy(FingerParams(name=f"f{i}", radius=0.005, device_finger=i, soft_start=0.0, **params),
+    params = {"soft_start": 0.0, **params}
+    fingers = [SoftFingerProxy(FingerParams(name=f"f{i}", radius=0.005, device_finger=i, **params),
                                world.shapes, model("CH")) for i in range(device.fingers)]
     return ServoLoop(world, fingers, device, 1000.0, overrun_watchdog=False, compiled=compiled)
 
@@ -322,3 +323,37 @@ def test_every_way_out_of_a_run_sends_zero_force(tmp_path, how, sig):
     assert sends > 2000  # it had been holding the box
     if sig in (signal.SIGTERM, signal.SIGHUP):
         assert code == 128 + sig
+
+
+@pytest.mark.parametrize("compiled", ENGINES)
+def test_after_a_device_outage_the_force_ramps_back_in(compiled):
+    """The device fails for 0.3 s while the hand pushes 15 mm deeper: when it is back, the
+    force comes back over the soft start (0.1 s), not as a one-tick kick to the spring's 30 N."""
+    from softproxy.device import DeviceError
+
+    class Outage(PressingDevice):
+        down = False
+        depth = 0.0
+
+        def read(self, t, samples):
+            if self.down:
+                raise DeviceError("unplugged")
+            super().read(t, samples)
+            samples[0].z -= self.depth
+
+    device = Outage(max_force=40.0)
+    loop = loop_on_plane(device, compiled, soft_start=0.1)
+    loop.run(100)
+    assert 3.0 < np.linalg.norm(device.sends[-2][1:4]) < 5.0
+    device.down, device.depth = True, 0.015
+    loop.run(300)
+    assert loop.faults["device_error"] == 300
+    device.down = False
+    n = len(device.sends)
+    loop.run(150)
+    force = np.linalg.norm(np.array([s[1:4] for s in device.sends[n:-1]]), axis=1)
+    print(f"after 0.3 s without a device ({'compiled' if compiled else 'python'}): first force {force[0]:.2f} N, "
+          f"at 50 ms {force[50]:.1f} N, at 140 ms {force[140]:.1f} N")
+    assert force[0] < 0.5
+    assert 10.0 < force[50] < 25.0  # half way up the ramp of the 40 N clamp
+    assert force[140] > 29.0  # the spring's 30 N once the ramp is done

@@ -138,9 +138,13 @@ def place(S, T, C, xpos, xmat, f, near, x, y, z):
 
 @njit(cache=True)
 def hold(S, T, C, xpos, xmat, cvel, f, near):
-    """`SoftFingerProxy.hold`: no usable sample; zero force, the proxy follows its body."""
+    """`SoftFingerProxy.hold`: no usable sample; zero force, the proxy follows its body, the
+    soft start's ramp winds down."""
     if f[F_BODY] >= 0.0:
         _follow_body(S, cvel, f)
+    if f[F_SOFT_START] > 0.0:
+        ramp = f[F_RAMP] - f[F_DT] / f[F_SOFT_START]
+        f[F_RAMP] = ramp if ramp > 0.0 else 0.0
     if f[F_PLACED] != 0.0:
         godobject.follow(S, T, C, xpos, xmat, f, near)
     clear_output(f)
