@@ -14,9 +14,9 @@ and `stop()`.
 The watchdog answers every fault with zero force for that tick and a count in `faults`:
 a device that raises, a NaN/invalid sample, a tick that overran its period badly (then the
 next tick renders zero). `stop()` (and leaving `run`) sends zero force to every finger.
-The overrun watchdog guards real time; a lockstep run in simulated time (tests,
-benchmarks, `softproxy run` without `--realtime`) turns it off so that wall-clock noise
-cannot change the result.
+The overrun watchdog guards real time: by default it watches only `run(realtime=True)`, so a
+lockstep run in simulated time (an application calling `tick()`, tests, benchmarks,
+`softproxy run` without `--realtime`) gives the same result however loaded the machine is.
 """
 
 from __future__ import annotations
@@ -96,7 +96,7 @@ class ServoLoop:
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
-                 overrun_watchdog: bool = True, compiled: bool = False, handle_signals: bool = True) -> None:
+                 overrun_watchdog: bool | None = None, compiled: bool = False, handle_signals: bool = True) -> None:
         if not (math.isfinite(rate_hz) and 10.0 <= rate_hz <= 100_000.0):
             raise ValueError(f"rate_hz must be between 10 and 100000, got {rate_hz!r}")
         check_device(device)
@@ -116,6 +116,10 @@ class ServoLoop:
         self.faults = dict.fromkeys(FAULTS, 0)
         self.overrun_limit = overrun_factor * self.period
         self.overrun_watchdog = overrun_watchdog
+        """True: a tick that overran `overrun_factor` periods makes the next render zero. None
+        (default): only inside `run(realtime=True)`, so an application ticking in lockstep gets
+        the same results however loaded the machine is. False: never."""
+        self._watching = overrun_watchdog is True
         self.audit = audit
         self.t = 0.0
         self.ticks = 0
@@ -191,7 +195,7 @@ class ServoLoop:
         self.t += dt
         self.ticks += 1
         duration = time.perf_counter() - start
-        if duration > self.overrun_limit and self.overrun_watchdog:
+        if duration > self.overrun_limit and self._watching:
             self.faults["overrun"] += 1
             self._safe_next = True
         self.stats.record(duration, dt)
@@ -276,6 +280,7 @@ class ServoLoop:
                         on_tick(self)
                 return
             period = self.period
+            self._watching = self.overrun_watchdog is not False
             gc.disable()
             next_start = time.perf_counter()
             for _ in range(ticks):
@@ -292,6 +297,7 @@ class ServoLoop:
                     self.sync()
                     on_tick(self)
         finally:
+            self._watching = self.overrun_watchdog is True
             if gc_was_enabled:
                 gc.enable()
             self.stop()

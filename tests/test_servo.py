@@ -200,11 +200,30 @@ def test_watchdog_zero_force_after_stalled_tick():
     """A tick that overruns its period badly (a 20 ms stall at 1 kHz) is followed by a zero-force tick."""
     dev = Scripted("stall", at=(40,))
     loop = plane_loop(dev, watchdog=True)
-    loop.run(60)  # lockstep, but the loop was built with the real-time watchdog on (the default)
+    loop.run(60)  # lockstep, but the loop was built with the real-time watchdog on
     assert loop.faults["overrun"] >= 1
     assert dev.sent[38][2] > 1.0  # the stalled tick itself still sent its force
     assert dev.sent[39] == (0.0,) * 6  # the watchdog zeroed the next one
     assert dev.sent[40][2] > 1.0
+
+
+def test_by_default_the_overrun_watchdog_watches_only_real_time_runs():
+    """An application ticking a loop in lockstep gets the same forces however loaded the machine
+    is: with the default watchdog a 20 ms stall zeroes nothing there, and the next tick after
+    one does in `run(realtime=True)`."""
+    dev = Scripted("stall", at=(40,))
+    loop = plane_loop(dev, watchdog=None)
+    for _ in range(60):
+        loop.tick()
+    assert loop.faults["overrun"] == 0 and dev.sent[39][2] > 1.0
+    dev.at, dev.n = {20}, 0
+    loop.run(40, realtime=True)  # read 20 is this run's tick 19 (the loop had started)
+    overruns = loop.faults["overrun"]
+    assert overruns >= 1 and dev.sent[60 + 20] == (0.0,) * 6
+    dev.at, dev.n = {10}, 0
+    for _ in range(20):  # lockstep again: off again
+        loop.tick()
+    assert loop.faults["overrun"] == overruns and dev.sent[-10][2] > 1.0
 
 
 def test_run_ends_with_zero_force():
