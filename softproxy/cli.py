@@ -1,12 +1,38 @@
-"""The `softproxy` command line: one subcommand per job, each with a `--json` form."""
+"""The `softproxy` command line: one subcommand per job, each with a `--json` form.
+
+A mistake on the command line or in a file it names ends the command with exit status 2
+and one line on stderr naming the flag, file or field and what was expected; it is found
+before any servo loop runs. Tracebacks are left for bugs.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
+import re
+import signal
 import sys
+from pathlib import Path
 
 from softproxy.fingertip import MODELS
+
+MAX_BENCH_S = 3600.0
+"""Longest benchmark duration (--duration, --paced), s: benchmarks keep per-tick arrays."""
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+"""An argument that is a negative number, not an option (argparse's own pattern misses -1.5e-05)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors, that takes "-1.5e-05" as a number, not as an option."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER  # the pattern argparse tells numbers from options by
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
 def _print_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> None:
@@ -41,17 +67,88 @@ def cmd_models(args: argparse.Namespace) -> int:
 
 
 def _parse_faults(text: str) -> dict:
-    """`nan=0.01,drop=0.001` -> {"nan": 0.01, "drop": 0.001}; ValueError naming the bad item."""
+    """`nan=0.01,drop=0.001` -> {"nan": 0.01, "drop": 0.001}; ValueError naming --faults and
+    the bad item. The fault names are the device's to check (see `_open_run_device`)."""
     faults = {}
     for item in text.split(","):
         name, sep, value = item.partition("=")
         try:
-            faults[name.strip()] = float(value)
+            p = float(value)
         except ValueError:
-            raise ValueError(f"--faults: {item!r} is not NAME=PROBABILITY") from None
-        if not sep:
-            raise ValueError(f"--faults: {item!r} is not NAME=PROBABILITY")
+            p = math.nan
+        if not sep or not name.strip() or not 0.0 <= p <= 1.0:
+            raise ValueError(f"--faults: {item!r} is not NAME=PROBABILITY with a probability per read in [0, 1] "
+                             f"(e.g. nan=0.01,drop=0.001)")
+        faults[name.strip()] = p
     return faults
+
+
+def _check_output(flag: str, path: str) -> None:
+    """ValueError naming `flag` unless `path` can be written (tried now, so a run is not lost
+    to a typo in a folder name found only when the run is over); a new file is removed again."""
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{flag} {path}: is a folder; give a file name")
+    existed = p.exists()
+    try:  # append: an existing file is not truncated; non-blocking: a FIFO with no reader fails, not hangs
+        os.close(os.open(p, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NONBLOCK", 0), 0o666))
+    except OSError as exc:
+        raise ValueError(f"{flag} {path}: cannot write there ({exc.strerror}); give a path in a writable folder") from None
+    if not existed:
+        p.unlink(missing_ok=True)
+
+
+def _check_run_flags(args: argparse.Namespace) -> dict | None:
+    """Check `softproxy run`'s flags before anything is loaded; the --faults table (or None).
+    ValueError naming the flag and what it takes."""
+    from softproxy.scene import MAX_DURATION_S, MAX_RATE_HZ, MIN_RATE_HZ
+
+    if args.duration is not None and not (math.isfinite(args.duration) and 0.0 < args.duration <= MAX_DURATION_S):
+        raise ValueError(f"--duration must be a number of seconds > 0 and at most {MAX_DURATION_S:g} (24 h), "
+                         f"got {args.duration!r}")
+    if args.rate is not None and not (math.isfinite(args.rate) and MIN_RATE_HZ <= args.rate <= MAX_RATE_HZ):
+        raise ValueError(f"--rate must be a servo rate between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got {args.rate!r}")
+    name, colon, argument = args.device.partition(":")
+    if colon and not argument:
+        raise ValueError(f"--device {args.device!r}: give the argument after ':' (e.g. replay:run.rec)")
+    faults = _parse_faults(args.faults) if args.faults else None
+    if faults and args.device != "sim":
+        raise ValueError(f"--faults: only the simulated device injects faults; use it with --device sim "
+                         f"(got --device {args.device})")
+    for flag, path in (("--snapshot", args.snapshot), ("--video", args.video), ("--record", args.record)):
+        if path:
+            _check_output(flag, path)
+    return faults
+
+
+def _open_run_device(args: argparse.Namespace, scene, faults: dict | None):
+    """The run's device, checked to drive every finger of the scene. Each error names what is
+    to blame: --device (a type or an argument such as a recording), --faults, or the scene's
+    [device] table. The device is closed again if the check fails."""
+    from softproxy.run import check_device_fingers, device_types, open_device
+    from softproxy.scene import SceneError
+
+    name, _, argument = args.device.partition(":")
+    if name not in device_types():
+        raise SceneError(f"--device {args.device}: no device type {name!r}; installed: {', '.join(device_types())}")
+    try:
+        device = open_device(args.device, scene)  # errors from the scene's [device] name the scene
+    except (ValueError, RuntimeError) as exc:
+        if argument:
+            raise SceneError(f"--device {args.device}: {exc}") from None
+        raise
+    if faults:
+        # the scene's own [device] opened above; the faults merged in can only fail on
+        # themselves, so the second opening's errors name the flag
+        device.close()
+        device = open_device(args.device, scene, {**scene.device, "faults": faults}, source="--faults")
+    label = f"{scene.path}: [device]" if name == "sim" and not argument else f"--device {args.device}"
+    try:
+        check_device_fingers(scene, device, label)
+    except SceneError:
+        device.close()
+        raise
+    return device
 
 
 def _print_fingertip_sensors(f: dict) -> None:
@@ -78,9 +175,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     in real time while it is open, and no frame of drawing ever delays a tick. --snapshot and
     --video render offscreen (EGL) after the run, from state copied during it.
     """
-    from softproxy.run import open_device, run_scene
+    from softproxy.run import run_scene
     from softproxy.scene import SceneError, load_scene
 
+    try:
+        faults = _check_run_flags(args)
+    except ValueError as exc:
+        print(f"softproxy run: {exc}", file=sys.stderr)
+        return 2
     window = not args.headless
     if window:
         from softproxy.viewer.launch import display_problem
@@ -91,18 +193,19 @@ def cmd_run(args: argparse.Namespace) -> int:
                   f"  Run it without a window: softproxy run {args.scene} --headless "
                   f"(add --snapshot FILE.png for a picture of the end of the run)", file=sys.stderr)
             return 3
+    views = None
     try:
         scene = load_scene(args.scene)
-        if args.faults:
-            scene.device["faults"] = _parse_faults(args.faults)
-        views = None
+        scene.load_model()  # the MJCF's own mistakes (RK4, a height field, a missing body) before a device opens
         if window or args.snapshot or args.video:
             from softproxy.viewer.attach import RunViews, parse_size
 
             views = RunViews(scene, window=window, snapshot=args.snapshot, video=args.video,
                              size=parse_size(args.size), duration_s=args.duration)
-        device = open_device(args.device, scene)
+        device = _open_run_device(args, scene, faults)
     except (SceneError, ValueError, RuntimeError) as exc:
+        if views is not None:
+            views.close()
         print(f"softproxy run: {exc}", file=sys.stderr)
         return 2
     realtime = args.realtime or window  # a window shows the run as it happens
@@ -215,6 +318,11 @@ def _benchmarks() -> dict:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """Run a benchmark (or all of them) by name."""
+    for flag, value in (("--duration", args.duration), ("--paced", args.paced)):
+        if value is not None and not (math.isfinite(value) and 0.0 < value <= MAX_BENCH_S):
+            print(f"softproxy bench: {flag} must be a number of seconds > 0 and at most {MAX_BENCH_S:g}, got {value!r}",
+                  file=sys.stderr)
+            return 2
     benches = _benchmarks()
     names = sorted(benches) if args.name == "all" else [args.name]
     for name in names:
@@ -229,7 +337,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="softproxy", description=__doc__)
+    parser = _Parser(prog="softproxy", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("models", help="list the fingertip models and their constants")
@@ -295,9 +404,35 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("softproxy")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "(not installed)"
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        code = args.func(args)
+        sys.stdout.flush()  # a reader that went away shows here, not in the interpreter's last flush
+        return code
+    except BrokenPipeError:
+        # whoever read our output went away (`softproxy calibrate | head`): stop quietly, as a
+        # pipe's writer does, with 128 + SIGPIPE; the subcommand's own cleanup (a device's
+        # zero force) has run on the way out. Later writes to stdout go nowhere, so the
+        # interpreter's last flush cannot fail again.
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):  # stdout is no file (captured, closed)
+            pass
+        return 128 + getattr(signal, "SIGPIPE", 13)
+    except KeyboardInterrupt:
+        print(f"softproxy {args.command}: interrupted", file=sys.stderr)
+        return 128 + signal.SIGINT
 
 
 if __name__ == "__main__":

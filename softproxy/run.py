@@ -19,7 +19,7 @@ from softproxy.fingertip import model as fingertip_model
 from softproxy.fingertip_sensors import attach as attach_sensors
 from softproxy.fingertip_sensors import summaries as sensor_summaries
 from softproxy.recording import RecordingDevice
-from softproxy.scene import Scene, SceneError
+from softproxy.scene import MAX_RATE_HZ, MIN_RATE_HZ, Scene, SceneError
 from softproxy.servo import ServoLoop
 from softproxy.world import World
 
@@ -29,9 +29,10 @@ def device_types() -> list[str]:
     return sorted(ep.name for ep in entry_points(group="softproxy.devices"))
 
 
-def open_device(kind: str, scene: Scene) -> Device:
-    """Open a device: "sim" (configured by the scene's [device] table) or "NAME:ARGUMENT"
-    (e.g. "replay:run.rec"), whose argument replaces the scene's configuration."""
+def open_device(kind: str, scene: Scene, config: dict | None = None, source: str | None = None) -> Device:
+    """Open a device: "sim" (configured by the scene's [device] table, or by `config`, whose
+    errors then name `source` instead of the scene file) or "NAME:ARGUMENT" (e.g.
+    "replay:run.rec"), whose argument replaces the scene's configuration."""
     name, _, argument = kind.partition(":")
     for ep in entry_points(group="softproxy.devices"):
         if ep.name == name:
@@ -40,8 +41,29 @@ def open_device(kind: str, scene: Scene) -> Device:
                 if not hasattr(cls, "from_argument"):
                     raise SceneError(f"device type {name!r} takes no argument (got {argument!r})")
                 return cls.from_argument(argument, scene)
-            return cls.from_config(scene.device, source=str(scene.path))
+            return cls.from_config(scene.device if config is None else config, source=source or str(scene.path))
     raise SceneError(f"no device type {name!r}; installed: {', '.join(device_types()) or 'none'}")
+
+
+def check_device_fingers(scene: Scene, device: Device, label: str) -> None:
+    """SceneError (one line naming the device `label` and the scene) when a finger of the
+    scene is driven by a device finger the device does not have: it would get no samples."""
+    for params in scene.fingers:
+        if params.device_finger >= device.fingers:
+            raise SceneError(f"{label} drives {device.fingers} finger(s), but scene {scene.name!r} ({scene.path}) has "
+                             f"finger {params.name!r} on device finger {params.device_finger}: use a device (or a "
+                             f"recording) with at least {params.device_finger + 1}, or a scene with fewer fingers")
+
+
+def check_run(duration_s: float, rate_hz: float) -> None:
+    """ValueError unless `duration_s` is a finite number of seconds > 0 and `rate_hz` a rate
+    the servo loop runs (`softproxy.scene.MIN_RATE_HZ`..`MAX_RATE_HZ`). Nothing in a run is
+    sized by its duration, so an embedding application may plan any length; scene files and
+    `softproxy run --duration` keep to `MAX_DURATION_S` to catch typos."""
+    if not (math.isfinite(duration_s) and duration_s > 0.0):
+        raise ValueError(f"duration must be a finite number of seconds > 0, got {duration_s!r}")
+    if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
+        raise ValueError(f"rate must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got {rate_hz!r}")
 
 
 def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_model: str | None = None,
@@ -60,7 +82,7 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
         name = finger_model or params.model
         fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
     try:
-        loop = ServoLoop(world, fingers, device, rate_hz or scene.rate_hz,
+        loop = ServoLoop(world, fingers, device, scene.rate_hz if rate_hz is None else rate_hz,
                          audit=scene.audit if audit is None else audit, overrun_watchdog=realtime, compiled=compiled)
     except ImportError as exc:  # compiled=True without numba
         raise SceneError(f"the compiled tick needs numba ({exc}): pip install numba") from None
@@ -92,8 +114,10 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
     `on_tick(loop)` after every tick, outside the timed region. `record` streams every device
     sample to that file as the run goes (see `softproxy.recording`). `compiled` runs
-    the fingers as compiled code (see `build`).
+    the fingers as compiled code (see `build`). ValueError, before anything is built, for a
+    duration or a rate out of bounds (`check_run`).
     """
+    check_run(scene.duration_s if duration_s is None else duration_s, scene.rate_hz if rate_hz is None else rate_hz)
     original = device
     recorder = None
     if record is not None:  # opened before the run: an unwritable path fails now, naming it
@@ -106,8 +130,6 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         on_built(loop)
     user_on_tick = on_tick
     duration = duration_s if duration_s is not None else scene.duration_s
-    if not (math.isfinite(duration) and duration > 0.0):
-        raise ValueError(f"duration must be > 0 s, got {duration!r}")
     ticks = int(round(duration * loop.rate_hz))
     measure = scene.measure
     track: dict = {}

@@ -1,0 +1,278 @@
+"""Every mistake a user can make on the command line, or in a file it names, ends the command
+with exit status 2 and exactly one line on stderr naming the flag, file or field (no
+traceback), and is found before a servo loop is built."""
+
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+import softproxy.run
+from softproxy import cli
+from softproxy.finger import FingerParams
+from softproxy.scene import find_scene
+
+GRASP = find_scene("two_finger_grasp")
+
+
+class LoopBuilt(AssertionError):
+    """A servo loop was built: the mistake was not found before the run."""
+
+
+@pytest.fixture
+def no_loop(monkeypatch):
+    """softproxy.run builds no ServoLoop during the test (a mistake must be found first)."""
+
+    def refuse(*args, **kwargs):
+        raise LoopBuilt("a servo loop was built before the mistake was found")
+
+    monkeypatch.setattr(softproxy.run, "ServoLoop", refuse)
+
+
+@pytest.fixture(scope="module")
+def one_finger_recording(tmp_path_factory):
+    """A recording of the one-finger knob scene (a real, short run)."""
+    path = tmp_path_factory.mktemp("rec") / "knob.rec"
+    assert cli.main(["run", "knob", "--headless", "--duration", "0.02", "--record", str(path)]) == 0
+    return path
+
+
+def grasp_variant(tmp_path, toml=(), xml=()) -> str:
+    """The two-finger grasp scene copied to tmp_path with text replacements (old, new) in its
+    TOML and MJCF; the path of its TOML."""
+    text = GRASP.read_text()
+    for old, new in toml:
+        assert old in text
+        text = text.replace(old, new, 1)
+    model = GRASP.with_suffix(".xml").read_text()
+    for old, new in xml:
+        assert old in model
+        model = model.replace(old, new, 1)
+    (tmp_path / "grasp.xml").write_text(model)
+    path = tmp_path / "grasp.toml"
+    path.write_text(text.replace('mjcf = "two_finger_grasp.xml"', 'mjcf = "grasp.xml"'))
+    return str(path)
+
+
+def one_line_error(capsys, argv, words):
+    """Run `softproxy ARGV`: exit 2, one line on stderr holding every word; that line."""
+    try:
+        code = cli.main(argv)
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2, (code, err)
+    assert "Traceback" not in err
+    assert len(err.splitlines()) == 1 and err.endswith("\n"), err
+    for w in words:
+        assert w in err, (w, err)
+    return err
+
+
+RUN = ["run", "two_finger_grasp", "--headless"]
+
+
+# (flags after `softproxy run two_finger_grasp --headless`, words the one error line holds)
+RUN_FLAG_MISTAKES = [
+    *[(["--duration", v], ["--duration", "86400"]) for v in ("nan", "inf", "-1", "0", "-1.5e-05", "1e9")],
+    *[(["--rate", v], ["--rate", "10", "100000"]) for v in ("0", "nan", "-5", "9.99", "1e9")],
+    (["--faults", "bogus=0.1"], ["--faults", "bogus", "nan, drop"]),
+    (["--faults", "nan=2"], ["--faults", "nan=2", "[0, 1]"]),
+    (["--faults", "nan"], ["--faults", "'nan'", "NAME=PROBABILITY"]),
+    (["--faults", "nan=0.1", "--device", "replay:x.rec"], ["--faults", "--device sim"]),
+    (["--device", "warp"], ["--device warp", "no device type", "sim"]),
+    (["--device", "replay:"], ["--device 'replay:'", "replay:run.rec"]),
+    (["--device", "replay:MISSING.rec"], ["--device replay:MISSING.rec", "MISSING.rec"]),
+    (["--finger-model", "thumb"], ["--finger-model", "thumb"]),
+]
+
+
+@pytest.mark.parametrize("flags, words", [pytest.param(f, w, id=" ".join(f)) for f, w in RUN_FLAG_MISTAKES])
+def test_a_bad_run_flag_is_named(capsys, no_loop, flags, words):
+    """A bad flag of `softproxy run` is blamed on the flag, never on the scene file."""
+    err = one_line_error(capsys, RUN + flags, words)
+    assert "two_finger_grasp.toml" not in err
+
+
+@pytest.mark.parametrize("flag", ["--snapshot", "--video", "--record"])
+def test_an_unwritable_output_is_refused_before_the_run(capsys, no_loop, tmp_path, flag):
+    """An output file in a folder that does not exist (or that is a folder) is refused before
+    anything runs, naming the flag and the path."""
+    missing = str(tmp_path / "no_such_folder" / "out.file")
+    one_line_error(capsys, RUN + [flag, missing], [flag, missing, "cannot write"])
+    one_line_error(capsys, RUN + [flag, str(tmp_path)], [flag, str(tmp_path), "folder"])
+    assert list(tmp_path.iterdir()) == []  # the check left nothing behind
+
+
+def test_a_writable_output_is_left_as_it_was(capsys, no_loop, tmp_path):
+    """The write check (passed here; the run then fails on --device) appends nothing to an
+    existing file and removes the file it created."""
+    old = tmp_path / "old.rec"
+    old.write_bytes(b"keep me")
+    one_line_error(capsys, RUN + ["--record", str(old), "--snapshot", str(tmp_path / "new.png"), "--device", "warp"],
+                   ["--device warp"])
+    assert old.read_bytes() == b"keep me" and sorted(p.name for p in tmp_path.iterdir()) == ["old.rec"]
+
+
+def test_a_recording_with_fewer_fingers_than_the_scene_is_refused(capsys, no_loop, one_finger_recording):
+    """Replaying a one-finger recording into the two-finger grasp would leave the second finger
+    without samples: refused, naming the recording, the scene and the finger."""
+    one_line_error(capsys, RUN + ["--device", f"replay:{one_finger_recording}"],
+                   [str(one_finger_recording), "drives 1 finger", "two_finger_grasp.toml", "'left'", "at least 2"])
+
+
+@pytest.mark.parametrize(
+    "toml, xml, words",
+    [
+        ([('object = "box"', 'object = "lid"')], [], ["grasp.toml", "measure.object", "'lid'", "box"]),
+        ([], [('integrator="implicitfast"', 'integrator="RK4"')], ["grasp.xml", "RK4", "implicitfast"]),
+        ([], [("<asset>", '<asset><hfield name="hf" nrow="4" ncol="4" size="0.1 0.1 0.01 0.01"/>'),
+              ('<geom name="floor"', '<geom name="hill" type="hfield" hfield="hf" pos="0.3 0.3 0"/>'
+                                     '<geom name="dune" type="hfield" hfield="hf" pos="-0.3 0.3 0"/><geom name="floor"')],
+         ["grasp.xml", "'hill' (hfield)", "'dune' (hfield)", 'contype="0" conaffinity="0"']),
+        ([("[measure]", "deep = " + "[" * 5000 + "]" * 5000 + "\n[measure]")], [], ["grasp.toml", "nested too deeply"]),
+        ([("device_finger = 0", "device_finger = 0\ntactile = { cells = 100000 }")], [],
+         ["grasp.toml", "finger[0].tactile", "cells", "64"]),
+        ([("device_finger = 0", "device_finger = 0\nsensing = { rate_hz = 1e9 }")], [],
+         ["grasp.toml", "finger[0].sensing", "rate_hz", "100000"]),
+        ([("device_finger = 0", "device_finger = 0\ntactile = { history = 1000000000 }")], [],
+         ["grasp.toml", "finger[0].tactile", "history"]),
+        ([("duration_s = 4.0", "duration_s = 1e7")], [], ["grasp.toml", "scene.duration_s", "86400"]),
+        ([("rate_hz = 1000", "rate_hz = 1e9")], [], ["grasp.toml", "scene.rate_hz", "100000"]),
+        ([("[device]", "[device]\nbogus = 1")], [], ["grasp.toml", "device", "bogus"]),
+        ([("max_torque_Nm = 1.0", "max_torque_Nm = 1.0\nfaults = { nan = 7 }")], [], ["grasp.toml", "device.faults.nan"]),
+        ([("[[device.finger]]", "[[device.fingerz]]")], [], ["grasp.toml", "device"]),
+    ],
+    ids=["measured-body", "rk4", "height-fields", "deep-toml", "tactile-cells", "sensing-rate", "tactile-history",
+         "duration", "rate", "device-field", "device-faults", "device-fingers"],
+)
+def test_a_scene_mistake_names_the_file_and_field(capsys, no_loop, tmp_path, toml, xml, words):
+    """A scene (TOML or MJCF) the loop cannot run: one line naming the file and the culprit."""
+    one_line_error(capsys, ["run", grasp_variant(tmp_path, toml, xml), "--headless"], words)
+
+
+def test_a_scene_driving_more_fingers_than_its_device_scripts_is_refused(capsys, no_loop, tmp_path):
+    """A sim [device] with one scripted finger for a two-finger scene: refused naming the scene."""
+    text = GRASP.read_text()
+    one_finger = text[:text.rindex("[[device.finger]]")]
+    path = tmp_path / "grasp.toml"
+    path.write_text(one_finger)
+    shutil.copy(GRASP.with_suffix(".xml"), tmp_path / "two_finger_grasp.xml")
+    one_line_error(capsys, ["run", str(path), "--headless"], [str(path), "[device] drives 1 finger", "'left'"])
+
+
+# A value past each FingerParams bound, and one inside it, per field (offset: a component).
+OVER_BOUNDS = {name: high * 1.5 if high > 0 else 1.0 for name, (_, high, _) in FingerParams.LIMITS.items()}
+OVER_BOUNDS.update(damping=1e308, torsion_damping=2e305)
+
+
+@pytest.mark.parametrize("field", sorted(OVER_BOUNDS))
+def test_a_finger_setting_past_its_bound_names_the_file_and_field(capsys, no_loop, tmp_path, field):
+    """Every FingerParams field past its bound (damping 1e308, which sent NaN to the device,
+    included) is refused at load, naming the scene file, the finger and the field."""
+    value = OVER_BOUNDS[field]
+    entry = f"offset = [0.0, 0.0, {-value}]" if field == "offset" else f"{field} = {value!r}"
+    path = grasp_variant(tmp_path, [("device_finger = 0", f"device_finger = 0\n{entry}")])
+    one_line_error(capsys, ["run", path, "--headless"], ["grasp.toml", "finger[0]", field, "at most"])
+
+
+@pytest.mark.parametrize("field", sorted(FingerParams.LIMITS))
+def test_every_finger_bound_is_admitted_and_its_unit_given(field):
+    """Each bound itself is a legal value (the bounds catch mistakes, not extremes); just past
+    it the message gives the bound with its unit."""
+    low, high, unit = FingerParams.LIMITS[field]
+    if field == "offset":
+        FingerParams(offset=(low, high, 0.0))
+        value = {"offset": (0.0, 0.0, math.nextafter(high, math.inf))}
+    else:
+        extra = {"mu_s": high} if field == "mu_d" else {"torsion_mu_s": high} if field == "torsion_mu_d" else {}
+        FingerParams(**{field: high, **extra})
+        value = {field: math.nextafter(high, math.inf), **extra}
+    expected = f"{field} must be at most {high:g}{' ' + unit if unit else ''}"
+    with pytest.raises(ValueError, match=re.escape(expected)):
+        FingerParams(**value)
+
+
+def test_the_extremes_the_tests_and_benchmarks_drive_are_admitted():
+    """The bounds admit the extreme-but-legal settings of test_extremes and bench stability."""
+    FingerParams(stiffness=1e7, damping=0.0, torsion_stiffness=1e6)
+    FingerParams(stiffness=10.0, damping=0.0, torsion_stiffness=1e-3)
+    FingerParams(stiffness=2000.0, damping=1e3, max_force=1e4)
+    FingerParams(radius=0.0, stiffness=1e5, damping=10.0, model="point", max_force=200.0)
+
+
+# (argv, words the one error line holds)
+OTHER_MISTAKES = [
+    (["sense", "--wrench", "1", "2"], ["softproxy sense", "--wrench", "6"]),
+    (["sense", "--wrench", "nan", "0", "0", "0", "0", "0"], ["softproxy sense", "wrench[0]", "finite"]),
+    (["run"], ["softproxy run", "scene"]),
+    (["teleport"], ["softproxy", "teleport"]),
+    (["bench", "latency", "--duration", "nan"], ["softproxy bench", "--duration"]),
+    (["bench", "latency", "--duration", "-1e-3"], ["softproxy bench", "--duration"]),
+    (["bench", "latency", "--paced", "1e9"], ["softproxy bench", "--paced", "3600"]),
+    (["bench", "warp"], ["softproxy bench", "warp", "latency"]),
+    (["tactile", "other"], ["softproxy tactile", "other"]),
+    (["calibrate", "--data", "MISSING.csv"], ["softproxy calibrate", "MISSING.csv"]),
+]
+
+
+@pytest.mark.parametrize("argv, words", [pytest.param(a, w, id=" ".join(a)) for a, w in OTHER_MISTAKES])
+def test_other_subcommands_mistakes_are_one_line(capsys, argv, words):
+    """Every subcommand's argument mistakes (argparse's own included) are one line, exit 2."""
+    one_line_error(capsys, argv, words)
+
+
+def test_a_negative_number_in_scientific_notation_is_a_value(capsys):
+    """`sense --wrench -1.5e-05 ...`: argparse's own pattern took -1.5e-05 for an option."""
+    assert cli.main(["sense", "--wrench", "-1.5e-05", "0", "-1", "0", "0", "-2E-4", "--json"]) == 0
+    assert '"explained"' in capsys.readouterr().out
+
+
+def test_version(capsys):
+    """`softproxy --version` prints the installed version and exits 0."""
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"softproxy {version('softproxy')}"
+
+
+@pytest.mark.parametrize("argv", [["models"], ["calibrate", "--out", "{tmp}"]])
+def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path, argv):
+    """`softproxy calibrate | head`: the reader closes the pipe; the command ends with
+    128 + SIGPIPE and nothing on stderr (it printed a BrokenPipeError traceback)."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before the first line: every write meets a closed pipe
+    try:
+        out = subprocess.run([sys.executable, "-m", "softproxy.cli", *(a.format(tmp=tmp_path) for a in argv)],
+                             stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write_end)
+    assert out.stderr == ""
+    assert out.returncode == 141
+
+
+def test_run_scene_refuses_a_bad_duration_or_rate_before_building(no_loop):
+    """The library entry point checks duration and rate before it builds anything."""
+    from softproxy.scene import load_scene
+
+    scene = load_scene("knob")
+    for kwargs in ({"duration_s": math.nan}, {"duration_s": -1.0}, {"rate_hz": 0.0}, {"rate_hz": 1e9}):
+        with pytest.raises(ValueError, match="duration|rate"):
+            softproxy.run.run_scene(scene, None, **kwargs)
+
+
+def test_an_interrupt_is_one_line(capsys, monkeypatch):
+    """Ctrl-C in a subcommand (here `models`): one line and 128 + SIGINT, no traceback."""
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "cmd_models", interrupted)
+    assert cli.main(["models"]) == 130
+    assert capsys.readouterr().err == "softproxy models: interrupted\n"
