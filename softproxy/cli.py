@@ -98,6 +98,22 @@ def _check_output(flag: str, path: str) -> None:
         p.unlink(missing_ok=True)
 
 
+def _check_out_folder(command: str, folder: str) -> bool:
+    """True if --out `folder` exists or can be made, and a file can be written in it; else one
+    line on stderr naming the flag and False (checked before the work, not after it)."""
+    import tempfile
+
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        print(f"softproxy {command}: --out {folder}: cannot write files there ({exc.strerror or exc}); "
+              f"give a writable folder", file=sys.stderr)
+        return False
+    return True
+
+
 def _check_run_flags(args: argparse.Namespace) -> dict | None:
     """Check `softproxy run`'s flags before anything is loaded; the --faults table (or None).
     ValueError naming the flag and what it takes."""
@@ -131,6 +147,11 @@ def _open_run_device(args: argparse.Namespace, scene, faults: dict | None):
     name, _, argument = args.device.partition(":")
     if name not in device_types():
         raise SceneError(f"--device {args.device}: no device type {name!r}; installed: {', '.join(device_types())}")
+    configured = scene.device.get("type")
+    if not argument and configured not in (None, name):
+        other = "" if name == "sim" else f", or give {name} its own argument (--device {name}:ARGUMENT)"
+        raise SceneError(f"--device {name}{' (the default)' if name == 'sim' else ''}: scene {scene.name!r} "
+                         f"({scene.path}) configures a {configured!r} device: run it with --device {configured}{other}")
     try:
         device = open_device(args.device, scene)  # errors from the scene's [device] name the scene
     except (ValueError, RuntimeError) as exc:
@@ -288,6 +309,8 @@ def cmd_tactile(args: argparse.Namespace) -> int:
     """The Inoue-Hirai tactile simulation (seeds 000/001)."""
     from softproxy.tactile import tactile_main
 
+    if not _check_out_folder("tactile", args.out):
+        return 2
     return tactile_main(args.json, args.out)
 
 
@@ -295,6 +318,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """Fit the fingertip laws to seed 004's measurements or to a table of your own."""
     from softproxy.calibration import calibrate_main
 
+    if not _check_out_folder("calibrate", args.out):
+        return 2
     return calibrate_main(args.data, args.json, args.out)
 
 
@@ -329,6 +354,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if name not in benches:
             print(f"softproxy bench: no benchmark {name!r}; have: {', '.join(sorted(benches))}, all", file=sys.stderr)
             return 2
+    if not _check_out_folder("bench", args.out):
+        return 2
     for name in names:
         code = benches[name].load()(args)
         if code:

@@ -226,6 +226,23 @@ def test_other_subcommands_mistakes_are_one_line(capsys, argv, words):
     one_line_error(capsys, argv, words)
 
 
+@pytest.mark.parametrize("argv", [["tactile", "inoue-hirai"], ["calibrate"], ["bench", "latency", "--duration", "0.01"]])
+def test_an_unwritable_out_folder_is_refused_before_the_work(capsys, tmp_path, argv):
+    """--out under a regular file (no folder can be made there): one line naming --out, before
+    any simulation, fit or benchmark runs (the benchmark's used to end in a traceback)."""
+    (tmp_path / "file").write_text("")
+    out = str(tmp_path / "file" / "out")
+    one_line_error(capsys, argv + ["--out", out], [f"softproxy {argv[0]}", f"--out {out}", "writable folder"])
+
+
+def test_a_device_type_the_scene_does_not_configure_is_named(capsys, no_loop, tmp_path):
+    """--device hid on a scene scripted for the simulated device (and the default sim on a HID
+    scene): the flag and the scene are named, with the device type that fits."""
+    one_line_error(capsys, RUN + ["--device", "hid"], ["--device hid", "two_finger_grasp.toml", "'sim'", "hid:"])
+    path = grasp_variant(tmp_path, [('type = "sim"', 'type = "hid"')])
+    one_line_error(capsys, ["run", path, "--headless"], ["--device sim", "grasp.toml", "--device hid"])
+
+
 def test_a_negative_number_in_scientific_notation_is_a_value(capsys):
     """`sense --wrench -1.5e-05 ...`: argparse's own pattern took -1.5e-05 for an option."""
     assert cli.main(["sense", "--wrench", "-1.5e-05", "0", "-1", "0", "0", "-2E-4", "--json"]) == 0
