@@ -125,30 +125,30 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
             device = recorder = RecordingDevice(device, record, scene=scene.name, rate_hz=float(rate_hz or scene.rate_hz))
         except ValueError as exc:
             raise SceneError(f"--record {exc}") from None
-    loop = build(scene, device, rate_hz, finger_model, realtime=realtime, compiled=compiled)
-    if on_built is not None:
-        on_built(loop)
-    user_on_tick = on_tick
-    duration = duration_s if duration_s is not None else scene.duration_s
-    ticks = int(round(duration * loop.rate_hz))
-    measure = scene.measure
-    track: dict = {}
-    if measure is not None:
-        body = loop.world.body_id(measure.object)
-        xquat = loop.world.data.xquat
-        start_tick = int(round(measure.start_s * loop.rate_hz))
-        track.update(q0=None, max_deg=0.0)
+    try:  # the recording is finished however this ends, building the loop included
+        loop = build(scene, device, rate_hz, finger_model, realtime=realtime, compiled=compiled)
+        if on_built is not None:
+            on_built(loop)
+        user_on_tick = on_tick
+        duration = duration_s if duration_s is not None else scene.duration_s
+        ticks = int(round(duration * loop.rate_hz))
+        measure = scene.measure
+        track: dict = {}
+        if measure is not None:
+            body = loop.world.body_id(measure.object)
+            xquat = loop.world.data.xquat
+            start_tick = int(round(measure.start_s * loop.rate_hz))
+            track.update(q0=None, max_deg=0.0)
 
-        def on_tick(lp: ServoLoop) -> None:
-            if lp.ticks == start_tick or (track["q0"] is None and lp.ticks > start_tick):
-                track["q0"] = xquat[body].copy()
-            elif track["q0"] is not None and lp.ticks % 10 == 0:
-                track["max_deg"] = max(track["max_deg"], abs(_rotation_about(track["q0"], xquat[body], measure.axis)))
-            if user_on_tick is not None:
-                user_on_tick(lp)
-    else:
-        on_tick = user_on_tick
-    try:
+            def on_tick(lp: ServoLoop) -> None:
+                if lp.ticks == start_tick or (track["q0"] is None and lp.ticks > start_tick):
+                    track["q0"] = xquat[body].copy()
+                elif track["q0"] is not None and lp.ticks % 10 == 0:
+                    track["max_deg"] = max(track["max_deg"], abs(_rotation_about(track["q0"], xquat[body], measure.axis)))
+                if user_on_tick is not None:
+                    user_on_tick(lp)
+        else:
+            on_tick = user_on_tick
         loop.run(ticks, realtime=realtime, on_tick=on_tick)
     finally:
         if recorder is not None:
