@@ -376,7 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene name or path to its .toml")
     p.add_argument("--device", default="sim",
                    help="device: sim (the scene's scripted device, default) or replay:FILE (a recording)")
-    p.add_argument("--record", metavar="FILE", default=None, help="save every device sample to FILE")
+    p.add_argument("--record", metavar="FILE", default=None, help="stream every device sample to FILE as the run goes (replay it with --device replay:FILE)")
     p.add_argument("--faults", metavar="SPEC", default=None,
                    help="inject device faults (sim): e.g. nan=0.01,drop=0.001,spike=0.001,stall=0.0005 (per read)")
     p.add_argument("--headless", action="store_true",
