@@ -29,9 +29,9 @@ import weakref
 
 import numpy as np
 
+from softproxy import termination
 from softproxy.device import Device, DeviceSample, check_device
 from softproxy.device_guard import guard_wrench
-from softproxy import termination
 from softproxy.finger import SoftFingerProxy
 from softproxy.world import World
 
