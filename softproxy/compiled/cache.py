@@ -17,8 +17,10 @@ _PACKAGE = Path(__file__).resolve().parent
 SOURCES = sorted(_PACKAGE.glob("*.py")) + [_PACKAGE.parent / f"{name}.py" for name in
                                            ("geometry", "proxy", "finger", "fingertip", "mesh", "device_guard")]
 """The files the kernels are built from: this package and the modules they import constants from."""
-KERNEL_MODULES = ("mesh", "shapes", "godobject", "finger", "cache", "certificate", "device_guard")
-"""Modules with cached kernels: `device_guard.guard_wrench` is compiled from the plain module."""
+KERNEL_MODULES = ("mesh", "shapes", "godobject", "finger", "cache", "certificate")
+"""This package's modules with cached kernels (their files in the cache folder are dropped).
+`softproxy.device_guard.guard_wrench` is cached beside its own module, and numba checks that
+file itself; the kernels here that compiled it in are dropped through the digest (SOURCES)."""
 STAMP = "softproxy-compiled.stamp"
 
 
