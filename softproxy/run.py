@@ -19,8 +19,8 @@ from softproxy.fingertip import model as fingertip_model
 from softproxy.fingertip_sensors import attach as attach_sensors
 from softproxy.fingertip_sensors import summaries as sensor_summaries
 from softproxy.recording import RecordingDevice
-from softproxy.scene import MAX_RATE_HZ, MIN_RATE_HZ, Scene, SceneError
-from softproxy.servo import ServoLoop
+from softproxy.scene import Scene, SceneError
+from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ, ServoLoop
 from softproxy.world import World
 
 
@@ -70,7 +70,9 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
           audit: bool | None = None, realtime: bool = True, compiled: bool = False) -> ServoLoop:
     """World + fingers + servo loop for `scene`, driven by `device`.
 
-    `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog.
+    `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog;
+    otherwise the watchdog watches while `run(realtime=True)` paces the ticks, and an
+    application calling `tick()` itself gets lockstep results (`ServoLoop.overrun_watchdog`).
     `compiled=True` runs the fingers as compiled code (`softproxy.compiled`; primitive shapes
     only, the same answers).
     The fingers whose scene entry asks for `tactile` or `sensing` get their channels in
@@ -83,7 +85,7 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
         fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
     try:
         loop = ServoLoop(world, fingers, device, scene.rate_hz if rate_hz is None else rate_hz,
-                         audit=scene.audit if audit is None else audit, overrun_watchdog=realtime, compiled=compiled)
+                         audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False, compiled=compiled)
     except ImportError as exc:  # compiled=True without numba
         raise SceneError(f"the compiled tick needs numba ({exc}): pip install numba") from None
     except ValueError as exc:  # e.g. a scene the compiled tick cannot run, with the reason

@@ -43,8 +43,8 @@ from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
 from softproxy.fingertip_sensors import SensingSpec, TactileSpec
 from softproxy.geometry import SHAPES, touchable
+from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ
 
-MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
 """Servo rates a run accepts, Hz (what `ServoLoop` can run)."""
 MAX_DURATION_S = 86_400.0
 """Longest run a scene (duration_s) or `softproxy run --duration` may ask for, s (24 h); more is

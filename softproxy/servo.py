@@ -35,6 +35,8 @@ from softproxy.device_guard import guard_wrench
 from softproxy.finger import SoftFingerProxy
 from softproxy.world import World
 
+MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
+"""The servo rates a loop runs at (Hz)."""
 FAULTS = ("device_error", "invalid_sample", "overrun", "send_error", "unsafe_output")
 """What `ServoLoop.faults` counts; each fault renders zero force on the fingers it touched.
 unsafe_output: a finger computed a wrench that is not finite (parameters at their extremes),
@@ -97,8 +99,8 @@ class ServoLoop:
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
                  overrun_watchdog: bool | None = None, compiled: bool = False, handle_signals: bool = True) -> None:
-        if not (math.isfinite(rate_hz) and 10.0 <= rate_hz <= 100_000.0):
-            raise ValueError(f"rate_hz must be between 10 and 100000, got {rate_hz!r}")
+        if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
+            raise ValueError(f"rate_hz must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g}, got {rate_hz!r}")
         check_device(device)
         for f in fingers:
             if f.params.device_finger >= device.fingers:
@@ -120,6 +122,7 @@ class ServoLoop:
         (default): only inside `run(realtime=True)`, so an application ticking in lockstep gets
         the same results however loaded the machine is. False: never."""
         self._watching = overrun_watchdog is True
+        self.paced = False  # True while run(realtime=True) paces the ticks
         self.audit = audit
         self.t = 0.0
         self.ticks = 0
@@ -280,6 +283,7 @@ class ServoLoop:
                         on_tick(self)
                 return
             period = self.period
+            self.paced = True
             self._watching = self.overrun_watchdog is not False
             gc.disable()
             next_start = time.perf_counter()
@@ -297,6 +301,7 @@ class ServoLoop:
                     self.sync()
                     on_tick(self)
         finally:
+            self.paced = False
             self._watching = self.overrun_watchdog is True
             if gc_was_enabled:
                 gc.enable()

@@ -226,6 +226,31 @@ def test_by_default_the_overrun_watchdog_watches_only_real_time_runs():
     assert loop.faults["overrun"] == overruns and dev.sent[-10][2] > 1.0
 
 
+def test_a_loop_built_for_an_application_ticks_in_lockstep():
+    """`build(scene, device)` (the embedding path) and the application's own tick(): a 20 ms
+    stall renders nothing different; inside run(realtime=True) the watchdog is on."""
+    from softproxy.run import build
+
+    scene = load_scene("two_finger_grasp")
+    device = open_device("sim", scene)
+    inner_read = device.read
+    stall_at = {20}
+
+    def stalling_read(t, samples):
+        inner_read(t, samples)
+        if round(t * 1000) in stall_at:
+            time.sleep(0.02)
+
+    device.read = stalling_read
+    loop = build(scene, device)
+    for _ in range(50):
+        loop.tick()
+    assert loop.faults["overrun"] == 0 and not loop.paced
+    stall_at.add(60)
+    loop.run(30, realtime=True)
+    assert loop.faults["overrun"] >= 1 and not loop.paced
+
+
 def test_run_ends_with_zero_force():
     dev = Scripted()
     loop = plane_loop(dev)
