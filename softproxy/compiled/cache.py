@@ -41,6 +41,8 @@ def digest() -> str:
 
 def drop_stale() -> bool:
     """Delete the package's cached kernels if they were built from other sources; True if so."""
+    if not hasattr(_probe, "_cache"):  # NUMBA_DISABLE_JIT=1: plain functions, nothing cached
+        return False
     where = Path(_probe._cache.cache_path)
     stamp = where / STAMP
     current = digest()
