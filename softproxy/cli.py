@@ -237,7 +237,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         try:
             result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
                                finger_model=args.finger_model, realtime=realtime, record=args.record,
-                               compiled=args.compiled,
                                on_built=views.on_built if views else None, on_tick=views.on_tick if views else None)
         finally:
             device.close()
@@ -247,7 +246,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(json.dumps(result, indent=2))
         else:
             print(f"scene {result['scene']}: {result['ticks']} ticks at {result['rate_hz']:g} Hz "
-                  f"({'real time' if result['realtime'] else 'lockstep'}, {result['engine']} fingers)")
+                  f"({'real time' if result['realtime'] else 'lockstep'})")
             if "object_rotation_deg" in result:
                 print(f"  {result['object']} turned {result['object_rotation_deg']:+.3f} deg about the measured "
                       f"axis since start_s (max {result['object_rotation_max_deg']:.3f} deg), "
@@ -272,7 +271,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         sys.stdout.flush()
         if views is not None:
             views.wait_window()
-    except SceneError as exc:  # found while building the loop (e.g. --compiled on a mesh scene)
+    except SceneError as exc:  # found while building the loop
         print(f"softproxy run: {exc}", file=sys.stderr)
         return 2
     except Exception as exc:
@@ -392,9 +391,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")
     p.add_argument("--finger-model", choices=list(MODELS), default=None, help="override every finger's model")
     p.add_argument("--realtime", action="store_true", help="pace ticks in real time (default: lockstep)")
-    p.add_argument("--compiled", action="store_true",
-                   help="run the fingers as compiled code (numba; primitive shapes only; the same answers, "
-                        "a tick ~2x faster; the first run compiles for ~30 s, later runs load the cache)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_run)
 

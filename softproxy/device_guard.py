@@ -48,3 +48,16 @@ def check_limits(device) -> None:
                 math.isfinite(value) and 0.0 <= value <= MAX_LIMIT):
             raise ValueError(f"device {type(device).__name__}: {name} must be a number in [0, {MAX_LIMIT:g}], "
                              f"got {value!r}")
+
+
+def as_limit(value) -> float:
+    """A device limit as the float the compiled guard takes: NaN (which `guard_wrench` refuses)
+    when it is not a number at all (a device may change its limits after it was checked)."""
+    if type(value) is float:
+        return value
+    if isinstance(value, bool) or not isinstance(value, Real):
+        return math.nan
+    try:
+        return float(value)
+    except OverflowError:
+        return math.nan

@@ -7,6 +7,10 @@ finger feels; the touched object gets -F at the contact point and -M·n.
 
 The twist α_s read from the device is taken about the finger's own axis pointing from the
 fingertip back toward the hand, which is +n when the finger presses straight on a surface.
+
+The tick runs in the compiled kernels (`softproxy.compiled.finger`); `SoftFingerProxy` is a
+view onto the finger's record (`softproxy.finger_rows`): its god-object and torsion views
+read the same record.
 """
 
 from __future__ import annotations
@@ -15,13 +19,14 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+from softproxy.compiled import finger as kernel
+from softproxy.compiled.godobject import WORKSPACE_LIMIT
+from softproxy.finger_rows import Field, FingerRows
 from softproxy.fingertip import MODELS, FingertipModel, _check_finite
-from softproxy.geometry import Shape
-from softproxy.proxy import WORKSPACE_LIMIT, GodObject
+from softproxy.geometry import Shape, ShapeSet
+from softproxy.proxy import GodObject
 from softproxy.torsion import TorsionalFriction
 
-SPIKE_PATIENCE = 3
-"""Consecutive ticks a position jump is held back as a spike before it is believed."""
 
 
 @dataclass
@@ -124,44 +129,74 @@ class SoftFingerProxy:
     body id or -1), normal_force (P = F·n, N), valid (False when the device sample was bad).
     """
 
-    # Slots, not an instance dict: with more than 30 attributes CPython gives each instance a
-    # dict of its own keys, and two fingers read in turn then defeat the interpreter's
-    # attribute caches (a finger's update measured 14 µs instead of 7 µs with two fingers).
-    __slots__ = (
-        "params", "god", "placed", "model", "torsion", "k", "b", "b_tau", "max_force", "max_torque",
-        "ox", "oy", "oz", "scale", "max_speed", "soft_start", "dt", "_ramp", "xd", "yd", "zd",
-        "_sx", "_sy", "_sz", "_stwist", "fx", "fy", "fz", "torque", "tx", "ty", "tz", "px", "py", "pz",
-        "body", "normal_force", "valid", "max_force_seen", "penetration_max", "slide_events",
-        "spikes_rejected", "_spike_run", "_was_sticking",
-    )
+    placed = Field(kind=bool)
+    k = Field()
+    b = Field()
+    b_tau = Field()
+    max_force = Field()
+    max_torque = Field()
+    ox = Field()
+    oy = Field()
+    oz = Field()
+    scale = Field()
+    max_speed = Field()
+    soft_start = Field()
+    dt = Field()
+    """The last tick's period (s), for a hold() that has none of its own."""
+    ramp = Field()
+    """Soft start: the fraction of the clamps in force; 0 right after placement."""
+    xd = Field()
+    yd = Field()
+    zd = Field()
+    fx = Field()
+    fy = Field()
+    fz = Field()
+    torque = Field()
+    tx = Field()
+    ty = Field()
+    tz = Field()
+    px = Field()
+    py = Field()
+    pz = Field()
+    body = Field(kind=int)
+    normal_force = Field()
+    valid = Field(kind=bool)
+    max_force_seen = Field()
+    penetration_max = Field()
+    slide_events = Field(kind=int)
+    """Translational stick-to-slide transitions."""
+    spikes_rejected = Field(kind=int)
 
     def __init__(self, params: FingerParams, shapes: list[Shape], model: FingertipModel,
                  start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         self.params = params
-        self.god = GodObject(shapes, params.radius, params.mu_s, params.mu_d, start)
-        self.placed = True
         self.model = model
-        self.torsion = TorsionalFriction(model, params.torsion_stiffness, params.torsion_mu_s,
-                                         params.torsion_mu_d, params.saturate) if model.has_torsion else None
-        self.k, self.b = params.stiffness, params.damping
-        self.b_tau = params.torsion_damping
-        self.max_force, self.max_torque = params.max_force, params.max_torque
-        self.ox, self.oy, self.oz = params.offset
-        self.scale = params.scale
-        self.max_speed = params.max_speed
-        self.soft_start = params.soft_start
-        self.dt = 1e-3  # the last tick's period (s), for a hold() that has none of its own
-        self._ramp = 1.0  # soft start: fraction of the clamps in force; 0 right after placement
-        self.xd = self.yd = self.zd = 0.0
-        self._sx = self._sy = self._sz = 0.0    # last spring stretch, for damping
-        self._stwist = 0.0
+        self.god = GodObject(ShapeSet.of(shapes), params.radius, params.mu_s, params.mu_d, start)
+        self._bind(self.god._rows, 0)
+        self.torsion = TorsionalFriction(model, params.torsion_stiffness, params.torsion_mu_s, params.torsion_mu_d,
+                                         params.saturate, rows=self._rows) if model.has_torsion else None
+        rec = self._rec
+        rec["placed"] = True
+        rec["k"], rec["b"], rec["b_tau"] = params.stiffness, params.damping, params.torsion_damping
+        rec["max_force"], rec["max_torque"] = params.max_force, params.max_torque
+        rec["ox"], rec["oy"], rec["oz"] = params.offset
+        rec["scale"], rec["max_speed"], rec["soft_start"] = params.scale, params.max_speed, params.soft_start
+        rec["dt"] = 1e-3
+        rec["ramp"] = 1.0
         self.clear_output()
-        self.max_force_seen = 0.0
-        self.penetration_max = 0.0
-        self.slide_events = 0  # translational stick -> slide transitions
-        self.spikes_rejected = 0
-        self._spike_run = 0
-        self._was_sticking = False
+
+    def _bind(self, rows: FingerRows, i: int) -> None:
+        """Live in record i of `rows` (its god-object and torsion views too)."""
+        self._rows, self._i, self._rec = rows, i, rows.record(i)
+        if getattr(self, "god", None) is not None and self.god._rows is not rows:
+            self.god._bind(rows, i)
+        if getattr(self, "torsion", None) is not None:
+            self.torsion._bind(rows, i)
+
+    def _args(self):
+        r = self._rows
+        s = r.shapes
+        return s.S, s.T, s.C, s.xpos, s.xmat
 
     def place(self, x: float, y: float, z: float) -> bool:
         """Put the proxy at a device position (device frame, m), out of contact.
@@ -169,54 +204,20 @@ class SoftFingerProxy:
         Returns False, and leaves the finger unplaced, for a position outside the workspace.
         An unplaced finger places itself at its first good sample and renders nothing then.
         """
-        xd, yd, zd = self.ox + self.scale * x, self.oy + self.scale * y, self.oz + self.scale * z
-        try:
-            self.god.reset(xd, yd, zd)
-        except ValueError:
-            self.placed = False
-            return False
-        self.placed = True
-        self._ramp = 0.0 if self.soft_start > 0.0 else 1.0
-        self.xd, self.yd, self.zd = xd, yd, zd
-        if self.torsion is not None:
-            self.torsion.release()
-        return True
+        r = self._rows
+        return kernel.place_row(*self._args(), r.F, r.near, self._i, float(x), float(y), float(z))
 
     def hold(self) -> None:
         """No usable device sample this tick: zero force, the proxy only follows its body.
         The soft start's ramp winds down as fast as it winds up, so after an outage of T s
         (a device error, invalid samples) the clamps come back from max·(1 − T/soft_start):
-        a finger that moved into an object meanwhile gets no kick; one lost sample costs
-        a hundredth of the clamp at 1 kHz (0.1 s soft start), not the grip."""
-        if self.body >= 0:
-            self._follow_body()
-        if self.soft_start > 0.0:
-            ramp = self._ramp - self.dt / self.soft_start
-            self._ramp = ramp if ramp > 0.0 else 0.0
-        self._rest()
-
-    def _rest(self) -> None:
-        """Zero force; the proxy stays on its body and out of anything that moved into it."""
-        if self.placed:
-            self.god.follow()
-        self.clear_output()
-
-    def _follow_body(self) -> None:
-        """Eqs 41–42: the touched body's spin about n (rad/s, world) drags α_p, signed."""
-        tors = self.torsion
-        if tors is not None and tors.in_contact:
-            god = self.god
-            wx, wy, wz, _, _, _ = god.shape.cvel.tolist()
-            tors.follow_object(wx * god.nx + wy * god.ny + wz * god.nz, self.dt)
+        a finger that moved into an object meanwhile gets no kick."""
+        r = self._rows
+        kernel.hold_row(*self._args(), r.shapes.data.cvel, r.F, r.near, self._i)
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
-        self.fx = self.fy = self.fz = 0.0
-        self.torque = self.tx = self.ty = self.tz = 0.0
-        self.px = self.py = self.pz = 0.0
-        self.body = -1
-        self.normal_force = 0.0
-        self.valid = False
+        kernel.clear_output_row(self._rows.F, self._i)
 
     def update(self, x: float, y: float, z: float, twist: float, dt: float) -> bool:
         """One tick from a device sample (device frame, m and rad) over period dt (s).
@@ -224,94 +225,9 @@ class SoftFingerProxy:
         Returns False when the sample was unusable (out of the workspace, non-finite twist):
         the finger then renders zero force and its proxy stays where it was.
         """
-        self.dt = dt
-        if self.body >= 0:  # in contact last tick: the body it touches turns α_p with it
-            self._follow_body()
-        if not self.placed:
-            ok = self.place(x, y, z) and twist == twist and twist not in (math.inf, -math.inf)
-            self.clear_output()
-            return ok
-        xd = self.ox + self.scale * x
-        yd = self.oy + self.scale * y
-        zd = self.oz + self.scale * z
-        # velocity-spike filter: a jump no hand makes in one period is held back for up to
-        # SPIKE_PATIENCE ticks; a device that really moved that far is followed after that.
-        ex, ey, ez = xd - self.xd, yd - self.yd, zd - self.zd
-        reach = self.max_speed * dt
-        if ex * ex + ey * ey + ez * ez > reach * reach and self._spike_run < SPIKE_PATIENCE:
-            self._spike_run += 1
-            self.spikes_rejected += 1
-            self._rest()
-            return False
-        self._spike_run = 0
-        god = self.god
-        if not god.update(xd, yd, zd) or twist != twist or twist in (math.inf, -math.inf):
-            self.clear_output()
-            return False
-        self.xd, self.yd, self.zd = xd, yd, zd
-        self.valid = True
-        if not god.contact:
-            self._was_sticking = False
-            self._sx = self._sy = self._sz = 0.0
-            self._stwist = 0.0
-            if self.torsion is not None and self.torsion.in_contact:
-                self.torsion.release()
-            self.fx = self.fy = self.fz = 0.0
-            self.torque = self.tx = self.ty = self.tz = 0.0
-            self.body = -1
-            self.normal_force = 0.0
-            return True
-
-        if self._was_sticking and not god.sticking:
-            self.slide_events += 1
-        self._was_sticking = god.sticking
-        # translational virtual coupling
-        sx, sy, sz = god.x - xd, god.y - yd, god.z - zd
-        c = self.b / dt
-        fx = self.k * sx + c * (sx - self._sx)
-        fy = self.k * sy + c * (sy - self._sy)
-        fz = self.k * sz + c * (sz - self._sz)
-        self._sx, self._sy, self._sz = sx, sy, sz
-        ramp = self._ramp
-        if ramp < 1.0:  # soft start: no kick when a finger starts inside an object
-            ramp = self._ramp = min(1.0, ramp + dt / self.soft_start)
-        fmax = self.max_force * ramp
-        f2 = fx * fx + fy * fy + fz * fz
-        if f2 > fmax * fmax:
-            s = fmax / math.sqrt(f2) if f2 > 0.0 else 0.0
-            fx, fy, fz = fx * s, fy * s, fz * s
-        nx, ny, nz = god.nx, god.ny, god.nz
-        P = fx * nx + fy * ny + fz * nz
-        if P < 0.0:  # damping pulling the finger into the surface: contact carries no pull
-            fx, fy, fz = fx - P * nx, fy - P * ny, fz - P * nz
-            P = 0.0
-        self.fx, self.fy, self.fz = fx, fy, fz
-        self.normal_force = P
-        r = self.params.radius
-        self.px, self.py, self.pz = god.x - r * nx, god.y - r * ny, god.z - r * nz
-        self.body = god.shape.body
-        fmag = math.sqrt(fx * fx + fy * fy + fz * fz)
-        if fmag > self.max_force_seen:
-            self.max_force_seen = fmag
-
-        # torsional DOF (eqs 38–40)
-        tors = self.torsion
-        if tors is None:
-            return True
-        if not tors.in_contact:
-            tors.touch(twist)
-            self._stwist = 0.0
-        M = tors.step(twist, P)
-        stretch = tors.alpha_p - twist
-        M += self.b_tau / dt * (stretch - self._stwist)
-        self._stwist = stretch
-        bound = tors.limit if tors.limit > abs(tors.torque) else abs(tors.torque)
-        if bound > self.max_torque * ramp:
-            bound = self.max_torque * ramp
-        M = bound if M > bound else -bound if M < -bound else M
-        self.torque = M
-        self.tx, self.ty, self.tz = M * nx, M * ny, M * nz
-        return True
+        r = self._rows
+        return kernel.update_row(*self._args(), r.shapes.data.cvel, r.F, r.near, self._i, float(x), float(y),
+                                 float(z), float(twist), float(dt), r.scratch)
 
     @property
     def slip_events(self) -> int:
@@ -320,17 +236,6 @@ class SoftFingerProxy:
 
     def audit(self) -> float:
         """Deepest the proxy sits inside any shape now (m, >= 0); updates penetration_max.
-
-        An unplaced finger has no proxy in the world yet: nothing to audit.
-        """
-        if not self.placed:
-            return 0.0
-        god = self.god
-        worst = 0.0
-        for s in god.shapes:
-            inside = god.radius - s.distance(god.x, god.y, god.z)[0]
-            if inside > worst:
-                worst = inside
-        if worst > self.penetration_max:
-            self.penetration_max = worst
-        return worst
+        An unplaced finger has no proxy in the world yet: nothing to audit."""
+        r = self._rows
+        return kernel.audit_row(*self._args(), r.F, self._i)

@@ -67,14 +67,12 @@ def check_run(duration_s: float, rate_hz: float) -> None:
 
 
 def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_model: str | None = None,
-          audit: bool | None = None, realtime: bool = True, compiled: bool = False) -> ServoLoop:
+          audit: bool | None = None, realtime: bool = True) -> ServoLoop:
     """World + fingers + servo loop for `scene`, driven by `device`.
 
     `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog;
     otherwise the watchdog watches while `run(realtime=True)` paces the ticks, and an
     application calling `tick()` itself gets lockstep results (`ServoLoop.overrun_watchdog`).
-    `compiled=True` runs the fingers as compiled code (`softproxy.compiled`; primitive shapes
-    only, the same answers).
     The fingers whose scene entry asks for `tactile` or `sensing` get their channels in
     `loop.sensors` (softproxy.fingertip_sensors); no other finger costs the tick anything.
     """
@@ -85,10 +83,8 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
         fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
     try:
         loop = ServoLoop(world, fingers, device, scene.rate_hz if rate_hz is None else rate_hz,
-                         audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False, compiled=compiled)
-    except ImportError as exc:  # compiled=True without numba
-        raise SceneError(f"the compiled tick needs numba ({exc}): pip install numba") from None
-    except ValueError as exc:  # e.g. a scene the compiled tick cannot run, with the reason
+                         audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False)
+    except ValueError as exc:
         raise SceneError(f"{scene.path}: {exc}") from None
     try:
         attach_sensors(loop, scene.tactile, scene.sensing)
@@ -110,13 +106,12 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
-              record: str | None = None, compiled: bool = False) -> dict:
+              record: str | None = None) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
     `on_tick(loop)` after every tick, outside the timed region. `record` streams every device
-    sample to that file as the run goes (see `softproxy.recording`). `compiled` runs
-    the fingers as compiled code (see `build`). ValueError, before anything is built, for a
+    sample to that file as the run goes (see `softproxy.recording`). ValueError, before anything is built, for a
     duration or a rate out of bounds (`check_run`).
     """
     check_run(scene.duration_s if duration_s is None else duration_s, scene.rate_hz if rate_hz is None else rate_hz)
@@ -128,7 +123,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         except ValueError as exc:
             raise SceneError(f"--record {exc}") from None
     try:  # the recording is finished however this ends, building the loop included
-        loop = build(scene, device, rate_hz, finger_model, realtime=realtime, compiled=compiled)
+        loop = build(scene, device, rate_hz, finger_model, realtime=realtime)
         if on_built is not None:
             on_built(loop)
         user_on_tick = on_tick
@@ -164,7 +159,6 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         "ticks": loop.ticks,
         "duration_s": loop.ticks * loop.period,
         "realtime": realtime,
-        "engine": "compiled" if compiled else "python",
     }
     if measure is not None:
         mujoco_data = loop.world.data

@@ -6,10 +6,9 @@ every finger; -F and -M·n onto the touched bodies; F and M to the device; MuJoC
 half-step. `tick()` can be called from another application's loop (lockstep, no threads);
 `run(..., realtime=True)` paces the ticks itself, sleeping then spinning to hold the period.
 
-`compiled=True` runs every finger's part of the tick as one compiled call
-(`softproxy.compiled`, the same answers to the last bit); the fingers' outputs are written
-back after each tick, the rest by `sync()`, which the loop calls before sensors, `on_tick`
-and `stop()`.
+Every finger's part of the tick is one compiled call (`softproxy.compiled.finger.tick`) on
+the loop's table of finger records (`softproxy.finger_rows`); the fingers' attributes are
+views of that table, so they read what the tick computed with nothing to copy back.
 
 The watchdog answers every fault with zero force for that tick and a count in `faults`:
 a device that raises, a NaN/invalid sample, a tick that overran its period badly (then the
@@ -31,8 +30,10 @@ import numpy as np
 
 from softproxy import termination
 from softproxy.device import Device, DeviceSample, check_device
-from softproxy.device_guard import guard_wrench
+from softproxy.compiled import finger as kernel
+from softproxy.device_guard import as_limit
 from softproxy.finger import SoftFingerProxy
+from softproxy.finger_rows import FingerRows
 from softproxy.world import World
 
 MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
@@ -98,7 +99,7 @@ class ServoLoop:
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
-                 overrun_watchdog: bool | None = None, compiled: bool = False, handle_signals: bool = True) -> None:
+                 overrun_watchdog: bool | None = None, handle_signals: bool = True) -> None:
         if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
             raise ValueError(f"rate_hz must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g}, got {rate_hz!r}")
         check_device(device)
@@ -106,6 +107,9 @@ class ServoLoop:
             if f.params.device_finger >= device.fingers:
                 raise ValueError(f"finger {f.params.name!r} uses device finger {f.params.device_finger}, "
                                  f"but the device drives {device.fingers}")
+            if f.god.shapes is not world.shapes:
+                raise ValueError(f"finger {f.params.name!r} touches shapes of its own, not the world's: "
+                                 "build it over world.shapes")
         self.world = world
         self.fingers = fingers
         self.device = device
@@ -134,13 +138,27 @@ class ServoLoop:
         self.last_device_error = ""  # what the device said when it last failed to read
         self.last_send_error = ""  # ... and to send
         self.sensors = []  # fingertip sensor channels (softproxy.fingertip_sensors): tick(loop) each tick
-        self.compiled = None
-        """The `CompiledFingers` running the fingers when `compiled=True` (else None): the same
-        tick as compiled code, answers equal to the last bit, primitive shapes only."""
-        if compiled:
-            from softproxy.compiled.engine import CompiledFingers  # numba is imported only when asked for
+        self.rows = FingerRows.gather(fingers) if fingers else FingerRows(world.shapes, 0)
+        """The fingers' records, one table: the fingers are views of its rows."""
+        # the records as flat buffers: a sample is written in, and what is sent read out, with
+        # plain item stores and loads (a numpy field access costs more than the copies it saves)
+        raw = self.rows.F.view(np.ndarray).view(np.uint8)
+        self._floats = memoryview(raw).cast("d")
+        self._bytes = memoryview(raw)
+        size = self.rows.F.dtype.itemsize
+        at = {name: self.rows.F.dtype.fields[name][1] for name in ("in_x", "in_valid", "sent_fx")}
+        self._io = [((i * size + at["in_x"]) // 8, i * size + at["in_valid"], (i * size + at["sent_fx"]) // 8,
+                     f.params.device_finger) for i, f in enumerate(fingers)]
+        self._compile()
 
-            self.compiled = CompiledFingers(world, fingers, device)
+    def _compile(self) -> None:
+        """Compile (or load from numba's cache) the tick now, not inside the first tick: one
+        call on copies of everything the tick writes."""
+        world, rows = self.world, self.rows
+        s = world.shapes
+        kernel.tick(s.S.copy(), s.T, None if s.C is None else s.C.copy(), s.xpos, s.xmat, world.data.cvel,
+                    rows.F.copy(), rows.near.copy(), self.period, False, False, 1.0, 1.0, rows.scratch.copy(),
+                    world.wrench.copy(), world.bodies.copy(), world.counts.copy())
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -163,8 +181,6 @@ class ServoLoop:
                 f.placed = False  # placed at its first good sample instead
             else:
                 f.place(s.x, s.y, s.z)
-        if self.compiled is not None:
-            self.compiled.pack()
 
     def tick(self) -> None:
         """One servo tick at loop time `self.t`; advances time by one period."""
@@ -184,14 +200,8 @@ class ServoLoop:
             ok = False
         safe = self._safe_next
         self._safe_next = False
-        if self.compiled is not None:
-            world.begin_step(refresh_shapes=False)  # the compiled fingers read MuJoCo's poses
-            self._compiled_fingers(ok, safe, dt)
-            if self.sensors:
-                self.compiled.sync()
-        else:
-            world.begin_step()
-            self._fingers(ok, safe, dt)
+        world.begin_step()
+        self._fingers(ok, safe, dt)
         for ch in self.sensors:
             ch.tick(self)
         world.end_step()
@@ -204,60 +214,41 @@ class ServoLoop:
         self.stats.record(duration, dt)
 
     def _fingers(self, ok: bool, safe: bool, dt: float) -> None:
-        """Every finger's part of the tick, in Python: update (or hold), wrench, device send."""
-        world = self.world
-        for f, s in self._pairs:
-            if not ok or not s.usable():
-                if ok:
-                    self.faults["invalid_sample"] += 1
-                f.hold()
+        """Every finger's part of the tick: this tick's samples into the finger records, one
+        compiled call (update or hold, wrench, the device guard), then each device finger is
+        sent what the tick computed."""
+        floats, flags, samples = self._floats, self._bytes, self.samples
+        unusable = 0
+        for k, valid, _, j in self._io:
+            s = samples[j]
+            if ok and s.usable():  # every field is now a finite float
+                floats[k] = s.x
+                floats[k + 1] = s.y
+                floats[k + 2] = s.z
+                floats[k + 3] = s.twist
+                floats[k + 4] = s.qw
+                floats[k + 5] = s.qx
+                floats[k + 6] = s.qy
+                floats[k + 7] = s.qz
+                flags[valid] = 1
             else:
-                if not f.update(s.x, s.y, s.z, s.twist, dt):
-                    self.faults["invalid_sample"] += 1
-                if safe:  # the watchdog's zero-force tick: the proxy moved, nothing is rendered
-                    f.clear_output()
-                elif not math.isfinite(f.fx + f.fy + f.fz + f.tx + f.ty + f.tz):
-                    self.faults["unsafe_output"] += 1  # parameters at their extremes: neither body nor hand gets it
-                    f.clear_output()
-                if f.body >= 0:
-                    world.push(f.body, -f.fx, -f.fy, -f.fz, f.px, f.py, f.pz, -f.tx, -f.ty, -f.tz)
-            if self.audit:
-                f.audit()
-            self._send(f, safe)
-
-    def _compiled_fingers(self, ok: bool, safe: bool, dt: float) -> None:
-        """`_fingers` in one compiled call; then each device finger is sent what it computed."""
-        compiled = self.compiled
-        invalid, unsafe = compiled.run(self.samples, ok, safe, self.audit, dt)
-        self.faults["invalid_sample"] += invalid
+                flags[valid] = 0
+                unusable += ok
+        world, rows, device = self.world, self.rows, self.device
+        shapes = world.shapes
+        refused, unsafe = kernel.tick(shapes.S, shapes.T, shapes.C, shapes.xpos, shapes.xmat, world.data.cvel, rows.F,
+                                      rows.near, dt, safe, self.audit, as_limit(device.max_force),
+                                      as_limit(device.max_torque), rows.scratch, world.wrench, world.bodies,
+                                      world.counts)
+        if unusable or refused:
+            self.faults["invalid_sample"] += unusable + refused
         if unsafe:
             self.faults["unsafe_output"] += unsafe
-        device = self.device
-        for f, sent in zip(self.fingers, compiled.sent):
+        for _, _, k, j in self._io:
             try:
-                device.send(f.params.device_finger, *sent)
+                device.send(j, floats[k], floats[k + 1], floats[k + 2], floats[k + 3], floats[k + 4], floats[k + 5])
             except Exception as exc:
                 self._send_failed(exc)
-
-    def _send(self, f: SoftFingerProxy, safe: bool) -> None:
-        """Send the finger's force and torque, clamped to the finger's and the device's limits
-        (`guard_wrench`: zero, and a fault, for anything not finite); zero if safe or invalid."""
-        device = self.device
-        if safe or not f.valid:
-            fx = fy = fz = tx = ty = tz = 0.0
-        else:
-            try:
-                good, fx, fy, fz, tx, ty, tz = guard_wrench(f.fx, f.fy, f.fz, f.tx, f.ty, f.tz, f.max_force,
-                                                            f.max_torque, device.max_force, device.max_torque)
-            except TypeError:  # a device limit that is no number at all
-                good = False
-                fx = fy = fz = tx = ty = tz = 0.0
-            if not good:
-                self.faults["unsafe_output"] += 1
-        try:
-            device.send(f.params.device_finger, fx, fy, fz, tx, ty, tz)
-        except Exception as exc:
-            self._send_failed(exc)
 
     def _send_failed(self, exc: Exception) -> None:
         self.faults["send_error"] += 1
@@ -279,7 +270,6 @@ class ServoLoop:
                 for _ in range(ticks):
                     self.tick()
                     if on_tick is not None:
-                        self.sync()
                         on_tick(self)
                 return
             period = self.period
@@ -298,7 +288,6 @@ class ServoLoop:
                     self.stats.misses += 1
                 next_start += period
                 if on_tick is not None:
-                    self.sync()
                     on_tick(self)
         finally:
             self.paced = False
@@ -307,26 +296,19 @@ class ServoLoop:
                 gc.enable()
             self.stop()
 
-    def sync(self) -> None:
-        """Compiled loops: bring every attribute of the fingers up to date (a tick writes back
-        only its outputs: force, torque, contact point, body, P, valid). No-op in Python."""
-        if self.compiled is not None:
-            self.compiled.sync()
-
     def stop(self) -> None:
         """The safe state: zero force to every finger first, then no finger wrench left on the
         bodies. Termination signals wait until the zero force is sent (`termination.deferred`)."""
         with termination.deferred():
+            device = self.device
             for f in self.fingers:
-                self._send(f, True)
-            if self.compiled is not None:  # the Python objects take the whole state back first
-                self.compiled.sync()
-                self.compiled.clear_wrenches()
+                try:
+                    device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+                except Exception as exc:
+                    self._send_failed(exc)
             self.world.clear_wrenches()
             for f in self.fingers:
                 f.clear_output()
-            if self.compiled is not None:
-                self.compiled.pack()
 
     def close(self) -> None:
         """`stop()`, then close the device; the loop cannot tick again. Safe to call twice."""

@@ -12,8 +12,10 @@ from __future__ import annotations
 import functools
 
 import mujoco
+import numpy as np
 
-from softproxy.geometry import Shape, shapes_of
+from softproxy.compiled import finger as kernel
+from softproxy.geometry import ShapeSet, shapes_of
 
 
 class World:
@@ -32,18 +34,16 @@ class World:
             from softproxy.mesh import MeshShape  # trimesh is imported only for scenes with meshes
 
             mesh_shape = functools.partial(MeshShape, shading=True) if force_shading else MeshShape
-        self.shapes: list[Shape] = shapes_of(model, self.data, mesh_shape)
-        self.moving = [s for s in self.shapes if not s.static]
-        # views into mjData, kept: each attribute access of mjData builds a new array object
-        self._xfrc = self.data.xfrc_applied
-        self._xipos = self.data.xipos
-        self._pushed: list[int] = []  # bodies with a wrench from last tick
+        self.shapes: ShapeSet = shapes_of(model, self.data, mesh_shape)
         # this tick's wrench per body: force (N) and moment about the world origin (N·m), so a
-        # push needs no body position; end_step moves the moment to the body's centre of mass
-        self._wrench: list[list[float]] = [[0.0] * 6 for _ in range(model.nbody)]
-        self._touched: list[int] = []
-        # bodies welded to the world never move: a finger pushing on them moves nothing
-        self._fixed = [int(w) == 0 for w in model.body_weldid]
+        # push needs no body position; the bodies touched this tick and pushed last tick
+        # (rows of `bodies`, lengths in `counts`), and those welded to the world (never pushed)
+        self.wrench = np.zeros((model.nbody, 6))
+        self.bodies = np.zeros((3, model.nbody), dtype=np.int64)
+        self.bodies[kernel.FIXED] = [int(w) == 0 for w in model.body_weldid]
+        self.counts = np.zeros(2, dtype=np.int64)
+        self._xfrc = self.data.xfrc_applied  # views into mjData, kept
+        self._xipos = self.data.xipos
 
     @property
     def timestep(self) -> float:
@@ -55,55 +55,29 @@ class World:
             raise ValueError(f"timestep must be > 0 s, got {dt!r}")
         self.model.opt.timestep = dt
 
-    def begin_step(self, refresh_shapes: bool = True) -> None:
-        """First half of mj_step: kinematics and velocities of the current state; refresh the
-        moving shapes' poses (not needed by code that reads MuJoCo's poses itself)."""
+    def begin_step(self) -> None:
+        """First half of mj_step: kinematics and velocities of the current state (the shapes'
+        poses are read from mjData by every query)."""
         mujoco.mj_step1(self.model, self.data)
-        if refresh_shapes:
-            for s in self.moving:
-                s.refresh()
 
     def push(self, body: int, fx, fy, fz, px, py, pz, tx, ty, tz) -> None:
-        """Add force (N) at world point p (m) plus a pure torque (N·m) on `body` for this tick."""
-        if self._fixed[body]:
-            return
-        if body not in self._touched:
-            self._touched.append(body)
-        w = self._wrench[body]
-        w[0] += fx
-        w[1] += fy
-        w[2] += fz
-        w[3] += py * fz - pz * fy + tx
-        w[4] += pz * fx - px * fz + ty
-        w[5] += px * fy - py * fx + tz
+        """Add force (N) at world point p (m) plus a pure torque (N·m) on `body` for this tick
+        (nothing on a body welded to the world)."""
+        kernel.push(self.wrench, self.bodies, self.counts, int(body), float(fx), float(fy), float(fz), float(px),
+                    float(py), float(pz), float(tx), float(ty), float(tz))
 
     def end_step(self) -> None:
-        """Write this tick's wrenches (and clear last tick's) and run the second half of mj_step."""
-        xfrc = self._xfrc
-        touched = self._touched
-        for body in self._pushed:
-            if body not in touched:
-                xfrc[body] = 0.0
-        for body in touched:
-            w = self._wrench[body]
-            fx, fy, fz, mx, my, mz = w
-            cx, cy, cz = self._xipos[body].tolist()
-            # moment about the centre of mass: M_origin - c × F
-            xfrc[body] = (fx, fy, fz, mx - (cy * fz - cz * fy), my - (cz * fx - cx * fz), mz - (cx * fy - cy * fx))
-            w[0] = w[1] = w[2] = w[3] = w[4] = w[5] = 0.0
-        self._pushed = touched
-        self._touched = []
+        """Write this tick's wrenches (moved to each body's centre of mass; last tick's cleared)
+        into xfrc_applied, then the second half of mj_step."""
+        kernel.write_wrenches(self._xfrc, self._xipos, self.wrench, self.bodies, self.counts)
         mujoco.mj_step2(self.model, self.data)
 
     def clear_wrenches(self) -> None:
         """Remove every wrench the fingers put on the bodies (the safe state)."""
-        for body in self._touched:
-            w = self._wrench[body]
-            w[0] = w[1] = w[2] = w[3] = w[4] = w[5] = 0.0
-        self._touched = []
-        for body in self._pushed:
-            self._xfrc[body] = 0.0
-        self._pushed = []
+        for j in range(int(self.counts[1])):
+            self._xfrc[self.bodies[kernel.PUSHED, j]] = 0.0
+        self.wrench[:] = 0.0
+        self.counts[:] = 0
 
     def body_id(self, name: str) -> int:
         """Body id by name; ValueError naming the body if the model has none."""

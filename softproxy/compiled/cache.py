@@ -1,27 +1,54 @@
-"""Keeps numba's on-disk cache of the compiled tick in step with every file it is built from.
+"""Keeps numba's on-disk cache of the kernels in step with every file they are built from.
 
 numba keys each cached kernel on its own source file alone, yet the kernels bake in
-constants from `layout` and from the Python engine (tolerances, limits, iteration budgets):
-change one of those and numba would load a kernel built with the old value. So a digest of
-every such file is stamped beside the cache, and a different digest drops the cache first.
+constants and compile in functions from other modules: change one of those and numba would
+load a kernel built with the old value. So a digest of every file the kernels are built from
+is stamped beside the cache, and a different digest drops the whole cache first. Those files
+are found by construction, not listed: this package's modules and every `softproxy` module
+they import, transitively (read from their import statements).
 """
 
 from __future__ import annotations
 
+import ast
 import hashlib
 from pathlib import Path
 
 from numba import njit
 
 _PACKAGE = Path(__file__).resolve().parent
-SOURCES = sorted(_PACKAGE.glob("*.py")) + [_PACKAGE.parent / f"{name}.py" for name in
-                                           ("geometry", "proxy", "finger", "fingertip", "mesh", "device_guard")]
-"""The files the kernels are built from: this package and the modules they import constants from."""
-KERNEL_MODULES = ("mesh", "shapes", "godobject", "finger", "cache", "certificate")
-"""This package's modules with cached kernels (their files in the cache folder are dropped).
-`softproxy.device_guard.guard_wrench` is cached beside its own module, and numba checks that
-file itself; the kernels here that compiled it in are dropped through the digest (SOURCES)."""
+_ROOT = _PACKAGE.parent
 STAMP = "softproxy-compiled.stamp"
+
+
+def _imports(path: Path) -> set[Path]:
+    """The files of the `softproxy` modules that `path` imports."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = []
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        for name in names:
+            if name == "softproxy" or name.startswith("softproxy."):
+                parts = name.split(".")[1:]
+                for candidate in (_ROOT.joinpath(*parts).with_suffix(".py"), _ROOT.joinpath(*parts, "__init__.py")):
+                    if parts and candidate.is_file():
+                        found.add(candidate)
+    return found
+
+
+def sources() -> list[Path]:
+    """Every file the kernels are built from: this package and what it imports of `softproxy`."""
+    todo = sorted(_PACKAGE.glob("*.py"))
+    seen = set(todo)
+    while todo:
+        for path in _imports(todo.pop()):
+            if path not in seen:
+                seen.add(path)
+                todo.append(path)
+    return sorted(seen)
 
 
 @njit(cache=True)
@@ -33,8 +60,8 @@ def _probe():
 def digest() -> str:
     """SHA-256 of every source the kernels are built from."""
     h = hashlib.sha256()
-    for path in SOURCES:
-        h.update(path.name.encode())
+    for path in sources():
+        h.update(str(path.relative_to(_ROOT)).encode())
         h.update(path.read_bytes())
     return h.hexdigest()
 
@@ -52,8 +79,7 @@ def drop_stale() -> bool:
     except OSError:
         pass
     for path in where.glob("*.nb[ic]"):
-        if path.name.split(".", 1)[0] in KERNEL_MODULES:
-            path.unlink(missing_ok=True)
+        path.unlink(missing_ok=True)
     try:
         where.mkdir(parents=True, exist_ok=True)
         stamp.write_text(current)

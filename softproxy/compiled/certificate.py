@@ -21,10 +21,21 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, FEW_SLOTS, S_KEPT, S_VERTS, T_ADJ, T_CLEAR, T_N, T_TV, V_AXIS, V_COS, V_FAN, V_RING, V_SINES,
-    V_THRESHOLD, V_X, VERTEX_WIDTH,
+    C_FEW, C_STAMP, C_STAMPS, FEW_SLOTS, T_ADJ, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
+    V_RING, V_SINES, V_THRESHOLD, V_X,
 )
-from softproxy.mesh import ABOVE_TOL, STATIC_ABOVE, VERTEX_READ
+
+ABOVE_TOL = 1e-9
+"""A vertex this far (m) above a certificate plane counts as above it. MuJoCo stores vertices
+in float32 (≈4e-9 m at 5 cm), so coplanar neighbours differ by about this much; a certified
+distance may be overstated by at most this (m)."""
+STATIC_ABOVE = 8
+"""Most triangles reaching above a face's plane that its kept certificate lists (and a query
+then reads: e.g. a vertex a rounding above a coplanar neighbour brings its fan of ~6); more,
+and the face is on a concave patch: the neighbourhood's lists serve it."""
+VERTEX_READ = 64
+"""Most vertices a kept vertex certificate tests against a tangent plane tilted from its cone's
+axis (those whose sin β is below the tilt's sine); more, and the neighbourhood serves it."""
 
 assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' lists (an edge's certificate)"
 
@@ -125,7 +136,7 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     below the cone (sin β, from the table); the fans of the few that may not and rise above
     the plane are listed."""
     vertex = int(T[hint, T_TV + feature - 4])
-    verts = int(S[k, S_VERTS])
+    verts = int(S[k].verts)
     rec = verts + VERTEX_WIDTH * vertex
     c = nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2]
     if c <= 0.0:
@@ -173,7 +184,7 @@ def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
     reach they were built for): then every triangle must be asked. A point p at distance d
     has no nearer triangle off the list when need >= 2d; a sphere of radius r touching at p
     and sliding by L on or above the plane enters none when need >= 2r + L."""
-    if need > S[k, S_KEPT]:
+    if need > S[k].kept:
         return -1
     dot0 = nx * T[hint, T_N] + ny * T[hint, T_N + 1] + nz * T[hint, T_N + 2]
     side0 = 1.0 if dot0 >= 0.0 else -1.0

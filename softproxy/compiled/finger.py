@@ -16,18 +16,11 @@ from numba import njit
 
 from softproxy import device_guard
 from softproxy.compiled import godobject
-from softproxy.compiled.layout import (
-    IN_QW, IN_QX, IN_QY, IN_QZ, IN_TWIST, IN_VALID, IN_X, IN_Y, IN_Z, D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ, F_B, F_B_TAU, F_BODY, F_DT, F_FX, F_FY, F_FZ, F_HAS_TORSION, F_K,
-    F_MAX_FORCE, F_MAX_FORCE_SEEN, F_MAX_SPEED, F_MAX_TORQUE, F_NORMAL_FORCE, F_OX, F_OY, F_OZ,
-    F_PENETRATION_MAX, F_PLACED, F_PX, F_PY, F_PZ, F_RAMP, F_SCALE, F_SLIDE_EVENTS, F_SOFT_START,
-    F_SPIKE_RUN, F_SPIKES_REJECTED, F_STWIST, F_SX, F_SY, F_SZ, F_TORQUE, F_TX, F_TY, F_TZ, F_VALID,
-    F_WAS_STICKING, F_XD, F_YD, F_ZD, G_CONTACT, G_NX, G_NY, G_NZ, G_RADIUS, G_SHAPE, G_STICKING, G_X, G_Y,
-    G_Z, S_BODY, T_ALPHA_0, T_ALPHA_G, T_ALPHA_P, T_GAMMA, T_IN_CONTACT, T_K_TAU, T_LIMIT, T_MU_PRIME,
-    T_MU_S, T_P_STAR, T_R0, T_RATIO, T_SATURATE, T_SLIP_EVENTS, T_SLIPPING, T_TORQUE,
-)
 from softproxy.compiled.shapes import shape_distance
-from softproxy.finger import SPIKE_PATIENCE
 from softproxy.fingertip import P_MAX
+
+SPIKE_PATIENCE = 3
+"""Consecutive ticks a position jump is held back as a spike before it is believed."""
 
 
 @njit(cache=True)
@@ -35,103 +28,123 @@ def _finite(v):
     return v == v and v != math.inf and v != -math.inf
 
 
-# -- torsion (softproxy.torsion.TorsionalFriction) ---------------------------------------------
+# -- torsion (eqs 38-42; `softproxy.torsion.TorsionalFriction` is the view) ---------------------
 @njit(cache=True)
 def torsion_touch(f, alpha_s):
+    """Contact made: the proxy twist starts at the finger's current twist α_s (rad)."""
     if not _finite(alpha_s):
         alpha_s = 0.0
-    f[T_IN_CONTACT] = 1.0
-    f[T_ALPHA_0] = f[T_ALPHA_P] = f[T_ALPHA_G] = alpha_s
-    f[T_TORQUE] = f[T_LIMIT] = 0.0
-    f[T_SLIPPING] = 0.0
+    f.in_contact = True
+    f.alpha_0 = f.alpha_p = f.alpha_g = alpha_s
+    f.spring_torque = f.limit = 0.0
+    f.slipping = False
 
 
 @njit(cache=True)
 def torsion_release(f):
-    f[T_IN_CONTACT] = 0.0
-    f[T_ALPHA_0] = f[T_ALPHA_P] = f[T_ALPHA_G] = 0.0
-    f[T_TORQUE] = f[T_LIMIT] = 0.0
-    f[T_SLIPPING] = 0.0
+    """Contact broken: torsion state cleared, no torque."""
+    f.in_contact = False
+    f.alpha_0 = f.alpha_p = f.alpha_g = 0.0
+    f.spring_torque = f.limit = 0.0
+    f.slipping = False
 
 
 @njit(cache=True)
 def torsion_step(f, alpha_s, P):
-    """`TorsionalFriction.step`: M on the finger about n (N·m)."""
-    if f[T_IN_CONTACT] == 0.0:
+    """One servo tick (eqs 38-40): new α_p from device twist α_s (rad) and normal force P (N).
+
+    Returns M = k_τ(α_p - α_g), the torque on the finger about n (N·m). A non-finite α_s
+    holds the state and returns 0; a non-finite P counts as no normal force."""
+    if not f.in_contact:
         return 0.0
     if not _finite(alpha_s):
-        f[T_TORQUE] = 0.0
+        f.spring_torque = 0.0
         return 0.0
     P = abs(P)
     if not P <= P_MAX:
         P = P_MAX if P == P else 0.0
-    if f[T_SATURATE] != 0.0:
-        mu_prime = f[T_MU_PRIME]
+    if f.saturate:
+        # the static limit follows the piecewise law of eq 26 (linear above P*, eq 27),
+        # scaled from the model's μ'_m to this finger's μ_s
+        mu_prime = f.mu_prime
         if mu_prime > 0.0:
-            p_star = f[T_P_STAR]  # FingertipModel.piecewise_torque, inlined (P is already clamped)
+            p_star = f.p_star
             if P <= p_star:
-                law = mu_prime * P ** f[T_GAMMA]
+                law = mu_prime * P ** f.gamma
             else:
-                law = f[T_R0] * (P - p_star) + mu_prime * p_star ** f[T_GAMMA]
-            limit = f[T_MU_S] / mu_prime * law
+                law = f.r0 * (P - p_star) + mu_prime * p_star ** f.gamma
+            limit = f.torsion_mu_s / mu_prime * law
         else:
             limit = 0.0
     else:
-        limit = f[T_MU_S] * P ** f[T_GAMMA]
-    f[T_ALPHA_G] = alpha_s
-    k_tau = f[T_K_TAU]
-    stretch = f[T_ALPHA_P] - alpha_s
+        limit = f.torsion_mu_s * P ** f.gamma
+    f.alpha_g = alpha_s
+    k_tau = f.k_tau
+    stretch = f.alpha_p - alpha_s
+    # eq 39: the proxy sticks while the static limit exceeds the spring torque.
     if limit > abs(k_tau * stretch):
-        f[T_SLIPPING] = 0.0
+        f.slipping = False
     else:
-        slack = limit * f[T_RATIO] / k_tau
+        # eq 40 with its missing sign: stay μ_d|P|^γ/k_τ behind the goal, on the side the
+        # proxy was on, so the slipping torque keeps the twist's direction.
+        slack = limit * f.ratio / k_tau
         if stretch > 0.0:
-            f[T_ALPHA_P] = alpha_s + slack
+            f.alpha_p = alpha_s + slack
         elif stretch < 0.0:
-            f[T_ALPHA_P] = alpha_s - slack
+            f.alpha_p = alpha_s - slack
         else:
-            f[T_ALPHA_P] = alpha_s
-        if f[T_SLIPPING] == 0.0 and stretch != 0.0:
-            f[T_SLIP_EVENTS] += 1.0
-        f[T_SLIPPING] = 1.0 if stretch != 0.0 else 0.0
-    f[T_LIMIT] = limit
-    f[T_TORQUE] = k_tau * (f[T_ALPHA_P] - alpha_s)
-    return f[T_TORQUE]
+            f.alpha_p = alpha_s
+        if not f.slipping and stretch != 0.0:
+            f.slip_events += 1
+        f.slipping = stretch != 0.0
+    f.limit = limit
+    f.spring_torque = k_tau * (f.alpha_p - alpha_s)
+    return f.spring_torque
+
+
+@njit(cache=True)
+def torsion_follow(f, omega_n, dt):
+    """Eqs 41-42: α_p += (ω·n)Δt, the touched object's signed spin about n (rad/s) over Δt (s).
+    The seed's |ω·n| would drag the proxy forwards whichever way the object turned; the signed
+    value makes a stuck proxy turn with the object, in either direction."""
+    if not f.in_contact:
+        return
+    alpha_p = f.alpha_p + omega_n * dt
+    if _finite(alpha_p):
+        f.alpha_p = alpha_p
 
 
 # -- the finger (softproxy.finger.SoftFingerProxy) -------------------------------------------
 @njit(cache=True)
 def clear_output(f):
-    f[F_FX] = f[F_FY] = f[F_FZ] = 0.0
-    f[F_TORQUE] = f[F_TX] = f[F_TY] = f[F_TZ] = 0.0
-    f[F_PX] = f[F_PY] = f[F_PZ] = 0.0
-    f[F_BODY] = -1.0
-    f[F_NORMAL_FORCE] = 0.0
-    f[F_VALID] = 0.0
+    f.fx = f.fy = f.fz = 0.0
+    f.torque = f.tx = f.ty = f.tz = 0.0
+    f.px = f.py = f.pz = 0.0
+    f.body = -1
+    f.normal_force = 0.0
+    f.valid = False
 
 
 @njit(cache=True)
 def _follow_body(S, cvel, f):
-    """Eqs 41–42: the touched body's spin about n drags α_p (`SoftFingerProxy._follow_body`)."""
-    if f[F_HAS_TORSION] != 0.0 and f[T_IN_CONTACT] != 0.0:
-        b = int(S[int(f[G_SHAPE]), S_BODY])
-        omega_n = cvel[b, 0] * f[G_NX] + cvel[b, 1] * f[G_NY] + cvel[b, 2] * f[G_NZ]
-        alpha_p = f[T_ALPHA_P] + omega_n * f[F_DT]
-        if _finite(alpha_p):
-            f[T_ALPHA_P] = alpha_p
+    """Eqs 41-42: the touched body's spin about n (rad/s, world; MuJoCo's cvel after mj_step1)
+    drags α_p, signed."""
+    if f.has_torsion and f.in_contact:
+        b = int(S[int(f.touched)].body)
+        torsion_follow(f, cvel[b, 0] * f.nx + cvel[b, 1] * f.ny + cvel[b, 2] * f.nz, f.dt)
 
 
 @njit(cache=True)
 def place(S, T, C, xpos, xmat, f, near, x, y, z):
     """`SoftFingerProxy.place`: False (finger left unplaced) outside the workspace."""
-    xd, yd, zd = f[F_OX] + f[F_SCALE] * x, f[F_OY] + f[F_SCALE] * y, f[F_OZ] + f[F_SCALE] * z
+    xd, yd, zd = f.ox + f.scale * x, f.oy + f.scale * y, f.oz + f.scale * z
     if not godobject.reset(S, T, C, xpos, xmat, f, near, xd, yd, zd):
-        f[F_PLACED] = 0.0
+        f.placed = False
         return False
-    f[F_PLACED] = 1.0
-    f[F_RAMP] = 0.0 if f[F_SOFT_START] > 0.0 else 1.0
-    f[F_XD], f[F_YD], f[F_ZD] = xd, yd, zd
-    if f[F_HAS_TORSION] != 0.0:
+    f.placed = True
+    f.ramp = 0.0 if f.soft_start > 0.0 else 1.0
+    f.xd, f.yd, f.zd = xd, yd, zd
+    if f.has_torsion:
         torsion_release(f)
     return True
 
@@ -140,12 +153,12 @@ def place(S, T, C, xpos, xmat, f, near, x, y, z):
 def hold(S, T, C, xpos, xmat, cvel, f, near):
     """`SoftFingerProxy.hold`: no usable sample; zero force, the proxy follows its body, the
     soft start's ramp winds down."""
-    if f[F_BODY] >= 0.0:
+    if f.body >= 0.0:
         _follow_body(S, cvel, f)
-    if f[F_SOFT_START] > 0.0:
-        ramp = f[F_RAMP] - f[F_DT] / f[F_SOFT_START]
-        f[F_RAMP] = ramp if ramp > 0.0 else 0.0
-    if f[F_PLACED] != 0.0:
+    if f.soft_start > 0.0:
+        ramp = f.ramp - f.dt / f.soft_start
+        f.ramp = ramp if ramp > 0.0 else 0.0
+    if f.placed:
         godobject.follow(S, T, C, xpos, xmat, f, near)
     clear_output(f)
 
@@ -153,110 +166,110 @@ def hold(S, T, C, xpos, xmat, cvel, f, near):
 @njit(cache=True)
 def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     """`SoftFingerProxy.update` from a device sample (device frame, m, rad) over dt (s)."""
-    f[F_DT] = dt
-    if f[F_BODY] >= 0.0:
+    f.dt = dt
+    if f.body >= 0.0:
         _follow_body(S, cvel, f)
-    if f[F_PLACED] == 0.0:
+    if not f.placed:
         ok = place(S, T, C, xpos, xmat, f, near, x, y, z) and _finite(twist)
         clear_output(f)
         return ok
-    xd = f[F_OX] + f[F_SCALE] * x
-    yd = f[F_OY] + f[F_SCALE] * y
-    zd = f[F_OZ] + f[F_SCALE] * z
-    ex, ey, ez = xd - f[F_XD], yd - f[F_YD], zd - f[F_ZD]
-    reach = f[F_MAX_SPEED] * dt
-    if ex * ex + ey * ey + ez * ez > reach * reach and f[F_SPIKE_RUN] < SPIKE_PATIENCE:
-        f[F_SPIKE_RUN] += 1.0
-        f[F_SPIKES_REJECTED] += 1.0
+    xd = f.ox + f.scale * x
+    yd = f.oy + f.scale * y
+    zd = f.oz + f.scale * z
+    ex, ey, ez = xd - f.xd, yd - f.yd, zd - f.zd
+    reach = f.max_speed * dt
+    if ex * ex + ey * ey + ez * ez > reach * reach and f.spike_run < SPIKE_PATIENCE:
+        f.spike_run += 1
+        f.spikes_rejected += 1
         godobject.follow(S, T, C, xpos, xmat, f, near)  # _rest: the finger is placed here
         clear_output(f)
         return False
-    f[F_SPIKE_RUN] = 0.0
+    f.spike_run = 0
     if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3]) \
             or not _finite(twist):
         clear_output(f)
         return False
-    f[F_XD], f[F_YD], f[F_ZD] = xd, yd, zd
-    f[F_VALID] = 1.0
-    if f[G_CONTACT] == 0.0:
-        f[F_WAS_STICKING] = 0.0
-        f[F_SX] = f[F_SY] = f[F_SZ] = 0.0
-        f[F_STWIST] = 0.0
-        if f[F_HAS_TORSION] != 0.0 and f[T_IN_CONTACT] != 0.0:
+    f.xd, f.yd, f.zd = xd, yd, zd
+    f.valid = True
+    if not f.contact:
+        f.was_sticking = False
+        f.sx = f.sy = f.sz = 0.0
+        f.stwist = 0.0
+        if f.has_torsion and f.in_contact:
             torsion_release(f)
-        f[F_FX] = f[F_FY] = f[F_FZ] = 0.0
-        f[F_TORQUE] = f[F_TX] = f[F_TY] = f[F_TZ] = 0.0
-        f[F_BODY] = -1.0
-        f[F_NORMAL_FORCE] = 0.0
+        f.fx = f.fy = f.fz = 0.0
+        f.torque = f.tx = f.ty = f.tz = 0.0
+        f.body = -1
+        f.normal_force = 0.0
         return True
 
-    if f[F_WAS_STICKING] != 0.0 and f[G_STICKING] == 0.0:
-        f[F_SLIDE_EVENTS] += 1.0
-    f[F_WAS_STICKING] = f[G_STICKING]
+    if f.was_sticking and not f.sticking:
+        f.slide_events += 1
+    f.was_sticking = f.sticking
     # translational virtual coupling
-    sx, sy, sz = f[G_X] - xd, f[G_Y] - yd, f[G_Z] - zd
-    k = f[F_K]
-    c = f[F_B] / dt
-    fx = k * sx + c * (sx - f[F_SX])
-    fy = k * sy + c * (sy - f[F_SY])
-    fz = k * sz + c * (sz - f[F_SZ])
-    f[F_SX], f[F_SY], f[F_SZ] = sx, sy, sz
-    ramp = f[F_RAMP]
+    sx, sy, sz = f.x - xd, f.y - yd, f.z - zd
+    k = f.k
+    c = f.b / dt
+    fx = k * sx + c * (sx - f.sx)
+    fy = k * sy + c * (sy - f.sy)
+    fz = k * sz + c * (sz - f.sz)
+    f.sx, f.sy, f.sz = sx, sy, sz
+    ramp = f.ramp
     if ramp < 1.0:
-        v = ramp + dt / f[F_SOFT_START]
+        v = ramp + dt / f.soft_start
         ramp = v if v < 1.0 else 1.0
-        f[F_RAMP] = ramp
-    fmax = f[F_MAX_FORCE] * ramp
+        f.ramp = ramp
+    fmax = f.max_force * ramp
     f2 = fx * fx + fy * fy + fz * fz
     if f2 > fmax * fmax:
         s = fmax / math.sqrt(f2) if f2 > 0.0 else 0.0
         fx, fy, fz = fx * s, fy * s, fz * s
-    nx, ny, nz = f[G_NX], f[G_NY], f[G_NZ]
+    nx, ny, nz = f.nx, f.ny, f.nz
     P = fx * nx + fy * ny + fz * nz
     if P < 0.0:
         fx, fy, fz = fx - P * nx, fy - P * ny, fz - P * nz
         P = 0.0
-    f[F_FX], f[F_FY], f[F_FZ] = fx, fy, fz
-    f[F_NORMAL_FORCE] = P
-    r = f[G_RADIUS]
-    f[F_PX], f[F_PY], f[F_PZ] = f[G_X] - r * nx, f[G_Y] - r * ny, f[G_Z] - r * nz
-    f[F_BODY] = S[int(f[G_SHAPE]), S_BODY]
+    f.fx, f.fy, f.fz = fx, fy, fz
+    f.normal_force = P
+    r = f.radius
+    f.px, f.py, f.pz = f.x - r * nx, f.y - r * ny, f.z - r * nz
+    f.body = S[int(f.touched)].body
     fmag = math.sqrt(fx * fx + fy * fy + fz * fz)
-    if fmag > f[F_MAX_FORCE_SEEN]:
-        f[F_MAX_FORCE_SEEN] = fmag
+    if fmag > f.max_force_seen:
+        f.max_force_seen = fmag
 
     # torsional DOF (eqs 38–40)
-    if f[F_HAS_TORSION] == 0.0:
+    if not f.has_torsion:
         return True
-    if f[T_IN_CONTACT] == 0.0:
+    if not f.in_contact:
         torsion_touch(f, twist)
-        f[F_STWIST] = 0.0
+        f.stwist = 0.0
     M = torsion_step(f, twist, P)
-    stretch = f[T_ALPHA_P] - twist
-    M += f[F_B_TAU] / dt * (stretch - f[F_STWIST])
-    f[F_STWIST] = stretch
-    limit, torque = f[T_LIMIT], abs(f[T_TORQUE])
+    stretch = f.alpha_p - twist
+    M += f.b_tau / dt * (stretch - f.stwist)
+    f.stwist = stretch
+    limit, torque = f.limit, abs(f.spring_torque)
     bound = limit if limit > torque else torque
-    if bound > f[F_MAX_TORQUE] * ramp:
-        bound = f[F_MAX_TORQUE] * ramp
+    if bound > f.max_torque * ramp:
+        bound = f.max_torque * ramp
     M = bound if M > bound else -bound if M < -bound else M
-    f[F_TORQUE] = M
-    f[F_TX], f[F_TY], f[F_TZ] = M * nx, M * ny, M * nz
+    f.torque = M
+    f.tx, f.ty, f.tz = M * nx, M * ny, M * nz
     return True
 
 
 @njit(cache=True)
 def audit(S, T, C, xpos, xmat, f):
     """`SoftFingerProxy.audit`: deepest the proxy sits inside any shape now (m)."""
-    if f[F_PLACED] == 0.0:
+    if not f.placed:
         return 0.0
     worst = 0.0
     for s in range(S.shape[0]):
-        inside = f[G_RADIUS] - shape_distance(S, T, C, xpos, xmat, s, f[G_X], f[G_Y], f[G_Z])[0]
+        inside = f.radius - shape_distance(S, T, C, xpos, xmat, s, f.x, f.y, f.z)[0]
         if inside > worst:
             worst = inside
-    if worst > f[F_PENETRATION_MAX]:
-        f[F_PENETRATION_MAX] = worst
+    if worst > f.penetration_max:
+        f.penetration_max = worst
     return worst
 
 
@@ -275,8 +288,9 @@ def _listed(bodies, n, body):
 
 
 @njit(cache=True)
-def _push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
-    """`World.push`: force at p plus a pure torque, as a wrench about the world origin."""
+def push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
+    """Force (N) at world point p (m) plus a pure torque (N·m) on `body`, added to this tick's
+    wrench about the world origin (`World.push`); nothing on a body welded to the world."""
     if bodies[FIXED, body]:
         return
     touched = bodies[TOUCHED]
@@ -293,9 +307,9 @@ def _push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
 
 
 @njit(cache=True)
-def _write_wrenches(xfrc, xipos, wrench, bodies, counts):
-    """The wrench half of `World.end_step`: this tick's wrenches into xfrc_applied, last
-    tick's cleared. counts = (touched this tick, pushed last tick)."""
+def write_wrenches(xfrc, xipos, wrench, bodies, counts):
+    """This tick's wrenches into xfrc_applied, each moved to its body's centre of mass
+    (M_com = M_origin - c × F); last tick's cleared. counts = (touched this tick, pushed last tick)."""
     touched, pushed = bodies[TOUCHED], bodies[PUSHED]
     for j in range(counts[1]):
         body = pushed[j]
@@ -318,7 +332,7 @@ def _write_wrenches(xfrc, xipos, wrench, bodies, counts):
     counts[0] = 0
 
 
-guard_wrench = njit(cache=True)(device_guard.guard_wrench)
+guard_wrench = njit(device_guard.guard_wrench)  # compiled into its callers, cached with them
 
 
 @njit(cache=True)
@@ -326,23 +340,23 @@ def _clamp_for_device(f, safe, fmax, tmax):
     """`ServoLoop._send`: what the device is sent, zero when unsafe or invalid; False when
     the guard refused the wrench (not finite, or limits that are not numbers)."""
     good = True
-    if safe or f[F_VALID] == 0.0:
+    if safe or not f.valid:
         fx = fy = fz = tx = ty = tz = 0.0
     else:
-        good, fx, fy, fz, tx, ty, tz = guard_wrench(f[F_FX], f[F_FY], f[F_FZ], f[F_TX], f[F_TY], f[F_TZ],
-                                                    f[F_MAX_FORCE], f[F_MAX_TORQUE], fmax, tmax)
-    f[D_FX], f[D_FY], f[D_FZ], f[D_TX], f[D_TY], f[D_TZ] = fx, fy, fz, tx, ty, tz
+        good, fx, fy, fz, tx, ty, tz = guard_wrench(f.fx, f.fy, f.fz, f.tx, f.ty, f.tz,
+                                                    f.max_force, f.max_torque, fmax, tmax)
+    f.sent_fx, f.sent_fy, f.sent_fz, f.sent_tx, f.sent_ty, f.sent_tz = fx, fy, fz, tx, ty, tz
     return good
 
 
 @njit(cache=True)
-def tick(S, T, C, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies,
-         counts):
+def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies, counts):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2.
 
-    Each finger row holds this tick's device sample in its IN_ columns; a sample not valid
-    (or from a failed read) or not finite holds the finger. Writes the fingers' wrenches into
-    xfrc_applied and what each device finger is sent into its D_ columns. `bodies`: rows
+    Each finger record holds this tick's device sample in its in_ fields; a sample not valid
+    (or from a failed read) or not finite holds the finger. Adds the fingers' wrenches to
+    `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each device finger
+    is sent into its sent_ fields. `bodies`: rows
     FIXED (welded to the world), TOUCHED and PUSHED (body lists, lengths in `counts`).
     Returns (refused, unsafe): how many valid samples were refused (not finite, or refused by
     their finger: spikes, garbage positions, a non-finite twist), and how many wrenches were
@@ -352,25 +366,70 @@ def tick(S, T, C, xpos, xmat, cvel, xipos, xfrc, F, near, dt, safe, check, fmax,
     for i in range(F.shape[0]):
         f = F[i]
         row = near[i]
-        if f[IN_VALID] == 0.0:
+        if not f.in_valid:
             hold(S, T, C, xpos, xmat, cvel, f, row)
-        elif not _finite(f[IN_X] + f[IN_Y] + f[IN_Z] + f[IN_QW] + f[IN_QX] + f[IN_QY] + f[IN_QZ] + f[IN_TWIST]):
+        elif not _finite(f.in_x + f.in_y + f.in_z + f.in_qw + f.in_qx + f.in_qy + f.in_qz + f.in_twist):
             refused += 1
             hold(S, T, C, xpos, xmat, cvel, f, row)
         else:
-            if not update(S, T, C, xpos, xmat, cvel, f, row, f[IN_X], f[IN_Y], f[IN_Z], f[IN_TWIST], dt, scratch):
+            if not update(S, T, C, xpos, xmat, cvel, f, row, f.in_x, f.in_y, f.in_z, f.in_twist, dt, scratch):
                 refused += 1
             if safe:
                 clear_output(f)
-            elif not _finite(f[F_FX] + f[F_FY] + f[F_FZ] + f[F_TX] + f[F_TY] + f[F_TZ]):
+            elif not _finite(f.fx + f.fy + f.fz + f.tx + f.ty + f.tz):
                 unsafe += 1
                 clear_output(f)
-            if f[F_BODY] >= 0.0:
-                _push(wrench, bodies, counts, int(f[F_BODY]), -f[F_FX], -f[F_FY], -f[F_FZ],
-                      f[F_PX], f[F_PY], f[F_PZ], -f[F_TX], -f[F_TY], -f[F_TZ])
+            if f.body >= 0.0:
+                push(wrench, bodies, counts, int(f.body), -f.fx, -f.fy, -f.fz,
+                      f.px, f.py, f.pz, -f.tx, -f.ty, -f.tz)
         if check:
             audit(S, T, C, xpos, xmat, f)
         if not _clamp_for_device(f, safe, fmax, tmax):
             unsafe += 1
-    _write_wrenches(xfrc, xipos, wrench, bodies, counts)
     return refused, unsafe
+
+
+# -- entries for the views: record i of a table ----------------------------------------------
+@njit(cache=True)
+def torsion_touch_row(F, i, alpha_s):
+    torsion_touch(F[i], alpha_s)
+
+
+@njit(cache=True)
+def torsion_release_row(F, i):
+    torsion_release(F[i])
+
+
+@njit(cache=True)
+def torsion_step_row(F, i, alpha_s, P):
+    return torsion_step(F[i], alpha_s, P)
+
+
+@njit(cache=True)
+def torsion_follow_row(F, i, omega_n, dt):
+    torsion_follow(F[i], omega_n, dt)
+
+
+@njit(cache=True)
+def place_row(S, T, C, xpos, xmat, F, near, i, x, y, z):
+    return place(S, T, C, xpos, xmat, F[i], near[i], x, y, z)
+
+
+@njit(cache=True)
+def hold_row(S, T, C, xpos, xmat, cvel, F, near, i):
+    hold(S, T, C, xpos, xmat, cvel, F[i], near[i])
+
+
+@njit(cache=True)
+def update_row(S, T, C, xpos, xmat, cvel, F, near, i, x, y, z, twist, dt, scratch):
+    return update(S, T, C, xpos, xmat, cvel, F[i], near[i], x, y, z, twist, dt, scratch)
+
+
+@njit(cache=True)
+def clear_output_row(F, i):
+    clear_output(F[i])
+
+
+@njit(cache=True)
+def audit_row(S, T, C, xpos, xmat, F, i):
+    return audit(S, T, C, xpos, xmat, F[i])

@@ -20,14 +20,19 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.layout import (
-    G_BX, G_BY, G_BZ, G_CONTACT, G_DEPTH, G_LX, G_LY, G_LZ, G_MU_D, G_MU_S, G_NNEAR, G_NPLANES, G_NX, G_NY,
-    G_NZ, G_PLANES, G_RADIUS, G_ROOM, G_ROUNDING, G_SHAPE, G_STICKING, G_X, G_Y, G_Z, PLANE_WIDTH, S_CONVEX,
-    S_FLAT, S_RBOUND, S_STATIC, S_GEOM,
-)
+from softproxy.compiled.layout import PLANE_WIDTH
 from softproxy.compiled.shapes import shape_distance, shape_on_face, shape_sweep, shape_to_local, shape_to_world
-from softproxy.geometry import CONTACT_TOL, GRAZE
-from softproxy.proxy import LIFT_TOL, MAX_ITERATIONS, PARALLEL, WORKSPACE_LIMIT
+from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
+
+MAX_ITERATIONS = 10
+"""Sweeps per solve: three for a corner, a few more to follow a curved surface."""
+LIFT_TOL = 1e-7
+"""After sliding along a constraint plane (a curved shape's or a rounded edge's tangent plane,
+a face's plane past the face's edge), re-follow the surface when the proxy has lifted off
+the real shape by more than this (m); a proxy this far off a plane no longer rests on it."""
+PARALLEL = 1.0 - 1e-9
+WORKSPACE_LIMIT = 1e3
+"""A device position farther than this from the origin on any axis (m) is garbage, like NaN."""
 
 PLANE_ROOM = 8
 """Rows of a scratch plane list: three planes, plus the ones `_keep_resting` adds before it
@@ -37,10 +42,10 @@ keeps the last three."""
 @njit(cache=True)
 def _load_planes(g, pl):
     """Copy the finger's planes into the scratch list pl; returns their count."""
-    n = int(g[G_NPLANES])
+    n = int(g.nplanes)
     for j in range(n):
         for k in range(PLANE_WIDTH):
-            pl[j, k] = g[G_PLANES + PLANE_WIDTH * j + k]
+            pl[j, k] = g.planes[j, k]
     return n
 
 
@@ -50,8 +55,8 @@ def _store_planes(g, pl, n):
     start = n - 3 if n > 3 else 0
     for j in range(start, n):
         for k in range(PLANE_WIDTH):
-            g[G_PLANES + PLANE_WIDTH * (j - start) + k] = pl[j, k]
-    g[G_NPLANES] = n - start
+            g.planes[j - start, k] = pl[j, k]
+    g.nplanes = n - start
 
 
 @njit(cache=True)
@@ -200,7 +205,7 @@ def _touched(pl, n, nx, ny, nz):
 def _on_static_faces(S, xmat, pl, n):
     for i in range(n):
         s = int(pl[i, 4])
-        if not (S[s, S_STATIC] != 0.0 and shape_on_face(S, xmat, s, pl[i, 0], pl[i, 1], pl[i, 2])):
+        if not (S[s].static and shape_on_face(S, xmat, s, pl[i, 0], pl[i, 1], pl[i, 2])):
             return False
     return True
 
@@ -208,12 +213,12 @@ def _on_static_faces(S, xmat, pl, n):
 @njit(cache=True)
 def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
     """`GodObject._gather_ball`."""
-    g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] = cx, cy, cz, room
-    reach = room + g[G_RADIUS]
+    g.bx, g.by, g.bz, g.room = cx, cy, cz, room
+    reach = room + g.radius
     count = 0
     for s in range(S.shape[0]):
-        k = int(S[s, S_GEOM])
-        rb = S[s, S_RBOUND] + reach
+        k = int(S[s].geom)
+        rb = S[s].rbound + reach
         if rb == math.inf:
             if xmat[k, 2] * (cx - xpos[k, 0]) + xmat[k, 5] * (cy - xpos[k, 1]) + xmat[k, 8] * (cz - xpos[k, 2]) <= reach:
                 near[count] = s
@@ -223,23 +228,23 @@ def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
         if dx * dx + dy * dy + dz * dz <= rb * rb:
             near[count] = s
             count += 1
-    g[G_NNEAR] = count
+    g.nnear = count
 
 
 @njit(cache=True)
 def push_out(S, T, C, xpos, xmat, g, near):
     """`GodObject._push_out`."""
-    r = g[G_RADIUS]
+    r = g.radius
     for _ in range(3):
         moved = False
-        for j in range(int(g[G_NNEAR])):
-            d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, near[j], g[G_X], g[G_Y], g[G_Z])
+        for j in range(int(g.nnear)):
+            d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, near[j], g.x, g.y, g.z)
             gap = d - r
             if gap < 0.0:
                 push = -gap + CONTACT_TOL
-                g[G_X] += push * nx
-                g[G_Y] += push * ny
-                g[G_Z] += push * nz
+                g.x += push * nx
+                g.y += push * ny
+                g.z += push * nz
                 moved = True
         if not moved:
             return
@@ -251,16 +256,16 @@ def reset(S, T, C, xpos, xmat, g, near, x, y, z):
     if not (-WORKSPACE_LIMIT < x < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < y < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < z < WORKSPACE_LIMIT):
         return False
-    g[G_X], g[G_Y], g[G_Z] = x, y, z
-    g[G_CONTACT] = 0.0
-    g[G_NX] = g[G_NY] = g[G_NZ] = 0.0
-    g[G_SHAPE] = -1.0
-    g[G_DEPTH] = 0.0
-    g[G_STICKING] = 0.0
-    g[G_LX] = g[G_LY] = g[G_LZ] = 0.0
+    g.x, g.y, g.z = x, y, z
+    g.contact = False
+    g.nx = g.ny = g.nz = 0.0
+    g.touched = -1
+    g.depth = 0.0
+    g.sticking = False
+    g.lx = g.ly = g.lz = 0.0
     for s in range(S.shape[0]):
         near[s] = s
-    g[G_NNEAR] = S.shape[0]
+    g.nnear = S.shape[0]
     push_out(S, T, C, xpos, xmat, g, near)
     return True
 
@@ -268,21 +273,21 @@ def reset(S, T, C, xpos, xmat, g, near, x, y, z):
 @njit(cache=True)
 def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
     """`GodObject._settle`: returns the proxy position before the push."""
-    shape = int(g[G_SHAPE])
+    shape = int(g.touched)
     carrier = -1
-    if shape >= 0 and S[shape, S_STATIC] == 0.0:
+    if shape >= 0 and not S[shape].static:
         carrier = shape
-        g[G_X], g[G_Y], g[G_Z] = shape_to_world(S, xpos, xmat, shape, g[G_LX], g[G_LY], g[G_LZ])
-    x, y, z = g[G_X], g[G_Y], g[G_Z]
+        g.x, g.y, g.z = shape_to_world(S, xpos, xmat, shape, g.lx, g.ly, g.lz)
+    x, y, z = g.x, g.y, g.z
     if around_proxy:
-        gather_ball(S, T, C, xpos, xmat, g, near, x, y, z, g[G_RADIUS] + 1e-3)
+        gather_ball(S, T, C, xpos, xmat, g, near, x, y, z, g.radius + 1e-3)
     else:
         ex, ey, ez = xd - x, yd - y, zd - z
         gather_ball(S, T, C, xpos, xmat, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
-                    0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + g[G_RADIUS] + 1e-3)
-    for j in range(int(g[G_NNEAR])):
+                    0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + g.radius + 1e-3)
+    for j in range(int(g.nnear)):
         s = near[j]
-        if s != carrier and (carrier >= 0 or S[s, S_STATIC] == 0.0):
+        if s != carrier and (carrier >= 0 or not S[s].static):
             push_out(S, T, C, xpos, xmat, g, near)
             break
     return x, y, z
@@ -291,18 +296,18 @@ def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
 @njit(cache=True)
 def follow(S, T, C, xpos, xmat, g, near):
     """`GodObject.follow`: no device sample; stay on the body, out of what moved in."""
-    _settle(S, T, C, xpos, xmat, g, near, g[G_X], g[G_Y], g[G_Z], True)
+    _settle(S, T, C, xpos, xmat, g, near, g.x, g.y, g.z, True)
 
 
 @njit(cache=True)
 def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
     """`GodObject._sweep`: (found, lam, nx, ny, nz, shape row) of the earliest hit."""
-    r = g[G_RADIUS]
+    r = g.radius
     found = False
     best_lam, bnx, bny, bnz, bs = 1.0, 0.0, 0.0, 0.0, -1
-    for j in range(int(g[G_NNEAR])):
+    for j in range(int(g.nnear)):
         s = near[j]
-        if S[s, S_CONVEX] != 0.0:
+        if S[s].convex:
             behind = False
             for i in range(n):
                 if int(pl[i, 4]) == s:
@@ -323,7 +328,7 @@ def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
     nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
     if not abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL:
         return False
-    return on_surface or shape_distance(S, T, C, xpos, xmat, int(pl[i, 4]), x, y, z)[0] - g[G_RADIUS] <= LIFT_TOL
+    return on_surface or shape_distance(S, T, C, xpos, xmat, int(pl[i, 4]), x, y, z)[0] - g.radius <= LIFT_TOL
 
 
 @njit(cache=True)
@@ -345,7 +350,7 @@ def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
     if not _on_static_faces(S, xmat, pl, n):
         return False
     found, qx, qy, qz = _corner(xd, yd, zd, pl)
-    x, y, z = g[G_X], g[G_Y], g[G_Z]
+    x, y, z = g.x, g.y, g.z
     if not found or abs(qx - x) + abs(qy - y) + abs(qz - z) > 1e-12:
         return False
     ex, ey, ez = x - xd, y - yd, z - zd
@@ -354,9 +359,9 @@ def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
         return False
     nx, ny, nz = ex / depth, ey / depth, ez / depth
     best = _touched(pl, n, nx, ny, nz)
-    g[G_NX], g[G_NY], g[G_NZ] = nx, ny, nz
-    g[G_DEPTH] = depth
-    g[G_SHAPE] = best
+    g.nx, g.ny, g.nz = nx, ny, nz
+    g.depth = depth
+    g.touched = best
     return True
 
 
@@ -366,10 +371,10 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
     n = _load_planes(g, pl)
     if n == 3:
         return _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n)
-    shape = int(g[G_SHAPE])
-    if n != 1 or S[shape, S_FLAT] == 0.0:
+    shape = int(g.touched)
+    if n != 1 or not S[shape].planar:
         return False
-    x, y, z, r = g[G_X], g[G_Y], g[G_Z], g[G_RADIUS]
+    x, y, z, r = g.x, g.y, g.z, g.radius
     d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, shape, x, y, z)
     if abs(d - r) > 1e-7:
         return False
@@ -381,39 +386,39 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
     if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
         return False
     sx, sy, sz = x - fx, y - fy, z - fz
-    if sx * sx + sy * sy + sz * sz > (g[G_MU_S] * depth) ** 2:
+    if sx * sx + sy * sy + sz * sz > (g.mu_s * depth) ** 2:
         return False
-    for j in range(int(g[G_NNEAR])):
+    for j in range(int(g.nnear)):
         s = near[j]
         if s != shape and shape_sweep(S, T, C, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
             return False
-    p = G_PLANES
-    g[p], g[p + 1], g[p + 2], g[p + 3], g[p + 4] = nx, ny, nz, nx * x + ny * y + nz * z, shape
-    g[G_NPLANES] = 1.0
-    g[G_NX], g[G_NY], g[G_NZ] = nx, ny, nz
-    g[G_DEPTH] = depth
+    p = g.planes[0]
+    p[0], p[1], p[2], p[3], p[4] = nx, ny, nz, nx * x + ny * y + nz * z, shape
+    g.nplanes = 1
+    g.nx, g.ny, g.nz = nx, ny, nz
+    g.depth = depth
     return True
 
 
 @njit(cache=True)
 def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
     """`GodObject._warm_planes` into warm; returns the count (0: solve cold)."""
-    n = int(g[G_NPLANES])
+    n = int(g.nplanes)
     count = 0
     for j in range(n):
-        p = G_PLANES + PLANE_WIDTH * j
-        s = int(g[p + 4])
-        if S[s, S_STATIC] == 0.0:
+        p = g.planes[j]
+        s = int(p[4])
+        if not S[s].static:
             return 0
-        if shape_on_face(S, xmat, s, g[p], g[p + 1], g[p + 2]):
+        if shape_on_face(S, xmat, s, p[0], p[1], p[2]):
             for k in range(PLANE_WIDTH):
-                warm[count, k] = g[p + k]
+                warm[count, k] = p[k]
             count += 1
             continue
-        if S[s, S_CONVEX] == 0.0 or g[G_ROUNDING] != 0.0:
+        if not S[s].convex or g.rounding:
             return 0
         d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
-        if d - g[G_RADIUS] > LIFT_TOL:
+        if d - g.radius > LIFT_TOL:
             return 0
         if count == 0 or _plane_of(warm, count, s, nx, ny, nz) < 0:
             warm[count, 0], warm[count, 1], warm[count, 2], warm[count, 3], warm[count, 4] = nx, ny, nz, 0.0, s
@@ -431,8 +436,8 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
     hx = hy = hz = 0.0
     straight = True
     on_surfaces = False
-    g[G_ROUNDING] = 0.0
-    r = g[G_RADIUS]
+    g.rounding = False
+    r = g.radius
     tx, ty, tz = gx, gy, gz
     if nwarm > 0:
         for j in range(nwarm):
@@ -452,7 +457,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             has_first = True
             hx, hy, hz = x, y, z
             tx, ty, tz = qx, qy, qz
-    bx, by, bz, room2 = g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] * g[G_ROOM]
+    bx, by, bz, room2 = g.bx, g.by, g.bz, g.room * g.room
     following = False
     for _ in range(MAX_ITERATIONS - n):
         following = False
@@ -462,7 +467,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
         ex, ey, ez = tx - bx, ty - by, tz - bz
         if ex * ex + ey * ey + ez * ez > room2:
             gather_ball(S, T, C, xpos, xmat, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
-            room2 = g[G_ROOM] * g[G_ROOM]
+            room2 = g.room * g.room
         hit, lam, nx, ny, nz, s = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n)
         if not hit:
             x, y, z = tx, ty, tz
@@ -492,7 +497,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             if not lifted:
                 on_surfaces = True
                 break
-            g[G_ROUNDING] = 1.0
+            g.rounding = True
             if nwarm > 0:
                 return True, x, y, z, hx, hy, hz, straight, 0
             straight = False
@@ -563,19 +568,19 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
         follow(S, T, C, xpos, xmat, g, near)
         return False
     x, y, z = _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, False)
-    if g[G_STICKING] != 0.0 and g[G_X] == x and g[G_Y] == y and g[G_Z] == z \
+    if g.sticking and g.x == x and g.y == y and g.z == z \
             and _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
         return True
-    x, y, z = g[G_X], g[G_Y], g[G_Z]
+    x, y, z = g.x, g.y, g.z
     nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
     fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm, pl, kept)
     if n == 0:
-        g[G_NPLANES] = 0.0
-        g[G_X], g[G_Y], g[G_Z] = fx, fy, fz
-        g[G_CONTACT] = 0.0
-        g[G_SHAPE] = -1.0
-        g[G_DEPTH] = 0.0
-        g[G_STICKING] = 0.0
+        g.nplanes = 0
+        g.x, g.y, g.z = fx, fy, fz
+        g.contact = False
+        g.touched = -1
+        g.depth = 0.0
+        g.sticking = False
         return True
 
     ex, ey, ez = fx - xd, fy - yd, fz - zd
@@ -588,14 +593,14 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
 
     sx, sy, sz = hx - fx, hy - fy, hz - fz
     slide = math.sqrt(sx * sx + sy * sy + sz * sz)
-    sticking = slide <= g[G_MU_S] * depth
+    sticking = slide <= g.mu_s * depth
     _store_planes(g, pl, n)
     if sticking:
         fx, fy, fz = hx, hy, hz
         if slide > 0.0:
             _keep_resting(S, T, C, xpos, xmat, g, saved, 0, pl, n, hx, hy, hz)
-    elif g[G_MU_D] > 0.0 and slide > 0.0:
-        back = g[G_MU_D] * depth / slide
+    elif g.mu_d > 0.0 and slide > 0.0:
+        back = g.mu_d * depth / slide
         tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
         if straight:
             fx, fy, fz = tx, ty, tz
@@ -605,36 +610,33 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
                     saved[j, k] = pl[j, k]
             fx, fy, fz, _, _, _, _, m = _move(S, T, C, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept)
             _keep_resting(S, T, C, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
-    g[G_X], g[G_Y], g[G_Z] = fx, fy, fz
-    g[G_CONTACT] = 1.0
-    g[G_NX], g[G_NY], g[G_NZ] = nx, ny, nz
-    g[G_DEPTH] = depth
-    g[G_STICKING] = 1.0 if sticking else 0.0
-    g[G_SHAPE] = best
-    if S[best, S_STATIC] == 0.0:
-        g[G_LX], g[G_LY], g[G_LZ] = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
+    g.x, g.y, g.z = fx, fy, fz
+    g.contact = True
+    g.nx, g.ny, g.nz = nx, ny, nz
+    g.depth = depth
+    g.sticking = sticking
+    g.touched = best
+    if not S[best].static:
+        g.lx, g.ly, g.lz = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
     return True
-
-
-def pack_god(god, index: dict, g: np.ndarray, near: np.ndarray) -> None:
-    """Copy a Python `GodObject`'s state into its finger row g and its broad-phase row near;
-    `index` maps id(shape) to the shape's row of the table."""
-    g[G_X], g[G_Y], g[G_Z] = god.x, god.y, god.z
-    g[G_CONTACT] = god.contact
-    g[G_NX], g[G_NY], g[G_NZ] = god.nx, god.ny, god.nz
-    g[G_SHAPE] = -1 if god.shape is None else index[id(god.shape)]
-    g[G_DEPTH], g[G_STICKING] = god.depth, god.sticking
-    g[G_LX], g[G_LY], g[G_LZ] = god.lx, god.ly, god.lz
-    g[G_BX], g[G_BY], g[G_BZ], g[G_ROOM] = god._bx, god._by, god._bz, god._room
-    g[G_ROUNDING] = god._rounding
-    g[G_NPLANES] = len(god.planes)
-    for j, (nx, ny, nz, c, s) in enumerate(god.planes):
-        g[G_PLANES + PLANE_WIDTH * j:G_PLANES + PLANE_WIDTH * (j + 1)] = (nx, ny, nz, c, index[id(s)])
-    g[G_RADIUS], g[G_MU_S], g[G_MU_D] = god.radius, god.mu_s, god.mu_d
-    g[G_NNEAR] = len(god.near)
-    near[:len(god.near)] = [index[id(s)] for s in god.near]
 
 
 def scratch() -> np.ndarray:
     """Four scratch plane lists for `update` (allocated once per engine, not per tick)."""
     return np.zeros((4, PLANE_ROOM, PLANE_WIDTH))
+
+
+# -- entries for the views (`softproxy.proxy.GodObject`): finger i of a table ------------------
+@njit(cache=True)
+def reset_row(S, T, C, xpos, xmat, F, near, i, x, y, z):
+    return reset(S, T, C, xpos, xmat, F[i], near[i], x, y, z)
+
+
+@njit(cache=True)
+def update_row(S, T, C, xpos, xmat, F, near, i, xd, yd, zd, scratch):
+    return update(S, T, C, xpos, xmat, F[i], near[i], xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3])
+
+
+@njit(cache=True)
+def follow_row(S, T, C, xpos, xmat, F, near, i):
+    follow(S, T, C, xpos, xmat, F[i], near[i])

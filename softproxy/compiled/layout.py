@@ -1,39 +1,14 @@
-"""Where each number lives in the compiled engine's flat arrays (column indices).
+"""Where each number of the engine lives: record dtypes for shapes and fingers, columns of the mesh tables.
 
-The compiled tick (`softproxy.compiled`) keeps every shape and every finger as a row of a
-float64 array, so that one numba call can run the fingers of a tick with no Python objects.
-Shape table rows come from `softproxy.geometry` shapes; finger rows from `SoftFingerProxy`,
-its `GodObject` and its `TorsionalFriction`. Poses are read straight from MuJoCo's
-`geom_xpos` (ngeom × 3) and `geom_xmat` (ngeom × 9, row-major: r00 r01 r02 r10 … r22).
+The engine keeps every shape and every finger as a record of a numpy array (named, typed
+fields), so that one compiled call runs the fingers of a tick with no Python objects, and the
+Python classes users see (`SoftFingerProxy`, `GodObject`, `TorsionalFriction`, the shapes)
+are views onto those records: nothing to copy back and forth. Poses are read straight from
+MuJoCo's `geom_xpos` (ngeom × 3) and `geom_xmat` (ngeom × 9, row-major: r00 r01 r02 r10 … r22).
+A mesh's triangles and grid are flat float tables (T, C) with named column offsets.
 """
 
-# -- shape table: one row per Shape, in the order of World.shapes -------------------------
-S_TYPE = 0       # MuJoCo geom type (mjtGeom): plane 0, sphere 2, capsule 3, ellipsoid 4, cylinder 5, box 6, mesh 7
-S_GEOM = 1       # geom id (row of geom_xpos / geom_xmat)
-S_BODY = 2       # body id
-S_STATIC = 3     # 1.0 when the shape never moves
-S_CONVEX = 4     # 1.0 for every primitive, 0.0 for a mesh
-S_FLAT = 5       # 1.0 for plane and box
-S_RBOUND = 6     # bounding radius (m), inf for a plane
-S_A = 7          # sphere/capsule/cylinder radius, box hx, ellipsoid a (m)
-S_B = 8          # capsule/cylinder half-length, box hy, ellipsoid b (m)
-S_C = 9          # box hz, ellipsoid c (m)
-# a mesh's row: where its triangles and its grid live in the mesh tables T and C
-# (`softproxy.compiled.mesh`), the grid in the geom frame; then what its queries keep
-S_T0 = 10        # its first row of T
-S_NT = 11        # its number of triangles
-S_CELLS = 12     # where its grid's cell starts begin in C (ncells + 1 entries)
-S_LOX, S_LOY, S_LOZ = 13, 14, 15   # the grid's lower corner (m, geom frame)
-S_H = 16         # cell size (m)
-S_DIMX, S_DIMY, S_DIMZ = 17, 18, 19   # cells per axis
-S_SIGNED = 20    # 1.0 for a watertight mesh (signed distance), 0.0 for an open one (unsigned)
-S_SHADING = 21   # 1.0 for force shading (interpolated vertex normals)
-S_HINT = 22      # row of T nearest the last distance query or touched last, -1 for none
-S_KEY = 23       # the last two distance queries kept, newest first, KEPT_WIDTH columns each (23..36):
-KEPT_WIDTH = 7   # the point (geom frame, m; NaN for none), signed distance (m), outward normal (geom frame)
-S_VERTS = 37     # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
-S_KEPT = 38      # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
-S_COLUMNS = 39
+import numpy as np
 
 GEOM_PLANE = 0
 GEOM_SPHERE = 2
@@ -42,6 +17,44 @@ GEOM_ELLIPSOID = 4
 GEOM_CYLINDER = 5
 GEOM_BOX = 6
 GEOM_MESH = 7
+"""MuJoCo's geom types (mjtGeom) a shape can have."""
+
+KEPT_WIDTH = 7
+"""Columns of a kept query in SHAPE["key"]: the point (3), the distance, the normal (3)."""
+
+# -- shape table: one record per Shape, in the order of World.shapes --------------------------
+SHAPE = np.dtype([
+    ("type", np.int64),       # MuJoCo geom type (mjtGeom): plane 0, sphere 2, capsule 3, ellipsoid 4, cylinder 5, box 6, mesh 7
+    ("geom", np.int64),       # geom id (row of geom_xpos / geom_xmat)
+    ("body", np.int64),       # body id
+    ("static", np.bool_),     # the shape never moves
+    ("convex", np.bool_),     # every primitive; not a mesh
+    ("planar", np.bool_),     # plane and box: every face flat
+    ("rbound", np.float64),   # bounding radius (m), inf for a plane
+    ("a", np.float64),        # sphere/capsule/cylinder radius, box hx, ellipsoid a (m)
+    ("b", np.float64),        # capsule/cylinder half-length, box hy, ellipsoid b (m)
+    ("c", np.float64),        # box hz, ellipsoid c (m)
+    # a mesh: where its triangles and its grid live in the mesh tables T and C
+    # (`softproxy.compiled.mesh`), the grid in the geom frame; then what its queries keep
+    ("t0", np.int64),         # its first row of T
+    ("nt", np.int64),         # its number of triangles
+    ("cells", np.int64),      # where its grid's cell starts begin in C (ncells + 1 entries)
+    ("lox", np.float64), ("loy", np.float64), ("loz", np.float64),  # the grid's lower corner (m, geom frame)
+    ("h", np.float64),        # cell size (m)
+    ("dimx", np.int64), ("dimy", np.int64), ("dimz", np.int64),  # cells per axis
+    ("signed", np.bool_),     # watertight: signed distance; open: unsigned
+    ("shading", np.bool_),    # force shading (interpolated vertex normals)
+    ("hint", np.int64),       # row of T nearest the last distance query or touched last, -1 for none
+    # the last two distance queries kept, newest first: the point (geom frame, m; NaN for
+    # none), signed distance (m), outward normal (geom frame)
+    ("key", np.float64, (2, KEPT_WIDTH)),
+    ("verts", np.int64),      # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
+    ("kept", np.float64),     # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
+], align=True)
+"""A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
+
+PLANE_WIDTH = 5
+"""A constraint plane: unit normal (nx, ny, nz), offset c (m), the shape row it belongs to."""
 
 # -- mesh triangle table T: one row per triangle, geom frame (softproxy.compiled.mesh) -------
 # the first 22 columns are `softproxy.mesh`'s triangle tuple: A, B, C, AB, AC, unit normal N,
@@ -82,67 +95,61 @@ V_SINES = 11     # where its sin β table starts and how many: (sin β ascending
 V_THRESHOLD = 13  # 1 - (least sin β - margin)² (2.0: nothing certified by angle alone)
 VERTEX_WIDTH = 14
 
-# -- finger state: one row per finger -------------------------------------------------------
-# god-object (softproxy.proxy.GodObject)
-G_X, G_Y, G_Z = 0, 1, 2          # proxy centre (m, world)
-G_CONTACT = 3
-G_NX, G_NY, G_NZ = 4, 5, 6       # contact normal
-G_SHAPE = 7                      # touched shape (row of the shape table) or -1
-G_DEPTH = 8
-G_STICKING = 9
-G_LX, G_LY, G_LZ = 10, 11, 12    # proxy in the touched geom's frame
-G_BX, G_BY, G_BZ, G_ROOM = 13, 14, 15, 16   # the broad phase's ball
-G_ROUNDING = 17
-G_NPLANES = 18
-G_PLANES = 19                    # 3 planes × (nx, ny, nz, c, shape row): columns 19..33
-PLANE_WIDTH = 5
-G_RADIUS = 34
-G_MU_S = 35
-G_MU_D = 36
-G_NNEAR = 37                     # how many shape rows `near` holds
-# the finger (softproxy.finger.SoftFingerProxy)
-F_PLACED = 40
-F_K, F_B, F_B_TAU = 41, 42, 43
-F_MAX_FORCE, F_MAX_TORQUE = 44, 45
-F_OX, F_OY, F_OZ, F_SCALE = 46, 47, 48, 49
-F_MAX_SPEED, F_SOFT_START, F_DT, F_RAMP = 50, 51, 52, 53
-F_XD, F_YD, F_ZD = 54, 55, 56
-F_SX, F_SY, F_SZ, F_STWIST = 57, 58, 59, 60
-F_FX, F_FY, F_FZ = 61, 62, 63
-F_TORQUE = 64
-F_TX, F_TY, F_TZ = 65, 66, 67
-F_PX, F_PY, F_PZ = 68, 69, 70
-F_BODY = 71
-F_NORMAL_FORCE = 72
-F_VALID = 73
-# what the device is sent this tick (clamped to the device, zero when not valid or safe)
-D_FX, D_FY, D_FZ, D_TX, D_TY, D_TZ = 74, 75, 76, 77, 78, 79
-F_MAX_FORCE_SEEN = 80
-F_PENETRATION_MAX = 81
-F_SLIDE_EVENTS = 82
-F_SPIKES_REJECTED = 83
-F_SPIKE_RUN = 84
-F_WAS_STICKING = 85
-F_HAS_TORSION = 86
-# torsion (softproxy.torsion.TorsionalFriction)
-T_IN_CONTACT = 87
-T_ALPHA_0, T_ALPHA_P, T_ALPHA_G = 88, 89, 90
-T_TORQUE, T_LIMIT = 91, 92
-T_SLIPPING = 93
-T_SLIP_EVENTS = 94
-T_K_TAU, T_MU_S, T_MU_D, T_GAMMA = 95, 96, 97, 98
-T_SATURATE, T_RATIO = 99, 100
-T_MU_PRIME, T_R0, T_P_STAR = 101, 102, 103
-# this tick's device sample (DeviceSample's fields), written by the engine before the tick
-IN_X, IN_Y, IN_Z, IN_TWIST = 104, 105, 106, 107
-IN_QW, IN_QX, IN_QY, IN_QZ = 108, 109, 110, 111
-IN_VALID = 112                   # 1.0 when the read succeeded and the device marked it valid
-F_COLUMNS = 113
-
-# runs of columns written back into the Python objects: OUTPUT_AND_SENT every tick, the rest by sync
-OUTPUT_AND_SENT = slice(F_FX, D_TZ + 1)   # one read for the outputs (F_FX..F_VALID) and what is sent
-SENT_AT = D_FX - F_FX                     # where what is sent starts in that run
-GOD_SEEN = slice(G_X, G_STICKING + 1)
-DEVICE_SEEN = slice(F_XD, F_ZD + 1)
-COUNTERS_SEEN = slice(F_MAX_FORCE_SEEN, F_SPIKES_REJECTED + 1)
-TORSION_SEEN = slice(T_IN_CONTACT, T_SLIP_EVENTS + 1)
+# -- finger state: one record per finger ----------------------------------------------------
+FINGER = np.dtype([
+    # the god-object (`softproxy.proxy.GodObject` is its view)
+    ("x", np.float64), ("y", np.float64), ("z", np.float64),      # proxy centre (m, world)
+    ("contact", np.bool_),
+    ("nx", np.float64), ("ny", np.float64), ("nz", np.float64),   # contact normal, out of the object
+    ("touched", np.int64),                                        # touched shape (row of the shape table) or -1
+    ("depth", np.float64),                                        # how far the device is inside the constraint (m)
+    ("sticking", np.bool_),
+    ("lx", np.float64), ("ly", np.float64), ("lz", np.float64),   # proxy in the touched geom's frame (m)
+    ("bx", np.float64), ("by", np.float64), ("bz", np.float64), ("room", np.float64),  # the broad phase's ball (m)
+    ("rounding", np.bool_),                                       # the last solve followed a surface round
+    ("nplanes", np.int64),
+    ("planes", np.float64, (3, PLANE_WIDTH)),                     # constraint planes: nx, ny, nz, c, shape row
+    ("radius", np.float64), ("mu_s", np.float64), ("mu_d", np.float64),
+    ("nnear", np.int64),                                          # how many shape rows `near` holds
+    # the finger (`softproxy.finger.SoftFingerProxy`)
+    ("placed", np.bool_),
+    ("k", np.float64), ("b", np.float64), ("b_tau", np.float64),  # N/m, N·s/m, N·m·s/rad
+    ("max_force", np.float64), ("max_torque", np.float64),        # N, N·m
+    ("ox", np.float64), ("oy", np.float64), ("oz", np.float64), ("scale", np.float64),  # device to world
+    ("max_speed", np.float64), ("soft_start", np.float64),        # m/s, s
+    ("dt", np.float64),                                           # the last tick's period (s)
+    ("ramp", np.float64),                                         # soft start: fraction of the clamps in force
+    ("xd", np.float64), ("yd", np.float64), ("zd", np.float64),   # device position (m, world)
+    ("sx", np.float64), ("sy", np.float64), ("sz", np.float64),   # last spring stretch (m), for damping
+    ("stwist", np.float64),                                       # last torsional stretch (rad)
+    ("fx", np.float64), ("fy", np.float64), ("fz", np.float64),   # force on the finger (N, world)
+    ("torque", np.float64),                                       # M about n (N·m)
+    ("tx", np.float64), ("ty", np.float64), ("tz", np.float64),   # M·n (N·m)
+    ("px", np.float64), ("py", np.float64), ("pz", np.float64),   # contact point on the object (m)
+    ("body", np.int64),                                           # touched body or -1
+    ("normal_force", np.float64),                                 # P = F·n (N)
+    ("valid", np.bool_),                                          # this tick's sample was used
+    # what the device is sent this tick (clamped to the device, zero when not valid or safe)
+    ("sent_fx", np.float64), ("sent_fy", np.float64), ("sent_fz", np.float64),
+    ("sent_tx", np.float64), ("sent_ty", np.float64), ("sent_tz", np.float64),
+    ("max_force_seen", np.float64), ("penetration_max", np.float64),
+    ("slide_events", np.int64), ("spikes_rejected", np.int64), ("spike_run", np.int64),
+    ("was_sticking", np.bool_),
+    ("has_torsion", np.bool_),
+    # torsion (`softproxy.torsion.TorsionalFriction` is its view)
+    ("in_contact", np.bool_),
+    ("alpha_0", np.float64), ("alpha_p", np.float64), ("alpha_g", np.float64),  # rad
+    ("spring_torque", np.float64),                                # k_τ(α_p - α_g) (N·m)
+    ("limit", np.float64),                                        # the static limit this tick (N·m)
+    ("slipping", np.bool_),
+    ("slip_events", np.int64),
+    ("k_tau", np.float64), ("torsion_mu_s", np.float64), ("torsion_mu_d", np.float64), ("gamma", np.float64),
+    ("saturate", np.bool_),                                       # the limit follows eq 26 above P*
+    ("ratio", np.float64),                                        # μ_d / μ_s
+    ("mu_prime", np.float64), ("r0", np.float64), ("p_star", np.float64),  # the model's law (eqs 26-27)
+    # this tick's device sample (DeviceSample's fields), written by the engine before the tick
+    ("in_x", np.float64), ("in_y", np.float64), ("in_z", np.float64), ("in_twist", np.float64),
+    ("in_qw", np.float64), ("in_qx", np.float64), ("in_qy", np.float64), ("in_qz", np.float64),
+    ("in_valid", np.bool_),
+], align=True)
+"""A finger's record: its god-object, coupling, torsion, counters and this tick's sample."""

@@ -36,14 +36,20 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.certificate import certificate_tables, static_clear
+from softproxy.compiled.certificate import ABOVE_TOL, certificate_tables, static_clear
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, KEPT_WIDTH, RECORD_WIDTH, S_CELLS, S_DIMX, S_DIMY, S_DIMZ, S_GEOM, S_H,
-    S_HINT, S_KEPT, S_KEY, S_LOX, S_LOY, S_LOZ, S_NT, S_SHADING, S_SIGNED, S_T0, S_VERTS, T_ADJ, T_COLUMNS,
-    T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, V_AXIS, V_COS, V_RING, VERTEX_WIDTH,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, KEPT_WIDTH, RECORD_WIDTH, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO,
+    T_TV, T_VN, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
-from softproxy.geometry import CONTACT_TOL, GRAZE
-from softproxy.mesh import ABOVE_TOL, POINT_RADIUS, WALK_STEPS, MeshShape
+from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
+
+POINT_RADIUS = 1e-8
+"""A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
+from the nearest point to a point lying on it is rounding noise, so whether it moves into the
+mesh is not decidable; 10 nm gives it a direction and is far below the 1 µm promise."""
+WALK_STEPS = 8
+"""Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
+
 
 GRID_CELLS = 48
 """Most grid cells per axis of a mesh's grid."""
@@ -86,7 +92,7 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
     rows of the shape table S filled in (where their triangles and grid live). A world with
     no mesh gets empty tables (the kernels' types stay the same)."""
-    meshes = [(k, s) for k, s in enumerate(shapes) if isinstance(s, MeshShape)]
+    meshes = [(k, s) for k, s in enumerate(shapes) if s.gtype == GEOM_MESH]
     ntri = sum(s.triangles for _, s in meshes)
     rows, grids = [], []
     t0 = 0
@@ -102,19 +108,19 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rho = np.sqrt(((corners - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1) * (1.0 + 1e-12) + 1e-15
         records = np.column_stack([planes[tid], centre[tid], rho[tid], tid + t0])
         first = c0 + len(starts)  # where this mesh's records begin in C
-        S[k, S_T0], S[k, S_NT], S[k, S_CELLS] = t0, len(t), c0
-        S[k, S_LOX], S[k, S_LOY], S[k, S_LOZ] = lo
-        S[k, S_H] = h
-        S[k, S_DIMX], S[k, S_DIMY], S[k, S_DIMZ] = dims
-        S[k, S_SIGNED] = 1.0 if s.signed else 0.0
-        S[k, S_SHADING] = 1.0 if s.shading else 0.0
-        S[k, S_HINT] = -1.0
-        S[k, S_KEY:S_KEY + 3] = S[k, S_KEY + KEPT_WIDTH:S_KEY + KEPT_WIDTH + 3] = math.nan  # none kept
+        S[k].t0, S[k].nt, S[k].cells = t0, len(t), c0
+        S[k].lox, S[k].loy, S[k].loz = lo
+        S[k].h = h
+        S[k].dimx, S[k].dimy, S[k].dimz = dims
+        S[k].signed = s.signed
+        S[k].shading = s.shading
+        S[k].hint = -1
+        S[k].key[:, :] = math.nan  # none kept
         grids += [first + RECORD_WIDTH * starts, records.ravel()]
         c0 = first + records.size
-        columns, kept, S[k, S_KEPT] = certificate_tables(s, t0, c0)
+        columns, kept, S[k].kept = certificate_tables(s, t0, c0)
         rows.append(np.column_stack([t, edges, pseudo, np.array(s._vn), columns]))
-        S[k, S_VERTS] = c0
+        S[k].verts = c0
         grids.append(kept)
         c0 += len(kept)
         t0 += len(t)
@@ -307,9 +313,9 @@ def _shade(T, i, qx, qy, qz, nx, ny, nz):
 def _cells(S, k, x0, y0, z0, x1, y1, z1):
     """The range of mesh k's grid cells a box (geom frame, m) overlaps, clamped to the grid:
     (ix0, ix1, iy0, iy1, iz0, iz1, whole), whole when that is every cell."""
-    h = S[k, S_H]
-    nx, ny, nz = int(S[k, S_DIMX]), int(S[k, S_DIMY]), int(S[k, S_DIMZ])
-    lx, ly, lz = S[k, S_LOX], S[k, S_LOY], S[k, S_LOZ]
+    h = S[k].h
+    nx, ny, nz = int(S[k].dimx), int(S[k].dimy), int(S[k].dimz)
+    lx, ly, lz = S[k].lox, S[k].loy, S[k].loz
     ix0 = min(max(int(math.floor((x0 - lx) / h)), 0), nx - 1)
     ix1 = min(max(int(math.floor((x1 - lx) / h)), 0), nx - 1)
     iy0 = min(max(int(math.floor((y0 - ly) / h)), 0), ny - 1)
@@ -323,10 +329,10 @@ def _cells(S, k, x0, y0, z0, x1, y1, z1):
 @njit(cache=True)
 def _outside_grid(S, k, x0, y0, z0, x1, y1, z1):
     """True when a box (geom frame, m) misses mesh k's grid box, so holds no triangle."""
-    h = S[k, S_H]
-    return (x1 < S[k, S_LOX] or y1 < S[k, S_LOY] or z1 < S[k, S_LOZ]
-            or x0 > S[k, S_LOX] + h * S[k, S_DIMX] or y0 > S[k, S_LOY] + h * S[k, S_DIMY]
-            or z0 > S[k, S_LOZ] + h * S[k, S_DIMZ])
+    h = S[k].h
+    return (x1 < S[k].lox or y1 < S[k].loy or z1 < S[k].loz
+            or x0 > S[k].lox + h * S[k].dimx or y0 > S[k].loy + h * S[k].dimy
+            or z0 > S[k].loz + h * S[k].dimz)
 
 
 # ---------------------------------------------------------------------------------------
@@ -338,16 +344,16 @@ def _column(S, k, ix, iy, x, y, z, radius):
     """The cells (iz0, iz1) of column (ix, iy) of mesh k's grid that come within `radius` (m)
     of p (geom frame); iz0 > iz1 when none does. A column's cells are contiguous in C, so
     their records are read as one run."""
-    h = S[k, S_H]
-    x0, y0 = S[k, S_LOX] + ix * h, S[k, S_LOY] + iy * h
+    h = S[k].h
+    x0, y0 = S[k].lox + ix * h, S[k].loy + iy * h
     ex = x0 - x if x < x0 else x - x0 - h if x > x0 + h else 0.0
     ey = y0 - y if y < y0 else y - y0 - h if y > y0 + h else 0.0
     rest = radius * radius - ex * ex - ey * ey
     if rest < 0.0:
         return 1, 0
     dz = math.sqrt(rest)
-    nz = int(S[k, S_DIMZ])
-    lz = S[k, S_LOZ]
+    nz = int(S[k].dimz)
+    lz = S[k].loz
     if z + dz < lz or z - dz > lz + nz * h:
         return 1, 0  # above or below the grid
     iz0 = min(max(int(math.floor((z - dz - lz) / h)), 0), nz - 1)
@@ -361,7 +367,7 @@ def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
     nearer triangle (across the edge, or onto an edge leaving the vertex that rises above the
     tangent plane there), WALK_STEPS at most, so that a certificate holds more often.
     Returns (d2, qx, qy, qz, feature, hint)."""
-    verts = int(S[k, S_VERTS])
+    verts = int(S[k].verts)
     for _ in range(WALK_STEPS):
         if feature == 0 or d2 <= 0.0:
             break
@@ -416,7 +422,7 @@ def _nearest(S, T, C, k, x, y, z):
     best2 = math.inf
     qx = qy = qz = 0.0
     bf = 0
-    bi = int(S[k, S_HINT])
+    bi = int(S[k].hint)
     if bi >= 0:
         best2, qx, qy, qz, bf, bi = _from_hint(S, T, C, k, bi, x, y, z)
         if best2 > 0.0:
@@ -430,13 +436,13 @@ def _nearest(S, T, C, k, x, y, z):
                         d2, rx, ry, rz, f = _closest(T, i, x, y, z)
                         if d2 < best2:
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
-                S[k, S_HINT] = bi
+                S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
         half = math.sqrt(best2) * (1.0 + 1e-9) + 1e-12
     else:
-        half = S[k, S_H]
-    ny, nz = int(S[k, S_DIMY]), int(S[k, S_DIMZ])
-    cells = int(S[k, S_CELLS])
+        half = S[k].h
+    ny, nz = int(S[k].dimy), int(S[k].dimz)
+    cells = int(S[k].cells)
     while True:
         whole = False
         if not _outside_grid(S, k, x - half, y - half, z - half, x + half, y + half, z + half):
@@ -477,7 +483,7 @@ def _nearest(S, T, C, k, x, y, z):
             break
         # a triangle may be nearer than the best found, outside the cube: a cube that holds it
         half = best * (1.0 + 1e-9) + 1e-12 if best2 < math.inf else 2.0 * half
-    S[k, S_HINT] = bi
+    S[k].hint = bi
     return best, qx, qy, qz, bf, bi
 
 
@@ -492,7 +498,7 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
     else:
         nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
     sign = 1.0
-    if S[k, S_SIGNED] != 0.0:
+    if S[k].signed:
         c = T_PSEUDO + 3 * feature
         px, py, pz = T[i, c], T[i, c + 1], T[i, c + 2]
         if (x - qx) * px + (y - qy) * py + (z - qz) * pz < 0.0:
@@ -501,7 +507,7 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
         elif best == 0.0:
             n = math.sqrt(px * px + py * py + pz * pz)
             nx, ny, nz = px / n, py / n, pz / n
-    if S[k, S_SHADING] != 0.0 and feature <= 3:
+    if S[k].shading and feature <= 3:
         nx, ny, nz = _shade(T, i, qx, qy, qz, nx, ny, nz)
     return sign * best, nx, ny, nz
 
@@ -517,11 +523,11 @@ def _local_distance(S, T, C, k, x, y, z):
 def _keep(S, k, x, y, z, d, nx, ny, nz):
     """Keep the answer (signed distance (m), outward normal) at p (geom frame) as the newest
     of mesh k's two, the older dropped."""
-    a, b = S_KEY, S_KEY + KEPT_WIDTH
+    key = S[k].key
     for c in range(KEPT_WIDTH):
-        S[k, b + c] = S[k, a + c]
-    S[k, a], S[k, a + 1], S[k, a + 2] = x, y, z
-    S[k, a + 3], S[k, a + 4], S[k, a + 5], S[k, a + 6] = d, nx, ny, nz
+        key[1, c] = key[0, c]
+    key[0, 0], key[0, 1], key[0, 2] = x, y, z
+    key[0, 3], key[0, 4], key[0, 5], key[0, 6] = d, nx, ny, nz
 
 
 @njit(cache=True)
@@ -531,7 +537,7 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     keyed by the point in the geom frame, where the triangles never move (the god-object asks
     again about the point it holds, about the point it moved to, and about a sweep's start
     whose nearest point the sweep proved)."""
-    g = int(S[k, S_GEOM])
+    g = int(S[k].geom)
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
     r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
     r20, r21, r22 = xmat[g, 6], xmat[g, 7], xmat[g, 8]
@@ -539,16 +545,16 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     lx = r00 * dx + r10 * dy + r20 * dz
     ly = r01 * dx + r11 * dy + r21 * dz
     lz = r02 * dx + r12 * dy + r22 * dz
-    a, b = S_KEY, S_KEY + KEPT_WIDTH
-    if not (lx == S[k, a] and ly == S[k, a + 1] and lz == S[k, a + 2]):
-        if lx == S[k, b] and ly == S[k, b + 1] and lz == S[k, b + 2]:
+    key = S[k].key
+    if not (lx == key[0, 0] and ly == key[0, 1] and lz == key[0, 2]):
+        if lx == key[1, 0] and ly == key[1, 1] and lz == key[1, 2]:
             for c in range(KEPT_WIDTH):  # the older one: swap the two
-                S[k, a + c], S[k, b + c] = S[k, b + c], S[k, a + c]
+                key[0, c], key[1, c] = key[1, c], key[0, c]
         else:
             d, nx, ny, nz = _local_distance(S, T, C, k, lx, ly, lz)
             _keep(S, k, lx, ly, lz, d, nx, ny, nz)
-    nx, ny, nz = S[k, a + 4], S[k, a + 5], S[k, a + 6]
-    return (S[k, a + 3],
+    nx, ny, nz = key[0, 4], key[0, 5], key[0, 6]
+    return (key[0, 3],
             r00 * nx + r01 * ny + r02 * nz,
             r10 * nx + r11 * ny + r12 * nz,
             r20 * nx + r21 * ny + r22 * nz)
@@ -596,8 +602,8 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
 def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze):
     """`MeshShape._world_hit`: the touch of row `tri` at fraction lam, its normal (geom frame)
     shaded when asked and turned into the world frame; the triangle becomes the hint."""
-    S[k, S_HINT] = tri
-    if S[k, S_SHADING] != 0.0:
+    S[k].hint = tri
+    if S[k].shading:
         qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
         sx, sy, sz = _shade(T, tri, qx, qy, qz, nx, ny, nz)
         if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
@@ -637,7 +643,7 @@ def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az,
     if sd2 >= 0.0:
         d, nx, ny, nz = _answer(S, T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
         _keep(S, k, ax, ay, az, d, nx, ny, nz)
-        S[k, S_HINT] = si
+        S[k].hint = si
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
     return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, ax, ay, az, ux, uy, uz, r, graze)
@@ -664,7 +670,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     reach = r + CONTACT_TOL
     far = reach + length
     far2 = far * far
-    g = int(S[k, S_GEOM])
+    g = int(S[k].geom)
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
     r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
     r20, r21, r22 = xmat[g, 6], xmat[g, 7], xmat[g, 8]
@@ -676,7 +682,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     uy = r01 * dx + r11 * dy + r21 * dz
     uz = r02 * dx + r12 * dy + r22 * dz
     best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
-    hint0 = int(S[k, S_HINT])
+    hint0 = int(S[k].hint)
     if hint0 >= 0:
         d2, qx, qy, qz, feature, hint = _from_hint(S, T, C, k, hint0, ax, ay, az)
         if d2 <= reach * reach and d2 > 1e-24:
@@ -740,15 +746,15 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     bz0, bz1 = min(az, az + uz) - slab, max(az, az + uz) + slab
     if not _outside_grid(S, k, bx0, by0, bz0, bx1, by1, bz1):
         ix0, ix1, iy0, iy1, iz0, iz1, _ = _cells(S, k, bx0, by0, bz0, bx1, by1, bz1)
-        h = S[k, S_H]
+        h = S[k].h
         # a short segment: the columns' cells within the ball about its middle that holds the
         # swept sphere; a long one: each cell of its box whose bounding ball meets the swept one
         short = length <= h
         midx, midy, midz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
         around = slab + 0.5 * length
         cull2 = (slab + 0.8660254037844387 * h) ** 2
-        ny, nz = int(S[k, S_DIMY]), int(S[k, S_DIMZ])
-        cells = int(S[k, S_CELLS])
+        ny, nz = int(S[k].dimy), int(S[k].dimz)
+        cells = int(S[k].cells)
         C[C_STAMP] += 1.0
         stamp = C[C_STAMP]
         if bi >= 0:
@@ -764,9 +770,9 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
                             dd, graze, slab, reach, length, best_lam, bnx, bny, bnz, bi, far2)
                     continue
                 for iz in range(iz0, iz1 + 1):
-                    cx = S[k, S_LOX] + (ix + 0.5) * h - ax
-                    cy = S[k, S_LOY] + (iy + 0.5) * h - ay
-                    cz = S[k, S_LOZ] + (iz + 0.5) * h - az
+                    cx = S[k].lox + (ix + 0.5) * h - ax
+                    cy = S[k].loy + (iy + 0.5) * h - ay
+                    cz = S[k].loz + (iz + 0.5) * h - az
                     t = (cx * ux + cy * uy + cz * uz) / dd
                     t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
                     cx, cy, cz = cx - t * ux, cy - t * uy, cz - t * uz

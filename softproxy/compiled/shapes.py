@@ -17,59 +17,17 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy import geometry
-from softproxy.geometry import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
 from softproxy.compiled.layout import (
-    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE,
-    S_A, S_B, S_BODY, S_C, S_COLUMNS, S_CONVEX, S_FLAT, S_GEOM, S_RBOUND, S_STATIC, S_TYPE,
+    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, SHAPE,
 )
-from softproxy.compiled.mesh import mesh_distance, mesh_sweep, mesh_tables
-from softproxy.mesh import MeshShape
-
-# exact classes only: a subclass may answer differently from its compiled twin
-_TYPES = {
-    geometry.PlaneShape: GEOM_PLANE,
-    geometry.SphereShape: GEOM_SPHERE,
-    geometry.CapsuleShape: GEOM_CAPSULE,
-    geometry.EllipsoidShape: GEOM_ELLIPSOID,
-    geometry.CylinderShape: GEOM_CYLINDER,
-    geometry.BoxShape: GEOM_BOX,
-    MeshShape: GEOM_MESH,
-}
-
-
-def shape_tables(shapes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The shape table S (nshapes × S_COLUMNS, float64) of a list of `softproxy.geometry`
-    shapes, and the mesh tables (T, C) its meshes' rows point into."""
-    S = np.zeros((len(shapes), S_COLUMNS), dtype=np.float64)
-    for k, s in enumerate(shapes):
-        gtype = _TYPES.get(type(s))
-        if gtype is None:
-            raise ValueError(f"shape {getattr(s, 'name', k)!r} ({type(s).__name__}) is not a shape the compiled "
-                             "engine supports (plane, sphere, capsule, ellipsoid, cylinder, box, mesh)")
-        S[k, S_TYPE] = gtype
-        S[k, S_GEOM] = s.geom
-        S[k, S_BODY] = s.body
-        S[k, S_STATIC] = 1.0 if s.static else 0.0
-        S[k, S_CONVEX] = 1.0 if s.convex else 0.0
-        S[k, S_FLAT] = 1.0 if s.flat else 0.0
-        S[k, S_RBOUND] = s.rbound
-        if gtype == GEOM_SPHERE:
-            S[k, S_A] = s.radius
-        elif gtype == GEOM_CAPSULE or gtype == GEOM_CYLINDER:
-            S[k, S_A], S[k, S_B] = s.radius, s.half
-        elif gtype == GEOM_BOX:
-            S[k, S_A], S[k, S_B], S[k, S_C] = s.hx, s.hy, s.hz
-        elif gtype == GEOM_ELLIPSOID:
-            S[k, S_A], S[k, S_B], S[k, S_C] = s.a, s.b, s.c
-    T, C = mesh_tables(shapes, S)
-    return S, T, C
+from softproxy.compiled.mesh import mesh_distance, mesh_sweep
+from softproxy.compiled.tolerances import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
 
 
 @njit(cache=True)
 def shape_to_local(S, xpos, xmat, k, x, y, z):
     """World point (m) to shape k's geom frame (m), as `Shape.to_local`."""
-    g = int(S[k, S_GEOM])
+    g = int(S[k].geom)
     dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
     return (xmat[g, 0] * dx + xmat[g, 3] * dy + xmat[g, 6] * dz,
             xmat[g, 1] * dx + xmat[g, 4] * dy + xmat[g, 7] * dz,
@@ -79,7 +37,7 @@ def shape_to_local(S, xpos, xmat, k, x, y, z):
 @njit(cache=True)
 def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
     """Point in shape k's geom frame (m) to world (m): the inverse of `shape_to_local`."""
-    g = int(S[k, S_GEOM])
+    g = int(S[k].geom)
     return (xmat[g, 0] * lx + xmat[g, 1] * ly + xmat[g, 2] * lz + xpos[g, 0],
             xmat[g, 3] * lx + xmat[g, 4] * ly + xmat[g, 5] * lz + xpos[g, 1],
             xmat[g, 6] * lx + xmat[g, 7] * ly + xmat[g, 8] * lz + xpos[g, 2])
@@ -164,10 +122,12 @@ def _ellipsoid_local(a, b, c, x, y, z):
 @njit(cache=True)
 def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside) from shape k and outward unit normal, world frame."""
-    t = int(S[k, S_TYPE])
+    t = int(S[k].type)
     if t == GEOM_MESH:
+        if T is None:  # a world without meshes (T, C are None): the mesh kernels are not compiled
+            return (math.inf, 0.0, 0.0, 1.0)
         return mesh_distance(S, T, C, xpos, xmat, k, x, y, z)
-    g = int(S[k, S_GEOM])
+    g = int(S[k].geom)
     px, py, pz = xpos[g, 0], xpos[g, 1], xpos[g, 2]
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
     r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
@@ -175,7 +135,7 @@ def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
     if t == GEOM_PLANE:
         return (r02 * (x - px) + r12 * (y - py) + r22 * (z - pz), r02, r12, r22)
     if t == GEOM_SPHERE:
-        radius = S[k, S_A]
+        radius = S[k].a
         dx, dy, dz = x - px, y - py, z - pz
         n = math.sqrt(dx * dx + dy * dy + dz * dz)
         if n == 0.0:
@@ -189,7 +149,7 @@ def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
         sx = 1.0 if lx >= 0.0 else -1.0
         sy = 1.0 if ly >= 0.0 else -1.0
         sz = 1.0 if lz >= 0.0 else -1.0
-        qx, qy, qz = sx * lx - S[k, S_A], sy * ly - S[k, S_B], sz * lz - S[k, S_C]
+        qx, qy, qz = sx * lx - S[k].a, sy * ly - S[k].b, sz * lz - S[k].c
         if qx <= 0.0 and qy <= 0.0 and qz <= 0.0:
             if qx >= qy and qx >= qz:
                 return (qx, sx * r00, sx * r10, sx * r20)
@@ -204,11 +164,11 @@ def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
         return (n, r00 * ox + r01 * oy + r02 * oz, r10 * ox + r11 * oy + r12 * oz,
                 r20 * ox + r21 * oy + r22 * oz)
     if t == GEOM_CAPSULE:
-        d, nx, ny, nz = _capsule_local(S[k, S_A], S[k, S_B], lx, ly, lz)
+        d, nx, ny, nz = _capsule_local(S[k].a, S[k].b, lx, ly, lz)
     elif t == GEOM_CYLINDER:
-        d, nx, ny, nz = _cylinder_local(S[k, S_A], S[k, S_B], lx, ly, lz)
+        d, nx, ny, nz = _cylinder_local(S[k].a, S[k].b, lx, ly, lz)
     elif t == GEOM_ELLIPSOID:
-        d, nx, ny, nz = _ellipsoid_local(S[k, S_A], S[k, S_B], S[k, S_C], lx, ly, lz)
+        d, nx, ny, nz = _ellipsoid_local(S[k].a, S[k].b, S[k].c, lx, ly, lz)
     else:
         raise ValueError("shape_distance: unsupported shape type")
     return (d,
@@ -221,11 +181,13 @@ def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
 def shape_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by (dx, dy, dz) (m) into shape k; (-1.0, 0.0, 0.0, 0.0) when it touches nothing."""
-    t = int(S[k, S_TYPE])
+    t = int(S[k].type)
     if t == GEOM_MESH:
+        if T is None:
+            return (-1.0, 0.0, 0.0, 0.0)
         return mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r)
     if t == GEOM_PLANE:
-        g = int(S[k, S_GEOM])
+        g = int(S[k].geom)
         nx, ny, nz = xmat[g, 2], xmat[g, 5], xmat[g, 8]
         gap = nx * (x0 - xpos[g, 0]) + ny * (y0 - xpos[g, 1]) + nz * (z0 - xpos[g, 2]) - r
         approach = nx * dx + ny * dy + nz * dz
@@ -261,11 +223,11 @@ def shape_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
 def shape_on_face(S, xmat, k, nx, ny, nz):
     """True when world normal n lies on a planar face of shape k (plane always, box faces;
     never on a mesh: see `softproxy.compiled.mesh`)."""
-    t = int(S[k, S_TYPE])
+    t = int(S[k].type)
     if t == GEOM_PLANE:
         return True
     if t == GEOM_BOX:
-        g = int(S[k, S_GEOM])
+        g = int(S[k].geom)
         return (abs(xmat[g, 0] * nx + xmat[g, 3] * ny + xmat[g, 6] * nz) > FACE_PARALLEL
                 or abs(xmat[g, 1] * nx + xmat[g, 4] * ny + xmat[g, 7] * nz) > FACE_PARALLEL
                 or abs(xmat[g, 2] * nx + xmat[g, 5] * ny + xmat[g, 8] * nz) > FACE_PARALLEL)
