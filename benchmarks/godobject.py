@@ -8,10 +8,10 @@ scripted per situation. Each update is timed alone; the table gives p50 / p99 in
 the targets (≤ 10 µs on primitives, ≤ 30 µs on a 10k-triangle mesh) and CHAI3D's figures.
 A Python function call is timed in the same run, so the figures can be read in calls.
 
-Each situation is run twice on the same path: by the Python `GodObject`, and by the compiled
-one (`softproxy.compiled.godobject.update`, what `ServoLoop(compiled=True)` runs), each call
-timed from Python, so the compiled figure includes numba's dispatch of its 14 arguments
-(~1 µs; in the servo tick one dispatch serves every finger).
+Each update is timed from Python through `GodObject.update` (the view a library user calls:
+argument checks plus numba's dispatch of the kernel's 12 arguments, ~1-2 µs of each figure).
+In the servo tick one compiled call serves every finger, so the tick pays the kernel alone;
+the free-space row, where the kernel does almost nothing, shows what the dispatch costs.
 """
 
 from __future__ import annotations
@@ -123,8 +123,8 @@ def _python_call_us(n: int = 200_000) -> float:
     return best
 
 
-def _python_pass(case: dict, updates: int, warm: int):
-    """The Python god-object on the case's path: (µs per update, contacts, deepest inside (m))."""
+def _pass(case: dict, updates: int, warm: int):
+    """The god-object on the case's path: (µs per update, contacts, deepest inside (m))."""
     world = _world(case)
     god = GodObject(world.shapes, RADIUS, case["mu"], 0.8 * case["mu"], case["start"])
     path = case["path"]
@@ -144,51 +144,19 @@ def _python_pass(case: dict, updates: int, warm: int):
     return times * 1e6, contacts, worst
 
 
-def _compiled_pass(case: dict, updates: int, warm: int):
-    """The compiled god-object on the case's path: (µs per update, deepest inside (m))."""
-    from softproxy.compiled import godobject
-    from softproxy.compiled.layout import F_COLUMNS, G_X, G_Y, G_Z
-    from softproxy.compiled.shapes import shape_tables
-
-    world = _world(case)
-    god = GodObject(world.shapes, RADIUS, case["mu"], 0.8 * case["mu"], case["start"])
-    S, T, C = shape_tables(world.shapes)
-    g = np.zeros(F_COLUMNS)
-    near = np.zeros(len(world.shapes), dtype=np.int64)
-    godobject.pack_god(god, {id(s): k for k, s in enumerate(world.shapes)}, g, near)
-    work = godobject.scratch()
-    w0, w1, w2, w3 = work
-    xpos, xmat = world.data.geom_xpos, world.data.geom_xmat
-    update = godobject.update
-    path = case["path"]
-    clock = time.perf_counter
-    for i in range(warm):
-        update(S, T, C, xpos, xmat, g, near, *path(i), w0, w1, w2, w3)
-    times = np.empty(updates)
-    worst = 0.0
-    for i in range(updates):
-        xd, yd, zd = path(warm + i)
-        t0 = clock()
-        update(S, T, C, xpos, xmat, g, near, xd, yd, zd, w0, w1, w2, w3)
-        times[i] = clock() - t0
-        worst = max(worst, _inside(world, g[G_X], g[G_Y], g[G_Z]))
-    return times * 1e6, worst
-
-
 def _inside(world: World, x: float, y: float, z: float) -> float:
     """How deep a RADIUS proxy at p sits inside the world's deepest shape (m, 0 when outside)."""
     return max(0.0, max(RADIUS - shape.distance(x, y, z)[0] for shape in world.shapes))
 
 
-def measure(updates: int = 3000, warm: int = 500, progress=None, compiled: bool = True) -> dict:
-    """Time every situation (Python, then compiled unless `compiled` is False); returns the
-    result dict (µs)."""
+def measure(updates: int = 3000, warm: int = 500, progress=None) -> dict:
+    """Time every situation; returns the result dict (µs)."""
     rows = []
     cases = situations()
     for k, case in enumerate(cases):
         if progress is not None:
             progress(f"{case['name']} ({k + 1}/{len(cases)})")
-        us, contacts, worst = _python_pass(case, updates, warm)
+        us, contacts, worst = _pass(case, updates, warm)
         row = {
             "situation": case["name"],
             "p50_us": round(float(np.percentile(us, 50)), 2),
@@ -199,11 +167,6 @@ def measure(updates: int = 3000, warm: int = 500, progress=None, compiled: bool 
             "penetration_max_m": float(worst),
             "_us": us,
         }
-        if compiled:
-            cus, cworst = _compiled_pass(case, updates, warm)
-            row["compiled"] = {"p50_us": round(float(np.percentile(cus, 50)), 2),
-                               "p99_us": round(float(np.percentile(cus, 99)), 2),
-                               "penetration_max_m": float(cworst)}
         rows.append(row)
     return {"radius_m": RADIUS, "updates": updates, "python_call_us": round(_python_call_us(), 4), "rows": rows}
 
@@ -213,9 +176,7 @@ def chart(result: dict):
     rows = result["rows"]
     names = [r["situation"] for r in rows]
     y = np.arange(len(rows))
-    ax.barh(y, [r["p50_us"] for r in rows], color="#4a7ab8", label="softproxy p50 (Python)")
-    if all("compiled" in r for r in rows):
-        ax.barh(y, [r["compiled"]["p50_us"] for r in rows], height=0.35, color="#e0a030", label="softproxy p50 (compiled)")
+    ax.barh(y, [r["p50_us"] for r in rows], color="#4a7ab8", label="softproxy p50")
     ax.scatter([r["p99_us"] for r in rows], y, color="#1f3d66", marker="|", s=200, label="softproxy p99")
     ax.scatter([r["target_us"] for r in rows], y, color="#c03030", marker="x", label="target")
     chai = [(r["chai3d_us"], i) for i, r in enumerate(rows) if r["chai3d_us"]]
@@ -243,17 +204,11 @@ def main(args) -> int:
         return 0
     print(f"god-object update, {result['radius_m'] * 1e3:g} mm proxy, {result['updates']} updates each "
           f"(a Python call costs {result['python_call_us']} µs here); µs")
-    print(f"  {'':40s}{'Python':>16s}{'compiled':>16s}")
-    print(f"  {'situation':40s}{'p50':>8s}{'p99':>8s}{'p50':>8s}{'p99':>8s}{'target':>8s}{'CHAI3D':>8s}  inside max (m)")
+    print(f"  {'situation':40s}{'p50':>8s}{'p99':>8s}{'target':>8s}{'CHAI3D':>8s}  inside max (m)")
     for r in result["rows"]:
         chai = f"{r['chai3d_us']:8.2f}" if r["chai3d_us"] else f"{'-':>8s}"
-        c = r.get("compiled")
-        compiled = f"{c['p50_us']:8.2f}{c['p99_us']:8.2f}" if c else f"{'-':>8s}{'-':>8s}"
-        inside = max(r["penetration_max_m"], c["penetration_max_m"] if c else 0.0)
-        over = [name for name, p50 in (("Python", r["p50_us"]), ("compiled", c and c["p50_us"]))
-                if p50 is not None and p50 > r["target_us"]]
-        flag = f"  (over target: {', '.join(over)})" if over else ""
-        print(f"  {r['situation']:40s}{r['p50_us']:8.2f}{r['p99_us']:8.2f}{compiled}{r['target_us']:8.1f}{chai}  "
-              f"{inside:.1e}{flag}")
+        flag = "  (over target)" if r["p50_us"] > r["target_us"] else ""
+        print(f"  {r['situation']:40s}{r['p50_us']:8.2f}{r['p99_us']:8.2f}{r['target_us']:8.1f}{chai}  "
+              f"{r['penetration_max_m']:.1e}{flag}")
     print(f"  wrote {json_path} and {png_path}")
     return 0

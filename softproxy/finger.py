@@ -15,7 +15,6 @@ read the same record.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -228,6 +227,26 @@ class SoftFingerProxy:
         r = self._rows
         return kernel.update_row(*self._args(), r.shapes.data.cvel, r.F, r.near, self._i, float(x), float(y),
                                  float(z), float(twist), float(dt), r.scratch)
+
+    def use_torsion(self, model: FingertipModel | None) -> None:
+        """Between ticks: make the finger a soft finger with `model`'s torsion law (a fresh
+        torsion, out of contact, slip count kept) or, with None, a point contact; either way
+        the torque is zero until the next tick computes one."""
+        slips = self.torsion.slip_events if self.torsion is not None else 0
+        rec = self._rec
+        rec["torque"] = rec["tx"] = rec["ty"] = rec["tz"] = 0.0
+        rec["stwist"] = 0.0
+        if model is None:
+            if self.torsion is not None:
+                self.torsion.release()
+            rec["has_torsion"] = False
+            self.torsion = None
+            return
+        p = self.params
+        self.model = model
+        self.torsion = TorsionalFriction(model, p.torsion_stiffness, p.torsion_mu_s, p.torsion_mu_d, p.saturate,
+                                         rows=self._rows, i=self._i)
+        rec["slip_events"] = slips
 
     @property
     def slip_events(self) -> int:

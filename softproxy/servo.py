@@ -31,6 +31,7 @@ import numpy as np
 from softproxy import termination
 from softproxy.device import Device, DeviceSample, check_device
 from softproxy.compiled import finger as kernel
+from softproxy.compiled.dispatch import entry
 from softproxy.device_guard import as_limit
 from softproxy.finger import SoftFingerProxy
 from softproxy.finger_rows import FingerRows
@@ -152,13 +153,16 @@ class ServoLoop:
         self._compile()
 
     def _compile(self) -> None:
-        """Compile (or load from numba's cache) the tick now, not inside the first tick: one
-        call on copies of everything the tick writes."""
+        """Compile (or load from numba's cache) the tick now, not inside the first tick, and
+        keep its entry point (`softproxy.compiled.dispatch`): one call on copies of everything
+        the tick writes."""
         world, rows = self.world, self.rows
         s = world.shapes
-        kernel.tick(s.S.copy(), s.T, None if s.C is None else s.C.copy(), s.xpos, s.xmat, world.data.cvel,
-                    rows.F.copy(), rows.near.copy(), self.period, False, False, 1.0, 1.0, rows.scratch.copy(),
-                    world.wrench.copy(), world.bodies.copy(), world.counts.copy())
+        args = (s.S.copy(), s.T, None if s.C is None else s.C.copy(), s.xpos, s.xmat, world.cvel, rows.F.copy(),
+                rows.near.copy(), self.period, False, False, 1.0, 1.0, rows.scratch.copy(), world.wrench.copy(),
+                world.bodies.copy(), world.counts.copy())
+        kernel.tick(*args)
+        self._tick_kernel = entry(kernel.tick, args)
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -202,6 +206,7 @@ class ServoLoop:
         self._safe_next = False
         world.begin_step()
         self._fingers(ok, safe, dt)
+        self._sends()
         for ch in self.sensors:
             ch.tick(self)
         world.end_step()
@@ -214,9 +219,8 @@ class ServoLoop:
         self.stats.record(duration, dt)
 
     def _fingers(self, ok: bool, safe: bool, dt: float) -> None:
-        """Every finger's part of the tick: this tick's samples into the finger records, one
-        compiled call (update or hold, wrench, the device guard), then each device finger is
-        sent what the tick computed."""
+        """Every finger's part of the tick: this tick's samples into the finger records, then
+        one compiled call (update or hold, wrench, the device guard)."""
         floats, flags, samples = self._floats, self._bytes, self.samples
         unusable = 0
         for k, valid, _, j in self._io:
@@ -236,14 +240,18 @@ class ServoLoop:
                 unusable += ok
         world, rows, device = self.world, self.rows, self.device
         shapes = world.shapes
-        refused, unsafe = kernel.tick(shapes.S, shapes.T, shapes.C, shapes.xpos, shapes.xmat, world.data.cvel, rows.F,
-                                      rows.near, dt, safe, self.audit, as_limit(device.max_force),
+        refused, unsafe = self._tick_kernel(shapes.S, shapes.T, shapes.C, shapes.xpos, shapes.xmat, world.cvel, rows.F,
+                                      rows.near, dt, safe, bool(self.audit), as_limit(device.max_force),
                                       as_limit(device.max_torque), rows.scratch, world.wrench, world.bodies,
                                       world.counts)
         if unusable or refused:
             self.faults["invalid_sample"] += unusable + refused
         if unsafe:
             self.faults["unsafe_output"] += unsafe
+
+    def _sends(self) -> None:
+        """Each device finger is sent what the tick computed for it (guarded, clamped)."""
+        floats, device = self._floats, self.device
         for _, _, k, j in self._io:
             try:
                 device.send(j, floats[k], floats[k + 1], floats[k + 2], floats[k + 3], floats[k + 4], floats[k + 5])

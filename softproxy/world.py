@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from softproxy.compiled import finger as kernel
+from softproxy.compiled.dispatch import entry
 from softproxy.geometry import ShapeSet, shapes_of
 
 
@@ -44,6 +45,8 @@ class World:
         self.counts = np.zeros(2, dtype=np.int64)
         self._xfrc = self.data.xfrc_applied  # views into mjData, kept
         self._xipos = self.data.xipos
+        self.cvel = self.data.cvel  # bodies' velocities after mj_step1 (ω drags the torsion, eqs 41-42)
+        self._write = entry(kernel.write_wrenches, (self._xfrc, self._xipos, self.wrench, self.bodies, self.counts))
 
     @property
     def timestep(self) -> float:
@@ -69,7 +72,7 @@ class World:
     def end_step(self) -> None:
         """Write this tick's wrenches (moved to each body's centre of mass; last tick's cleared)
         into xfrc_applied, then the second half of mj_step."""
-        kernel.write_wrenches(self._xfrc, self._xipos, self.wrench, self.bodies, self.counts)
+        self._write(self._xfrc, self._xipos, self.wrench, self.bodies, self.counts)
         mujoco.mj_step2(self.model, self.data)
 
     def clear_wrenches(self) -> None:

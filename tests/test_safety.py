@@ -59,12 +59,12 @@ class PressingDevice:
         self.closed += 1
 
 
-def loop_on_plane(device, compiled=False, **params):
+def loop_on_plane(device, **params):
     world = World(mujoco.MjModel.from_xml_string(PLANE))
     params = {"soft_start": 0.0, **params}
     fingers = [SoftFingerProxy(FingerParams(name=f"f{i}", radius=0.005, device_finger=i, **params),
                                world.shapes, model("CH")) for i in range(device.fingers)]
-    return ServoLoop(world, fingers, device, 1000.0, overrun_watchdog=False, compiled=compiled)
+    return ServoLoop(world, fingers, device, 1000.0, overrun_watchdog=False)
 
 
 def assert_sends_safe(device, fmax, tmax):
@@ -76,17 +76,13 @@ def assert_sends_safe(device, fmax, tmax):
     return w
 
 
-ENGINES = [False, pytest.param(True, id="compiled")]
-
-
-@pytest.mark.parametrize("compiled", ENGINES)
 @pytest.mark.parametrize("field", ["damping", "torsion_damping"])
-def test_broken_gains_render_zero_and_count_a_fault(field, compiled):
+def test_broken_gains_render_zero_and_count_a_fault(field):
     """Gains past what validation admits (set on a live finger: 1e308) make the wrench Inf/NaN:
     the device and the body get zero, and each such tick is an `unsafe_output` fault."""
     device = PressingDevice()
     device.twist_rate = 0.0  # b_τ·d(stretch)/dt is then Inf·0 = NaN
-    loop = loop_on_plane(device, compiled)
+    loop = loop_on_plane(device)
     loop.run(40)  # in contact, pressing
     assert np.linalg.norm(device.sends[-2][1:4]) > 1.0
     assert not loop.faults["unsafe_output"]
@@ -94,23 +90,20 @@ def test_broken_gains_render_zero_and_count_a_fault(field, compiled):
     f = loop.fingers[0]
     attr = {"damping": "b", "torsion_damping": "b_tau"}[field]
     setattr(f, attr, 1e308)
-    if compiled:
-        loop.compiled.pack()
     loop.run(60)
     w = assert_sends_safe(device, 5.0, 0.05)
     late = w[before:-1]  # the run's ticks after the change (the last send is stop()'s zero)
-    print(f"{field}=1e308 ({'compiled' if compiled else 'python'}): {len(late)} sends, "
+    print(f"{field}=1e308: {len(late)} sends, "
           f"{loop.faults['unsafe_output']} unsafe outputs, largest |F| {np.linalg.norm(late[:, :3], axis=1).max():.3g} N")
     assert loop.faults["unsafe_output"] > 0
     assert np.isfinite(loop.world.data.qpos).all() and np.isfinite(loop.world.data.xfrc_applied).all()
 
 
-@pytest.mark.parametrize("compiled", ENGINES)
-def test_a_device_limit_that_turns_nan_mid_run_zeroes_the_force(compiled):
+def test_a_device_limit_that_turns_nan_mid_run_zeroes_the_force():
     """A device whose max_force becomes NaN, None, negative or a string after the loop was built:
     zero force and a fault each tick, until the limit is a number again."""
     device = PressingDevice(max_force=2.0)
-    loop = loop_on_plane(device, compiled, stiffness=5000.0)
+    loop = loop_on_plane(device, stiffness=5000.0)
     loop.run(50)
     w = assert_sends_safe(device, 2.0, 0.05)
     assert np.linalg.norm(w[-2, :3]) > 1.9  # pressing at the device's clamp, not the finger's 40 N
@@ -148,19 +141,17 @@ GARBAGE = [None, "0.01", b"x", np.array([0.0, 1.0]), [0.0], 10 ** 400, math.nan,
 NUMBERS = [0, np.float32(0.004), np.float64(0.004), np.array(0.004), np.int64(0)]
 
 
-@pytest.mark.parametrize("compiled", ENGINES)
-def test_sample_fields_of_the_wrong_type_are_invalid_samples(compiled):
+def test_sample_fields_of_the_wrong_type_are_invalid_samples():
     """None, str, arrays, 10**400 in any field or in `valid`: never an exception out of tick(),
     a send every tick for every finger, zero force that tick, one invalid_sample each; numbers
     of other types (int, numpy scalars) are used as the floats they are."""
     device = PressingDevice(fingers=2)
-    loop = loop_on_plane(device, compiled)
+    loop = loop_on_plane(device)
     loop.run(30)
     fields = ("x", "y", "z", "twist", "qw", "qx", "valid")
     rng = np.random.default_rng(7)
     garbage_ticks = 0
     for k in range(300):
-        loop.sync()
         kind = rng.integers(3)
         if kind == 0:
             device.garbage = (fields[rng.integers(len(fields))], GARBAGE[rng.integers(len(GARBAGE))])
@@ -180,15 +171,14 @@ def test_sample_fields_of_the_wrong_type_are_invalid_samples(compiled):
             assert loop.fingers[0].valid
     loop.stop()
     assert_sends_safe(device, 5.0, 0.05)
-    print(f"garbage samples ({'compiled' if compiled else 'python'}): {garbage_ticks} garbage ticks of 300, "
+    print(f"garbage samples: {garbage_ticks} garbage ticks of 300, "
           f"{loop.faults['invalid_sample']} invalid samples counted, {len(device.sends)} sends, all finite")
 
 
-@pytest.mark.parametrize("compiled", ENGINES)
-def test_leaving_a_with_block_sends_zero_and_closes_the_device(compiled):
+def test_leaving_a_with_block_sends_zero_and_closes_the_device():
     device = PressingDevice(fingers=2)
     with pytest.raises(ZeroDivisionError):
-        with loop_on_plane(device, compiled) as loop:
+        with loop_on_plane(device) as loop:
             loop.run(40)
             assert any(any(s[1:]) for s in device.sends[-4:])
             for _ in range(5):
@@ -325,8 +315,7 @@ def test_every_way_out_of_a_run_sends_zero_force(tmp_path, how, sig):
         assert code == 128 + sig
 
 
-@pytest.mark.parametrize("compiled", ENGINES)
-def test_after_a_device_outage_the_force_ramps_back_in(compiled):
+def test_after_a_device_outage_the_force_ramps_back_in():
     """The device fails for 0.3 s while the hand pushes 15 mm deeper: when it is back, the
     force comes back over the soft start (0.1 s), not as a one-tick kick to the spring's 30 N."""
     from softproxy.device import DeviceError
@@ -342,7 +331,7 @@ def test_after_a_device_outage_the_force_ramps_back_in(compiled):
             samples[0].z -= self.depth
 
     device = Outage(max_force=40.0)
-    loop = loop_on_plane(device, compiled, soft_start=0.1)
+    loop = loop_on_plane(device, soft_start=0.1)
     loop.run(100)
     assert 3.0 < np.linalg.norm(device.sends[-2][1:4]) < 5.0
     device.down, device.depth = True, 0.015
@@ -352,7 +341,7 @@ def test_after_a_device_outage_the_force_ramps_back_in(compiled):
     n = len(device.sends)
     loop.run(150)
     force = np.linalg.norm(np.array([s[1:4] for s in device.sends[n:-1]]), axis=1)
-    print(f"after 0.3 s without a device ({'compiled' if compiled else 'python'}): first force {force[0]:.2f} N, "
+    print(f"after 0.3 s without a device: first force {force[0]:.2f} N, "
           f"at 50 ms {force[50]:.1f} N, at 140 ms {force[140]:.1f} N")
     assert force[0] < 0.5
     assert 10.0 < force[50] < 25.0  # half way up the ramp of the 40 N clamp

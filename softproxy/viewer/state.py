@@ -40,7 +40,6 @@ from multiprocessing import shared_memory
 
 from softproxy.fingertip import MODELS
 from softproxy.fingertip import model as fingertip_model
-from softproxy.torsion import TorsionalFriction
 
 MAGIC = 0x5350_5648_4D45_4D31  # "SPVHMEM1"
 HEADER_SLOTS = 32
@@ -196,22 +195,19 @@ def contact_mode(finger) -> int:
 def set_contact_mode(finger, mode: int, saved_slips: dict | None = None) -> bool:
     """Make `finger` a soft finger (torsion) or a point contact (no torsion). True if it changed.
 
-    Point: the torsion goes (`finger.torsion = None`) and the torque it was rendering is
-    zeroed (the finger's update only writes the torque while it has torsion). Soft: a new
-    `TorsionalFriction` from `finger.params`, with the finger's own fingertip model or, if
-    that model has no torsion (a run with `--finger-model point`), the model its params
-    name, else CH; it starts out of contact, so the torque starts at zero at the next
-    tick. `saved_slips` (by finger id) keeps the torsional slip count across switches.
-    Call it between ticks only (the publisher does).
+    Point: the torsion goes and the torque it was rendering is zeroed. Soft: a torsion law
+    from `finger.params`, with the finger's own fingertip model or, if that model has no
+    torsion (a run with `--finger-model point`), the model its params name, else CH; it
+    starts out of contact, so the torque starts at zero at the next tick
+    (`SoftFingerProxy.use_torsion`). `saved_slips` (by finger id) keeps the torsional slip
+    count across switches. Call it between ticks only (the publisher does).
     """
     if mode == contact_mode(finger):
         return False
     if mode == POINT:
         if saved_slips is not None:
             saved_slips[id(finger)] = finger.torsion.slip_events
-        finger.torsion = None
-        finger.torque = finger.tx = finger.ty = finger.tz = 0.0
-        finger._stwist = 0.0
+        finger.use_torsion(None)
         return True
     soft = finger.model
     if not soft.has_torsion:
@@ -221,13 +217,9 @@ def set_contact_mode(finger, mode: int, saved_slips: dict | None = None) -> bool
             soft = None
         if soft is None or not soft.has_torsion:
             soft = fingertip_model("CH")
-        finger.model = soft
-    p = finger.params
-    tors = TorsionalFriction(soft, p.torsion_stiffness, p.torsion_mu_s, p.torsion_mu_d, p.saturate)
+    finger.use_torsion(soft)
     if saved_slips is not None:
-        tors.slip_events = saved_slips.get(id(finger), 0)
-    finger._stwist = 0.0
-    finger.torsion = tors
+        finger.torsion.slip_events = saved_slips.get(id(finger), 0)
     return True
 
 
