@@ -161,8 +161,8 @@ class ServoLoop:
         args = (s.S.copy(), s.T, None if s.C is None else s.C.copy(), s.xpos, s.xmat, world.cvel, rows.F.copy(),
                 rows.near.copy(), self.period, False, False, 1.0, 1.0, rows.scratch.copy(), world.wrench.copy(),
                 world.bodies.copy(), world.counts.copy())
-        kernel.tick(*args)
-        self._tick_kernel = entry(kernel.tick, args)
+        self._tick_kernel = entry(kernel.tick, args, "the servo tick")
+        self._tick_kernel(*args)
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""

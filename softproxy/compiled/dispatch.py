@@ -1,22 +1,73 @@
-"""`entry`: a kernel's compiled machine code for given argument types, called without dispatch.
+"""Calling the kernels from Python: `entry` (no per-call dispatch) and `announced` (compile progress).
 
 numba resolves the types of every argument on every call. For a numpy record array that
 costs ~3 µs (its dtype is walked field by field), more than a finger's whole tick, so the
 servo loop resolves the types once, when it is built, and then calls the compiled entry
 point straight (~0.1 µs). The caller promises to pass arguments of exactly those types (the
 same arrays every tick): the entry point does not check them.
+
+The first run after an install or an update compiles the kernels (~20 s for a world of
+primitives, ~1 min with meshes, on a 2-core machine); later runs load them from numba's
+on-disk cache in about a second. `announced` says so while it happens, so a first run is
+never silent for a minute.
 """
 
 from __future__ import annotations
 
+import sys
+import threading
+import time
+from contextlib import contextmanager
 
-def entry(kernel, args: tuple):
-    """The compiled `kernel` for the types of `args` (compiling it if needed), as a plain
-    callable; `kernel` itself where nothing is compiled (NUMBA_DISABLE_JIT=1)."""
+ANNOUNCE_AFTER_S = 1.5
+"""A compile that takes longer than this is announced (loading from the cache takes less)."""
+
+
+@contextmanager
+def announced(what: str, stream=None, after_s: float = ANNOUNCE_AFTER_S):
+    """While the block runs: if it takes longer than `after_s`, say on `stream` (stderr) that
+    `what` is compiling, with the seconds elapsed every few seconds, and how long it took."""
+    stream = sys.stderr if stream is None else stream
+    done = threading.Event()
+    start = time.monotonic()
+    said = []
+
+    def watch() -> None:
+        if done.wait(after_s):
+            return
+        live = getattr(stream, "isatty", lambda: False)()
+        print(f"softproxy: compiling {what} (first run after an install or an update; cached after)"
+              + ("" if live else " ..."), file=stream, end="" if live else "\n", flush=True)
+        said.append(live)
+        while not done.wait(1.0 if live else 15.0):
+            elapsed = time.monotonic() - start
+            if live:
+                print(f"\rsoftproxy: compiling {what} ... {elapsed:3.0f} s", file=stream, end="", flush=True)
+            else:
+                print(f"softproxy: still compiling {what} ({elapsed:.0f} s)", file=stream, flush=True)
+
+    thread = threading.Thread(target=watch, name="softproxy-compile-progress", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+        if said:
+            elapsed = time.monotonic() - start
+            print(("\r" if said[0] else "") + f"softproxy: compiled {what} in {elapsed:.0f} s" + " " * (20 * said[0]),
+                  file=stream, flush=True)
+
+
+def entry(kernel, args: tuple, what: str | None = None):
+    """The compiled `kernel` for the types of `args` (compiling it, announced as `what`, or
+    loading it from the cache, if needed), as a plain callable; `kernel` itself where nothing
+    is compiled (NUMBA_DISABLE_JIT=1)."""
     overloads = getattr(kernel, "overloads", None)
     if overloads is None:
         return kernel
     types = tuple(kernel.typeof_pyval(a) for a in args)
     if types not in overloads:
-        kernel.compile(types)
+        with announced(what or f"{kernel.__module__}.{kernel.__name__}"):
+            kernel.compile(types)
     return overloads[types].entry_point

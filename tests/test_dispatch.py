@@ -1,0 +1,53 @@
+"""Calling kernels from Python: the entry point without per-call dispatch, compile progress,
+and the compile cache keyed on every file the kernels are built from."""
+
+import io
+import time
+
+import numpy as np
+from numba import njit
+
+from softproxy.compiled import cache
+from softproxy.compiled.dispatch import announced, entry
+from softproxy.compiled.layout import FINGER
+
+
+@njit
+def _sum_x(F, k):
+    s = 0.0
+    for i in range(F.shape[0]):
+        s += F[i].x * k
+    return s
+
+
+def test_entry_point_gives_the_kernels_answer_and_writes_in_place():
+    """The entry point computes what the dispatcher does, on the same record array."""
+    F = np.zeros(3, FINGER).view(np.recarray)
+    F.x = [1.0, 2.0, 3.5]
+    call = entry(_sum_x, (F, 2.0))
+    assert call is not _sum_x
+    assert call(F, 2.0) == _sum_x(F, 2.0) == 13.0
+    F.x[1] = 10.0  # the same array, changed: the entry point reads it live
+    assert call(F, 1.0) == 14.5
+
+
+def test_a_slow_compile_is_announced_and_a_quick_one_is_not():
+    """Longer than `after_s`: a line saying what compiles, and how long it took; quicker: nothing."""
+    out = io.StringIO()
+    with announced("the test kernel", stream=out, after_s=0.05):
+        time.sleep(0.3)
+    text = out.getvalue()
+    assert "compiling the test kernel" in text and "compiled the test kernel in" in text
+    quiet = io.StringIO()
+    with announced("the test kernel", stream=quiet, after_s=5.0):
+        pass
+    assert quiet.getvalue() == ""
+
+
+def test_the_cache_is_keyed_on_every_module_the_kernels_import():
+    """The digest covers the kernel package and, found from its imports, the modules whose
+    constants and functions it compiles in (a constant changed there must drop the cache)."""
+    names = {str(p.relative_to(cache._ROOT)) for p in cache.sources()}
+    assert {"compiled/tolerances.py", "compiled/godobject.py", "compiled/finger.py", "compiled/mesh.py",
+            "device_guard.py", "fingertip.py"} <= names
+    assert not {"servo.py", "cli.py", "proxy.py"} & names  # views and the CLI change no kernel
