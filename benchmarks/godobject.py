@@ -8,10 +8,10 @@ scripted per situation. Each update is timed alone; the table gives p50 / p99 in
 the targets (≤ 10 µs on primitives, ≤ 30 µs on a 10k-triangle mesh) and CHAI3D's figures.
 A Python function call is timed in the same run, so the figures can be read in calls.
 
-Each update is timed from Python through `GodObject.update` (the view a library user calls:
-argument checks plus numba's dispatch of the kernel's 12 arguments, ~1-2 µs of each figure).
-In the servo tick one compiled call serves every finger, so the tick pays the kernel alone;
-the free-space row, where the kernel does almost nothing, shows what the dispatch costs.
+Each update is timed from Python through `GodObject.update`, the view a library user calls
+(its Python and the call of the kernel's entry point, ~1 µs of each figure: the free-space
+row, where the kernel does almost nothing, shows it). In the servo tick one compiled call
+serves every finger, so the tick pays the kernel alone.
 """
 
 from __future__ import annotations

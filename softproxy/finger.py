@@ -204,7 +204,7 @@ class SoftFingerProxy:
         An unplaced finger places itself at its first good sample and renders nothing then.
         """
         r = self._rows
-        return kernel.place_row(*self._args(), r.F, r.near, self._i, float(x), float(y), float(z))
+        return r.run(kernel.place_row, *self._args(), r.F, r.near, self._i, float(x), float(y), float(z))
 
     def hold(self) -> None:
         """No usable device sample this tick: zero force, the proxy only follows its body.
@@ -212,11 +212,11 @@ class SoftFingerProxy:
         (a device error, invalid samples) the clamps come back from max·(1 − T/soft_start):
         a finger that moved into an object meanwhile gets no kick."""
         r = self._rows
-        kernel.hold_row(*self._args(), r.shapes.data.cvel, r.F, r.near, self._i)
+        r.run(kernel.hold_row, *self._args(), r.shapes.data.cvel, r.F, r.near, self._i)
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
-        kernel.clear_output_row(self._rows.F, self._i)
+        self._rows.run(kernel.clear_output_row, self._rows.F, self._i)
 
     def update(self, x: float, y: float, z: float, twist: float, dt: float) -> bool:
         """One tick from a device sample (device frame, m and rad) over period dt (s).
@@ -225,8 +225,8 @@ class SoftFingerProxy:
         the finger then renders zero force and its proxy stays where it was.
         """
         r = self._rows
-        return kernel.update_row(*self._args(), r.shapes.data.cvel, r.F, r.near, self._i, float(x), float(y),
-                                 float(z), float(twist), float(dt), r.scratch)
+        return r.run(kernel.update_row, *self._args(), r.shapes.data.cvel, r.F, r.near, self._i, float(x), float(y),
+                     float(z), float(twist), float(dt), r.scratch)
 
     def use_torsion(self, model: FingertipModel | None) -> None:
         """Between ticks: make the finger a soft finger with `model`'s torsion law (a fresh
@@ -257,4 +257,4 @@ class SoftFingerProxy:
         """Deepest the proxy sits inside any shape now (m, >= 0); updates penetration_max.
         An unplaced finger has no proxy in the world yet: nothing to audit."""
         r = self._rows
-        return kernel.audit_row(*self._args(), r.F, self._i)
+        return r.run(kernel.audit_row, *self._args(), r.F, self._i)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from softproxy.compiled.dispatch import EntryPoints
 from softproxy.compiled.godobject import scratch
 from softproxy.compiled.layout import FINGER
 from softproxy.geometry import ShapeSet
@@ -28,6 +29,9 @@ class FingerRows:
         self.near = np.zeros((n, max(len(shapes or ()), 1)), dtype=np.int64)
         self.scratch = scratch()
         self._plain = self.F.view(np.ndarray)  # item access on a plain structured row is ~7x faster
+        self.run = EntryPoints()
+        """`run(kernel, *args)`: the kernel through its entry point (numba's per-call dispatch of
+        this table's record arrays would cost more than the kernel itself)."""
 
     def record(self, i: int):
         """Row i as a numpy structured scalar that reads and writes the table in place."""

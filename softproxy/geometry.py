@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from softproxy.compiled import shapes as kernels
+from softproxy.compiled.dispatch import EntryPoints
 from softproxy.compiled.layout import (
     GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, SHAPE,
 )
@@ -43,7 +44,8 @@ class Shape:
         self.body = int(model.geom_bodyid[geom])
         self.name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or f"geom{geom}"
         self.static = static
-        self.rbound = math.inf if int(model.geom_type[geom]) == int(mujoco.mjtGeom.mjGEOM_PLANE) else float(model.geom_rbound[geom])
+        plane = int(model.geom_type[geom]) == int(mujoco.mjtGeom.mjGEOM_PLANE)
+        self.rbound = math.inf if plane else float(model.geom_rbound[geom])
         self.data = data
         self.cvel = data.cvel[self.body]
         """The body's velocity (ω, v) in MuJoCo's com-based frame, rad/s and m/s, current after
@@ -64,24 +66,25 @@ class Shape:
     def to_local(self, x: float, y: float, z: float) -> tuple[float, float, float]:
         """World point (m) in the geom's frame (m)."""
         s = self._tables()
-        return kernels.shape_to_local(s.S, s.xpos, s.xmat, self.row, x, y, z)
+        return s.run(kernels.shape_to_local, s.S, s.xpos, s.xmat, self.row, float(x), float(y), float(z))
 
     def distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
         """Signed distance from the surface (m) and outward unit normal, world frame."""
         s = self._tables()
-        return kernels.shape_distance(s.S, s.T, s.C, s.xpos, s.xmat, self.row, x, y, z)
+        return s.run(kernels.shape_distance, s.S, s.T, s.C, s.xpos, s.xmat, self.row, float(x), float(y), float(z))
 
     def on_face(self, nx: float, ny: float, nz: float) -> bool:
         """True when a contact of normal n (world) lies on a planar face, not on a rounded
         edge or corner of the proxy-swept shape (plane; box faces)."""
         s = self._tables()
-        return kernels.shape_on_face(s.S, s.xmat, self.row, nx, ny, nz)
+        return s.run(kernels.shape_on_face, s.S, s.xmat, self.row, float(nx), float(ny), float(nz))
 
     def sweep(self, x0: float, y0: float, z0: float, dx: float, dy: float, dz: float, r: float):
         """First touch of a sphere (radius r, m) moving from x0 by (dx, dy, dz) (m) into the
         geom: (fraction in [0, 1), nx, ny, nz), or None when it touches nothing."""
         s = self._tables()
-        hit = kernels.shape_sweep(s.S, s.T, s.C, s.xpos, s.xmat, self.row, x0, y0, z0, dx, dy, dz, r)
+        hit = s.run(kernels.shape_sweep, s.S, s.T, s.C, s.xpos, s.xmat, self.row, float(x0), float(y0), float(z0),
+                    float(dx), float(dy), float(dz), float(r))
         return None if hit[0] < 0.0 else hit
 
     def record(self, r) -> None:
@@ -187,6 +190,7 @@ class ShapeSet(list):
         self.data = data
         self.xpos = data.geom_xpos
         self.xmat = data.geom_xmat
+        self.run = EntryPoints()  # the shapes' queries, without numba's per-call dispatch
         for k, s in enumerate(self):
             if s.set is None:
                 s.set, s.row = self, k

@@ -110,7 +110,8 @@ class GodObject:
         ValueError for a position outside the workspace (±WORKSPACE_LIMIT m on each axis)."""
         r = self._rows
         s = r.shapes
-        if not kernel.reset_row(s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i, float(x), float(y), float(z)):
+        if not r.run(kernel.reset_row, s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i, float(x), float(y),
+                     float(z)):
             raise ValueError(f"proxy position must lie within ±{WORKSPACE_LIMIT} m, got {(x, y, z)!r}")
 
     def update(self, xd: float, yd: float, zd: float) -> bool:
@@ -118,12 +119,12 @@ class GodObject:
         the proxy then only follows its body (`follow`)."""
         r = self._rows
         s = r.shapes
-        return kernel.update_row(s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i, float(xd), float(yd), float(zd),
-                                 r.scratch)
+        return r.run(kernel.update_row, s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i, float(xd), float(yd),
+                     float(zd), r.scratch)
 
     def follow(self) -> None:
         """Without a device sample: the proxy stays on the body it touches and out of anything
         that moved into it, so a skipped tick never leaves it inside a moving object."""
         r = self._rows
         s = r.shapes
-        kernel.follow_row(s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i)
+        r.run(kernel.follow_row, s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i)

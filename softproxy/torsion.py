@@ -72,17 +72,17 @@ class TorsionalFriction:
 
     def touch(self, alpha_s: float) -> None:
         """Contact made: the proxy twist starts at the finger's current twist α_s (rad)."""
-        kernel.torsion_touch_row(self._rows.F, self._i, float(alpha_s))
+        self._rows.run(kernel.torsion_touch_row, self._rows.F, self._i, float(alpha_s))
 
     def release(self) -> None:
         """Contact broken: torsion state cleared, no torque."""
-        kernel.torsion_release_row(self._rows.F, self._i)
+        self._rows.run(kernel.torsion_release_row, self._rows.F, self._i)
 
     def step(self, alpha_s: float, P: float) -> float:
         """One servo tick (eqs 38-40): new α_p from device twist α_s (rad) and normal force P
         (N); returns M = k_τ(α_p - α_g) on the finger about n (N·m)."""
-        return kernel.torsion_step_row(self._rows.F, self._i, float(alpha_s), float(P))
+        return self._rows.run(kernel.torsion_step_row, self._rows.F, self._i, float(alpha_s), float(P))
 
     def follow_object(self, omega_n: float, dt: float) -> None:
         """Eqs 41-42: α_p += (ω·n)Δt, the object's signed spin about n (rad/s) over Δt (s)."""
-        kernel.torsion_follow_row(self._rows.F, self._i, float(omega_n), float(dt))
+        self._rows.run(kernel.torsion_follow_row, self._rows.F, self._i, float(omega_n), float(dt))

@@ -71,3 +71,19 @@ def entry(kernel, args: tuple, what: str | None = None):
         with announced(what or f"{kernel.__module__}.{kernel.__name__}"):
             kernel.compile(types)
     return overloads[types].entry_point
+
+
+class EntryPoints:
+    """Calls kernels through their entry points, each resolved on its first call here: for an
+    owner (a table of fingers, a set of shapes) whose arrays keep their types for life."""
+
+    __slots__ = ("_entries",)
+
+    def __init__(self) -> None:
+        self._entries = {}
+
+    def __call__(self, kernel, *args):
+        call = self._entries.get(kernel)
+        if call is None:
+            call = self._entries[kernel] = entry(kernel, args)
+        return call(*args)

@@ -14,11 +14,10 @@ numba freezes the module-level constants (CONTACT_TOL, GRAZE, …) into its on-d
 
 import math
 
-import numpy as np
 from numba import njit
 
 from softproxy.compiled.layout import (
-    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, SHAPE,
+    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE,
 )
 from softproxy.compiled.mesh import mesh_distance, mesh_sweep
 from softproxy.compiled.tolerances import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
