@@ -3,7 +3,9 @@
 Implementations live in the `devices` package (simulated, HID, replay) and are found by
 name through the `softproxy.devices` entry-point group, so the engine never imports them.
 A device drives one or more fingers. Each tick the loop calls `read(t, samples)` once and
-`send(finger, ...)` once per finger. Everything is in the device's workspace frame, SI
+`send(finger, ...)` once per finger. A device that can also run as compiled code offers
+`compiled_io()` (`softproxy.device_kernel`: its read and send as functions a compiled loop
+calls itself). Everything is in the device's workspace frame, SI
 units; the scene's device mapping turns it into world coordinates.
 """
 

@@ -1,10 +1,13 @@
-"""The servo tick's fingers as compiled code (numba): `ServoLoop(..., compiled=True)`.
+"""The engine's kernels (numba): the one implementation of the servo tick.
 
-`layout` says where each number lives in the flat arrays; `shapes`, `godobject` and
-`finger` are numba twins of `softproxy.geometry`, `softproxy.proxy` and `softproxy.finger`
-(with `torsion` and the world's wrenches), kept equal to them to the last bit; `engine`
-is the Python surface (`CompiledFingers`); `cache` keeps numba's on-disk cache in step with
-the sources. numba is imported only when this package is.
+`layout` holds the record dtypes of fingers and shapes (and the mesh tables' columns);
+`tolerances` the geometric tolerances; `shapes`, `mesh` and `certificate` the proxy-vs-shape
+queries; `godobject` the god-object solver; `finger` the coupling, the torsion law and the
+tick over every finger; `native` MuJoCo's C step and a monotonic clock for kernels;
+`dispatch` calls kernels from Python without numba's per-call type resolution; `cache`
+keeps numba's on-disk cache in step with every file the kernels are built from. The classes
+users see (`softproxy.finger`, `proxy`, `torsion`, `geometry`, `mesh`) are views onto the
+records these kernels read and write. `NUMBA_DISABLE_JIT=1` runs the same source as Python.
 """
 
 from softproxy.compiled.cache import drop_stale
