@@ -222,7 +222,7 @@ def test_a_kernel_paces_itself_without_the_gil():
     _spin_until(0)  # compile
     result = []
     start = time.monotonic_ns()
-    deadline = start + 100_000_000  # 100 ms
+    deadline = start + 300_000_000  # 300 ms: long enough for a shared, busy 2-core machine to schedule both
     spinner = threading.Thread(target=lambda: result.append(_spin_until(deadline)))
     spinner.start()
     seen = []
@@ -230,7 +230,7 @@ def test_a_kernel_paces_itself_without_the_gil():
         seen.append(time.monotonic_ns())
     spinner.join()
     first, readings, last = result[0]
-    assert deadline <= last < deadline + 5_000_000 and readings > 1000
+    assert deadline <= last < deadline + 50_000_000 and readings > 1000  # a descheduled spinner may overshoot
     assert any(first + 10_000_000 < t < deadline - 10_000_000 for t in seen), "Python stood still while the kernel spun"
 
 
