@@ -3,9 +3,11 @@
 import math
 
 import mujoco
+import numpy as np
 import pytest
 import trimesh
 
+from mesh_oracle import TOL, geodesic_sphere, mesh_model, mesh_of, oracle
 from softproxy.proxy import GodObject
 from softproxy.scene import SceneError, load_scene
 from softproxy.world import World
@@ -60,3 +62,39 @@ def test_scene_switches_shading_on_for_its_meshes(tmp_path):
     bad.write_text(text.replace('mjcf = "mesh_object.xml"', f'mjcf = "{mjcf}"\nforce_shading = "yes"'))
     with pytest.raises(SceneError, match="force_shading must be true or false"):
         load_scene(str(bad))
+
+
+def test_shading_changes_the_normal_only():
+    """On a faceted sphere (2000 triangles) the shaded normal is never farther from the true
+    radial direction than the faceted one, and is a unit vector; the distance is the same to
+    the bit, and a sweep stops at the same fraction with a normal still against the motion;
+    a proxy stroked round it stays outside (brute force)."""
+    ball = geodesic_sphere(10, 0.05)
+    m, d, plain = mesh_model(ball)
+    shaded = mesh_model(ball, shading=True)[2]
+    a, b = mesh_of(shaded), mesh_of(plain)
+    assert a.shading and not b.shading
+    rng = np.random.default_rng(3)
+    worse = differs = 0
+    for p in rng.normal(size=(50, 3)):
+        p = p / np.linalg.norm(p) * 0.052
+        radial = p / np.linalg.norm(p)
+        got, faceted = np.array(a.distance(*p)), np.array(b.distance(*p))
+        assert got[0] == faceted[0] and abs(np.linalg.norm(got[1:]) - 1.0) < 1e-9
+        worse += np.arccos(min(1.0, got[1:] @ radial)) > np.arccos(min(1.0, faceted[1:] @ radial)) + 1e-12
+        differs += got[1:] @ faceted[1:] < 1.0 - 1e-6
+        u = -radial * 0.004 + rng.normal(size=3) * 0.001
+        hit, flat = a.sweep(*p, *u, 0.001), b.sweep(*p, *u, 0.001)
+        assert (hit is None) == (flat is None)
+        if hit is not None:
+            assert hit[0] == flat[0] and np.dot(hit[1:], u) < 0.0
+    assert worse == 0 and differs > 40
+    o = oracle(m, d, shaded)
+    god = GodObject(shaded, 0.005, 0.0, 0.0, (0.0, 0.0, 0.09))
+    proxy = []
+    for k in range(200):
+        t = 0.01 * k
+        god.update(0.053 * math.sin(t), 0.0, 0.053 * math.cos(t))
+        proxy.append((god.x, god.y, god.z))
+        assert god.contact
+    assert (0.005 - o.distance(np.array(proxy))).max() <= TOL
