@@ -1,16 +1,26 @@
-"""The kept certificates of `softproxy.mesh` on flat arrays: which triangles can come nearer
-than a tangent plane.
+"""The kept certificates of a mesh: which triangles can come nearer than a tangent plane.
 
 A point p whose nearest point found so far is q, on the hint triangle, at distance d, has no
-nearer triangle among those lying wholly behind the tangent plane at q (normal (p - q) / d).
-`MeshShape` keeps, for every face and side, the few triangles near it that rise above its
-plane (none on a convex patch), and for every vertex a cone of tangent planes that hold its
-fan behind them and a table of the vertices near it sorted by how far below the cone they
-lie (`MeshShape._static_clear`). This module packs those tables (`certificate_tables`) and
-asks them (`static_clear`): where they hold, a query reads the hint and those few triangles
-instead of every triangle in a ball of radius d, the ~100 thin triangles meeting at a
-uv-sphere's pole included. Where they do not (a concave patch, a reach beyond the one they
-were built for), the caller scans its grid.
+nearer triangle among those lying wholly behind the tangent plane at q (normal (p - q) / d):
+each is at least as far as that plane. Nor does a sphere touching at q and sliding on or above
+that plane enter any of them. So a query reads only the triangles near q that reach above it:
+- q on the hint's face: the face's list, for the side p is on, of the few triangles near it
+  rising above its plane (none on a convex patch; more than STATIC_ABOVE, as the rising wall
+  of a bowl, and the face gives no certificate);
+- q on an edge: when the plane holds both faces behind it (n in the cone of their outward
+  normals: a convex edge seen from outside, `_convex_edge`), both faces' lists; a concave or
+  open edge gives none;
+- q on a vertex: its fan lies behind the plane when n is inside the vertex's cone (one dot
+  product), else when every edge leaving it does (one per edge); a triangle off the fan lies
+  behind it when its vertices lie more than the plane's tilt below the cone, so only the
+  vertices near it whose sin β (their angle below the plane square to the cone's axis) is
+  under the tilt's sine are tested, from a table sorted by sin β, and the fans of those
+  above the plane listed. A proxy held on the pole of a uv-sphere, where ~100 thin triangles
+  meet, reads none of them, and on a convex patch none is read whatever the triangles' shape.
+`softproxy.mesh.MeshShape` builds the lists and tables for every face and vertex at load
+(and for a larger proxy in `prepare`); `certificate_tables` packs them into the mesh tables T
+and C and `static_clear` asks them. Where they do not hold (a concave patch, a reach beyond
+the one they were built for), the caller scans its grid.
 """
 
 from __future__ import annotations
@@ -32,10 +42,10 @@ distance may be overstated by at most this (m)."""
 STATIC_ABOVE = 8
 """Most triangles reaching above a face's plane that its kept certificate lists (and a query
 then reads: e.g. a vertex a rounding above a coplanar neighbour brings its fan of ~6); more,
-and the face is on a concave patch: the neighbourhood's lists serve it."""
+and the face is on a concave patch: no certificate, the grid serves it."""
 VERTEX_READ = 64
 """Most vertices a kept vertex certificate tests against a tangent plane tilted from its cone's
-axis (those whose sin β is below the tilt's sine); more, and the neighbourhood serves it."""
+axis (those whose sin β is below the tilt's sine); more, and the grid serves it."""
 
 assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' lists (an edge's certificate)"
 
@@ -74,7 +84,8 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     verts[:, V_SINES + 1] = counts
     parts.append(np.column_stack([sines, ids]).astype(np.float64).ravel())
     at += 2 * len(sines)
-    # MeshShape._vertex_clear's threshold on c²: every triangle certified by angle alone above it
+    # the threshold on c² (c: the cosine of the plane's normal to the cone's axis) above which
+    # every triangle near the vertex lies behind the plane by angle alone (2.0: never)
     least = np.ones(nv)
     least[counts > 0] = sines[start[:-1][counts > 0]]
     s0 = least - 1e-12
@@ -99,9 +110,12 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
 
 @njit(cache=True)
 def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
-    """`softproxy.mesh._convex_edge`: the side (±1.0) of neighbour row o that the tangent plane
-    of normal n at a point on its edge with row i sees, when the plane holds both faces behind
-    it (a convex edge seen from outside); 0.0 when it does not."""
+    """The side (±1.0) of neighbour row o that the tangent plane of normal n at a point on its
+    edge with row i sees (side0: the side of row i it sees, dot0 = n · row i's normal), when
+    the plane holds both faces behind it: n in the cone of the two faces' outward normals, a
+    convex edge seen from outside. Coplanar faces: n must be their own normal, since a sphere
+    touching the edge from beside it is not held by the plane. 0.0 when it does not hold
+    them (a concave or folded edge)."""
     dot1 = nx * T[o, T_N] + ny * T[o, T_N + 1] + nz * T[o, T_N + 2]
     side1 = 1.0 if dot1 >= 0.0 else -1.0
     g = side0 * side1 * (T[i, T_N] * T[o, T_N] + T[i, T_N + 1] * T[o, T_N + 1] + T[i, T_N + 2] * T[o, T_N + 2])
@@ -177,7 +191,7 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
 
 @njit(cache=True)
 def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
-    """`MeshShape._static_clear`: how many triangles (rows of T, listed in C[C_FEW:]) within
+    """How many triangles (rows of T, listed in C[C_FEW:]) within
     `need` (m) of the nearest point on `feature` of row `hint` may reach above the tangent
     plane there (normal n, geom frame, out of the hint); every other triangle that near lies
     behind it. -1 when the certificates do not hold (a concave patch, or need beyond the

@@ -1,32 +1,51 @@
-"""Triangle-mesh contact for the compiled god-object: `softproxy.mesh`'s queries on flat arrays.
+"""Triangle-mesh contact for the god-object: the mesh's own triangles, not its convex hull.
 
-`MeshShape` answers the god-object's queries on a mesh's own triangles in scalar Python;
-this twin answers the same ones in numba, from two arrays that `mesh_tables` packs for
-every mesh of a world: T, one row per triangle (its vertices, edges, plane, the
-pseudo-normals of its features, its vertex normals, its neighbours and certificate lists,
-geom frame; columns in `layout`), and C (per mesh a uniform grid over its bounding box,
-each triangle listed in every cell its box overlaps, and the kept certificates of
-`softproxy.compiled.certificate`).
+MuJoCo collides a mesh geom through its convex hull, so a finger pressed into a bowl would
+stop on the plane of the rim. These kernels answer the god-object's queries on the triangles
+themselves, in the geom frame MuJoCo compiled them into (`model.mesh_vert` is expressed in
+the frame of `geom_xpos` / `geom_xmat`), from two arrays that `mesh_tables` packs for every
+mesh of a world out of what `softproxy.mesh.MeshShape` built at load: T, one row per
+triangle (its corners, edges, plane, the pseudo-normals of its features, its vertex normals,
+its neighbours and certificate lists; columns in `layout`), and C (per mesh a uniform grid
+over its bounding box, each triangle listed in every cell its box overlaps, and the kept
+certificates of `softproxy.compiled.certificate`).
 
-- `mesh_distance`: the exact nearest triangle. From the triangle nearest the last query
-  (the hint), walked to a nearer one across an edge or round a vertex; where the kept
-  certificates hold at its nearest point (a convex patch: a face's, an edge's or a vertex's
-  tangent plane with every other triangle near it behind it), the few triangles they name
-  are all that is read; else the grid cells within the ball the hint's distance bounds.
-  Signed by the angle-weighted pseudo-normal of the nearest feature on a watertight mesh,
-  unsigned on an open one, as in `softproxy.mesh`.
-- `mesh_sweep`: the earliest touch of a sphere (radius r) moving on a segment, each
-  triangle inflated by r (convex), exactly `softproxy.mesh._sweep_triangle`. Pressed into
-  the hint, the touch is at once; sliding on or lifting off it, or touching it on the way,
-  the certificates leave a few triangles to sweep; else the grid cells near the segment.
+- `mesh_distance`: the exact Euclidean distance to the nearest triangle, so 1-Lipschitz. On
+  a watertight mesh it is signed by the angle-weighted pseudo-normal of the nearest feature
+  (face, edge or vertex; Bærentzen & Aanæs 2005), which gives the right side wherever the
+  nearest point lies. An open mesh (a sheet) has no inside: its distance is unsigned and both
+  sides of every triangle are solid.
+- `mesh_sweep`: the earliest touch of a sphere (radius r) moving on a segment, each triangle
+  inflated by r, which is convex (a slab over the face, a cylinder per edge, a ball per
+  vertex): so the first touch is exact on a non-convex mesh, a sphere touching a triangle and
+  moving along or away from it never enters it, and no speed carries the sphere through a
+  triangle. A point proxy is swept as a 10 nm sphere (POINT_RADIUS).
 
-The per-triangle routines (`_closest`, `_sweep_triangle`, `_shade`) and the query logic
-repeat `softproxy.mesh`'s operations in the same order. Which triangle answers may differ
-where two are equally near (a shared edge or vertex), so the two engines agree to rounding
-on a mesh, not to the bit (tests/test_compiled_mesh.py). Not ported: `MeshShape.on_face` (a
-proxy held on a mesh face is solved again from no planes each tick, never warm-started:
-the same answer, one sweep more) and the neighbourhood (the grid serves where no
-certificate holds: a concave patch such as the inside of a bowl).
+Cost per query is bounded on large meshes:
+1. the hint, the triangle touched or nearest last, is read first: pressed into it, a sweep
+   ends at once. Its tangent plane at the nearest point is a certificate: a triangle lying
+   wholly behind it is at least as far, so a point whose nearest point is there, or a sphere
+   sliding on or lifting off it, needs only the few triangles near it that reach above that
+   plane (`softproxy.compiled.certificate`): the rising wall inside a bowl, none on a convex
+   patch (none of the ~100 thin triangles meeting at a uv-sphere's pole). When the nearest
+   point is on an edge, the point may lie over or beyond the neighbour across it, and when it
+   is on a vertex, an edge rising above the tangent plane there leads to a nearer triangle:
+   the query walks there first (`_walk`), so that the certificate of the face, edge or
+   vertex reached holds more often. A point at distance d needs the certificates to hold over a
+   reach of 2d, a sphere of radius r sliding by L over 2r + L: they are built at load for a
+   5 mm proxy, and for a larger one by `MeshShape.prepare` when a proxy is made;
+2. where they do not hold (a concave patch, a reach beyond theirs, no hint yet), the grid:
+   the cells within the ball the hint's distance bounds (distance) or near the segment
+   (sweep); a cell's records carry each triangle's plane and bounding ball, so a scan rules
+   out most triangles without opening them;
+3. the last two distance answers are kept, and a sweep keeps its start point's answer when a
+   certificate proved its nearest point (the god-object asks again about the point it holds,
+   and about where a sweep left it), keyed by the point in the geom frame, so a new pose
+   never returns a stale answer.
+
+A mesh never reports a contact `on_face` (`softproxy.compiled.shapes.shape_on_face`): a
+proxy held on a mesh is solved afresh each tick, never warm-started from a face's plane (the
+same answer, one sweep more).
 """
 
 from __future__ import annotations
@@ -132,12 +151,13 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------------------
-# One triangle (softproxy.mesh's routines, same operations)
+# One triangle: features 0 the face, 1-3 its edges AB, BC, CA, 4-6 its vertices A, B, C
 # ---------------------------------------------------------------------------------------
 
 @njit(cache=True)
 def _closest(T, i, px, py, pz):
-    """`mesh._closest`: (squared distance, qx, qy, qz, feature) of triangle row i to p."""
+    """Closest point of triangle row i to p: (squared distance, qx, qy, qz, feature).
+    Ericson's Voronoi-region walk, the dot products about B and C derived from those about A."""
     t = T[i]
     ax, ay, az, bx, by, bz, cx, cy, cz = t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8]
     ux, uy, uz, vx, vy, vz, nx, ny, nz = t[9], t[10], t[11], t[12], t[13], t[14], t[15], t[16], t[17]
@@ -175,14 +195,16 @@ def _closest(T, i, px, py, pz):
         qx, qy, qz = bx + s * (cx - bx), by + s * (cy - by), bz + s * (cz - bz)
         ex, ey, ez = px - qx, py - qy, pz - qz
         return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 2)
-    h = nx * wx + ny * wy + nz * wz
+    h = nx * wx + ny * wy + nz * wz  # inside the face's prism: straight down to the plane
     return (h * h, px - h * nx, py - h * ny, pz - h * nz, 0)
 
 
 @njit(cache=True)
 def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
-    """`mesh._sweep_triangle`: (lam, nx, ny, nz, feature) of the first touch of a sphere
-    (radius r) from a moving by d into triangle row i, geom frame; lam -1.0 when none."""
+    """First touch of a sphere (radius r) from a moving by d into triangle row i, geom frame:
+    (lam, nx, ny, nz, feature), lam in [0, 1), n the unit normal of the inflated triangle at
+    the touch (out of it, against the motion); lam -1.0 when none. dd = |d|², far2: the
+    squared distance from a beyond which the triangle is out of reach, graze = GRAZE |d|."""
     t = T[i]
     nx, ny, nz = t[T_N], t[T_N + 1], t[T_N + 2]
     h0 = nx * (ax - t[0]) + ny * (ay - t[1]) + nz * (az - t[2])
@@ -190,15 +212,16 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     h1 = h0 + hd
     reach = r + CONTACT_TOL
     if (h0 > reach and h1 > reach) or (h0 < -reach and h1 < -reach):
-        return (-1.0, 0.0, 0.0, 0.0, 0)
+        return (-1.0, 0.0, 0.0, 0.0, 0)  # the segment never comes within r of the plane
     d2, qx, qy, qz, feature = _closest(T, i, ax, ay, az)
     if d2 > far2:
-        return (-1.0, 0.0, 0.0, 0.0, 0)
+        return (-1.0, 0.0, 0.0, 0.0, 0)  # farther than the sphere can reach on this segment
     if d2 <= reach * reach:
+        # touching now: a hit only if moving into it (the inflated triangle is convex)
         dist = math.sqrt(d2)
         if dist > 1e-12:
             mx, my, mz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
-        elif hd != 0.0:
+        elif hd != 0.0:  # the centre on the triangle (a point proxy): the side it comes from
             s = -1.0 if hd > 0.0 else 1.0
             mx, my, mz = s * nx, s * ny, s * nz
         else:
@@ -206,12 +229,13 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
         if mx * dx + my * dy + mz * dz < -graze:
             return (0.0, mx, my, mz, feature)
         return (-1.0, 0.0, 0.0, 0.0, 0)
-    # 1. the face's slab
+    # 1. the face: the slab |h| <= r is entered at most once; if the sphere enters it over
+    #    the triangle's interior, nothing of the inflated triangle was reached before
     if h0 > r or h0 < -r:
         s = 1.0 if h0 > 0.0 else -1.0
         rate = s * hd
         if rate >= -graze:
-            return (-1.0, 0.0, 0.0, 0.0, 0)
+            return (-1.0, 0.0, 0.0, 0.0, 0)  # along or away from the plane: never entered
         lam = (s * h0 - r) / -rate
         if lam >= 1.0:
             return (-1.0, 0.0, 0.0, 0.0, 0)
@@ -225,7 +249,7 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
         w = (t[18] * e2 - t[19] * d1) * inv
         if v >= 0.0 and w >= 0.0 and v + w <= 1.0:
             return (lam, s * nx, s * ny, s * nz, 0)
-    # 2. the edges (cylinders of radius r)
+    # 2. the edges (cylinders of radius r; their ends belong to the vertex balls)
     best = 1.0
     found = False
     mx = my = mz = 0.0
@@ -239,10 +263,10 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
         qa = dd - de * de
         qb = wx * dx + wy * dy + wz * dz - we * de
         if qa <= 0.0 or qb >= 0.0:
-            continue
+            continue  # along the edge, or moving away from its axis
         qc = wx * wx + wy * wy + wz * wz - we * we - r * r
         if qc <= 0.0:
-            continue
+            continue  # already within r of the axis, beyond the edge's ends: a vertex ball first
         disc = qb * qb - qa * qc
         if disc <= 0.0:
             continue
@@ -275,13 +299,14 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     n = math.sqrt(mx * mx + my * my + mz * mz)
     mx, my, mz = mx / n, my / n, mz / n
     if mx * dx + my * dy + mz * dz >= -graze:
-        return (-1.0, 0.0, 0.0, 0.0, 0)
+        return (-1.0, 0.0, 0.0, 0.0, 0)  # a tangent graze: the sphere touches without entering
     return (best if best > 0.0 else 0.0, mx, my, mz, feature)
 
 
 @njit(cache=True)
 def _shade(T, i, qx, qy, qz, nx, ny, nz):
-    """`MeshShape._shade`: the vertex normals of triangle row i interpolated at q, on n's side."""
+    """Force shading: the vertex normals of triangle row i interpolated at q (barycentric,
+    clamped to the triangle), on n's side; n itself where they disagree with the face."""
     t = T[i]
     wx, wy, wz = qx - t[0], qy - t[1], qz - t[2]
     d1 = t[9] * wx + t[10] * wy + t[11] * wz
@@ -296,8 +321,8 @@ def _shade(T, i, qx, qy, qz, nx, ny, nz):
     sy = u * t[a + 1] + v * t[a + 4] + w * t[a + 7]
     sz = u * t[a + 2] + v * t[a + 5] + w * t[a + 8]
     if sx * t[15] + sy * t[16] + sz * t[17] < 0.0:
-        return (nx, ny, nz)
-    if sx * nx + sy * ny + sz * nz < 0.0:
+        return (nx, ny, nz)  # the vertex normals disagree with the face: the geometric one
+    if sx * nx + sy * ny + sz * nz < 0.0:  # n on the back of the face (an open mesh)
         sx, sy, sz = -sx, -sy, -sz
     s = math.sqrt(sx * sx + sy * sy + sz * sz)
     if s > 0.0:
@@ -363,10 +388,11 @@ def _column(S, k, ix, iy, x, y, z, radius):
 
 @njit(cache=True)
 def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
-    """`MeshShape._walk`: from the hint's nearest point q to p on an edge or a vertex, step to a
-    nearer triangle (across the edge, or onto an edge leaving the vertex that rises above the
-    tangent plane there), WALK_STEPS at most, so that a certificate holds more often.
-    Returns (d2, qx, qy, qz, feature, hint)."""
+    """From the hint's nearest point q to p on an edge or a vertex, step to a nearer triangle:
+    across the edge (p may lie over the neighbour's face, or beyond it), or from a vertex to
+    a triangle on an edge leaving it that rises above the tangent plane there (it holds a
+    nearer point); while there is one, WALK_STEPS at most: the certificate of the face, edge
+    or vertex reached then holds more often. Returns (d2, qx, qy, qz, feature, hint)."""
     verts = int(S[k].verts)
     for _ in range(WALK_STEPS):
         if feature == 0 or d2 <= 0.0:
@@ -397,8 +423,9 @@ def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
 @njit(cache=True)
 def _from_hint(S, T, C, k, hint0, x, y, z):
     """The nearest point to p (geom frame) on row hint0, or on the triangle across the edge it
-    lies on when that is nearer, walked on from there (`_walk`) when it moved or lies on a
-    vertex: (d2, qx, qy, qz, feature, row), as `MeshShape._nearest` and `sweep` begin."""
+    lies on when that is nearer (p may lie over the neighbour's face), walked on from there
+    (`_walk`) when it stepped across or lies on a vertex: (d2, qx, qy, qz, feature, row).
+    Every distance query and sweep begins here."""
     hint = hint0
     d2, qx, qy, qz, f = _closest(T, hint, x, y, z)
     if 1 <= f <= 3:
@@ -489,11 +516,15 @@ def _nearest(S, T, C, k, x, y, z):
 
 @njit(cache=True)
 def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
-    """`MeshShape._answer`: the signed distance (m) and outward normal at p (geom frame) from
-    its nearest point q (at distance `best`) on `feature` of row i."""
+    """The signed distance (m) and outward normal at p (geom frame) from its nearest point q
+    (at distance `best`) on `feature` of row i: negative behind the feature's pseudo-normal
+    on a watertight mesh (the normal still points out), the pseudo-normal itself on the
+    surface, shaded when asked."""
     ex, ey, ez = x - qx, y - qy, z - qz
     length = math.sqrt(ex * ex + ey * ey + ez * ez)
-    if best > 0.0 and length > 0.0:  # by its own length, as in MeshShape._answer
+    # by its own length, not by `best`: within ~1 nm of the surface p - q carries the rounding
+    # of p's coordinates (~1e-18 m), which would leave |n| off 1 by ~1e-9
+    if best > 0.0 and length > 0.0:
         nx, ny, nz = ex / length, ey / length, ez / length
     else:
         nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
@@ -514,7 +545,7 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
 
 @njit(cache=True)
 def _local_distance(S, T, C, k, x, y, z):
-    """`MeshShape.local_distance`: signed distance (m) and outward normal at p, geom frame."""
+    """Signed distance (m) and outward normal at p, geom frame."""
     best, qx, qy, qz, feature, i = _nearest(S, T, C, k, x, y, z)
     return _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i)
 
@@ -533,7 +564,7 @@ def _keep(S, k, x, y, z, d, nx, ny, nz):
 @njit(cache=True)
 def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
-    the outward unit normal, world frame: `MeshShape.distance`. The last two answers are kept,
+    the outward unit normal, world frame. The last two answers are kept,
     keyed by the point in the geom frame, where the triangles never move (the god-object asks
     again about the point it holds, about the point it moved to, and about a sweep's start
     whose nearest point the sweep proved)."""
@@ -600,8 +631,9 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
 
 @njit(cache=True)
 def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze):
-    """`MeshShape._world_hit`: the touch of row `tri` at fraction lam, its normal (geom frame)
-    shaded when asked and turned into the world frame; the triangle becomes the hint."""
+    """The touch of row `tri` at fraction lam: its normal (geom frame) shaded when asked (while
+    the shaded one still opposes the motion) and turned into the world frame; the triangle
+    becomes the hint."""
     S[k].hint = tri
     if S[k].shading:
         qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
@@ -617,9 +649,8 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graz
 @njit(cache=True)
 def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
                graze, lam, mx, my, mz):
-    """`MeshShape._sweep_few`: the end of `mesh_sweep` when a certificate left the m triangles
-    in C[C_FEW:] to read besides the hint: the earliest touch among them and the hint's own
-    (lam < 0: none). When sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature
+    """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
+    besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature
     sf) or one of theirs, and its answer is kept for `mesh_distance`."""
     best_lam, bi = (lam, hint) if lam >= 0.0 else (1.0, -1)
     si = hint
@@ -652,9 +683,9 @@ def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az,
 @njit(cache=True)
 def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
-    x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none: `MeshShape.sweep`.
+    x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none.
 
-    From the hint (`_from_hint`), as `MeshShape.sweep`: touching it and pressed into it, the
+    From the hint (`_from_hint`): touching it and pressed into it, the
     touch is at once; touching it and moving along or away, or touching it on the way, or
     near it and staying above its tangent plane, the kept certificates may leave only a few
     triangles to sweep (and prove the start's nearest point, kept for `mesh_distance`);
