@@ -4,11 +4,13 @@ import math
 import time
 
 import mujoco
+import numpy as np
 import pytest
 
 from softproxy.device import DeviceError
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
+from softproxy.geometry import shapes_of
 from softproxy.run import open_device, run_scene
 from softproxy.scene import load_scene
 from softproxy.servo import ServoLoop
@@ -298,3 +300,137 @@ def test_bad_fault_spec_is_named():
     scene.device["faults"] = {"gremlins": 0.1}
     with pytest.raises(ValueError, match="device.faults.gremlins"):
         open_device("sim", scene)
+
+
+# ---------------------------------------------------------------------------------------
+# The loop's table of fingers: views, stop, refusals
+# ---------------------------------------------------------------------------------------
+
+BOX_ON_FLOOR = """<mujoco><option timestep="0.001"/><worldbody>
+  <geom type="plane" size="1 1 .1"/>
+  <body name="box" pos="0 0 .02"><freejoint/><geom type="box" size=".02 .02 .02" mass="0.2"/></body>
+</worldbody></mujoco>"""
+
+
+class Pressing:
+    """Two device fingers pressing down: finger 0 on the box top (z = 0.04), twisting; finger
+    1 on the floor beside it, sliding along x (frictionless fingers follow it exactly)."""
+
+    fingers, max_force, max_torque = 2, 50.0, 1.0
+
+    def __init__(self):
+        self.sent = {0: [], 1: []}
+        self.stall_at = None
+        self.reads = 0
+
+    def read(self, t, samples):
+        self.reads += 1
+        a, b = samples
+        a.x, a.y, a.z, a.twist, a.valid = 0.0, 0.0, 0.05 - min(t, 0.02) * 0.6, 0.3 * math.sin(20.0 * t), True
+        b.x, b.y, b.z, b.twist, b.valid = 0.05 + 0.1 * t, 0.0, 0.008 - min(t, 0.02) * 0.2, 0.0, True
+        if self.reads == self.stall_at:
+            time.sleep(0.05)
+
+    def send(self, finger, *wrench):
+        self.sent[finger].append(wrench)
+
+    def close(self):
+        pass
+
+
+def box_fingers(world, **params):
+    """The two fingers `Pressing` drives, over the world's shapes."""
+    return [SoftFingerProxy(FingerParams(name=name, radius=0.005, device_finger=i, soft_start=0.0, **params),
+                            world.shapes, model("CH")) for i, name in enumerate(("top", "side"))]
+
+
+VIEWED = {
+    "god": ("x", "y", "z", "contact", "nx", "ny", "nz", "depth", "sticking", "lx", "ly", "lz"),
+    "torsion": ("in_contact", "alpha_0", "alpha_p", "alpha_g", "torque", "limit", "slipping", "slip_events"),
+    "finger": ("fx", "fy", "fz", "torque", "tx", "ty", "tz", "px", "py", "pz", "body", "normal_force", "valid",
+               "placed", "ramp", "xd", "yd", "zd", "max_force_seen", "penetration_max", "slide_events",
+               "spikes_rejected"),
+}
+RECORD = {"torsion.torque": "spring_torque"}  # a view's name that differs from its record field's
+
+
+def state_of(f) -> dict:
+    """Every field a finger's views show, by part and name."""
+    parts = {"god": f.god, "torsion": f.torsion, "finger": f}
+    return {f"{part}.{name}": getattr(parts[part], name) for part, names in VIEWED.items() for name in names}
+
+
+def test_the_finger_views_read_the_loops_table():
+    """The fingers are views of the loop's table, never copies that could go stale: after
+    every tick, finger.god.x, finger.torsion.alpha_p, finger.fx and every other field read
+    through the views are what loop.rows.F holds (and they move as the tick moves them). A
+    finger built and driven alone keeps its whole state when a loop takes it in."""
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_FLOOR))
+    top, side = box_fingers(world)
+    top.place(0.0, 0.0, 0.05)
+    for z in (0.046, 0.043, 0.041):  # alone, on the box top: in contact, twisted
+        assert top.update(0.0, 0.0, z, 0.05, 1e-3)
+    alone = state_of(top)
+    assert alone["god.contact"] and alone["torsion.in_contact"] and alone["finger.fz"] > 0.0
+    loop = ServoLoop(world, [top, side], Pressing(), 1000.0, overrun_watchdog=False)
+    assert state_of(top) == alone
+    seen = set()
+    for _ in range(60):
+        loop.tick()
+        for i, f in enumerate(loop.fingers):
+            row = loop.rows.F[i]
+            for key, value in state_of(f).items():
+                assert value == row[RECORD.get(key, key.split(".")[1])], key
+        seen.add((top.god.x, top.god.z, top.torsion.alpha_p, top.fx, side.god.x, side.fz))
+    assert len(seen) > 50  # the tick moved them, and the views moved with it
+    assert top.max_force_seen >= alone["finger.max_force_seen"]  # counters carried over from alone
+
+
+def test_stop_clears_the_wrenches_and_sends_zero():
+    """Stopping mid-contact: zero force sent to every device finger, no finger wrench left on
+    the box, every finger's output cleared; the loop then carries on from there, rendering
+    and pushing again."""
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_FLOOR))
+    device = Pressing()
+    loop = ServoLoop(world, box_fingers(world), device, 1000.0, overrun_watchdog=False)
+    box = world.body_id("box")
+    pushed = []
+    loop.run(60, on_tick=lambda lp: pushed.append(world.data.xfrc_applied[box].copy()))  # run() ends with stop()
+    assert np.linalg.norm(pushed[-1][:3]) > 1.0 and device.sent[0][-2][2] > 1.0  # pressing on the box
+    assert not world.data.xfrc_applied.any()
+    assert device.sent[0][-1] == device.sent[1][-1] == (0.0,) * 6
+    for f in loop.fingers:
+        assert (f.fx, f.fy, f.fz, f.tx, f.ty, f.tz, f.body, f.valid) == (0.0,) * 6 + (-1, False)
+    loop.tick()
+    assert world.data.xfrc_applied[box, 2] < -1.0 and device.sent[0][-1][2] > 1.0
+
+
+def test_the_watchdogs_zero_force_tick_still_moves_the_proxy():
+    """The tick after an overrun sends zero force, yet every proxy follows its device that
+    tick (the frictionless finger on the floor stays under the sliding device), and the
+    next tick renders again."""
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_FLOOR))
+    device = Pressing()
+    device.stall_at = 40
+    loop = ServoLoop(world, box_fingers(world, mu_s=0.0, mu_d=0.0), device, 1000.0, overrun_factor=20.0,
+                     overrun_watchdog=True)
+    side = loop.fingers[1]
+    while device.reads < device.stall_at:
+        loop.tick()
+    assert loop.faults["overrun"] == 1 and device.sent[1][-1][2] > 1.0  # the stalled tick itself rendered
+    t = loop.t
+    loop.tick()  # the zero-force tick
+    assert device.sent[1][-1] == (0.0,) * 6 and device.sent[0][-1] == (0.0,) * 6
+    assert side.god.contact and side.god.x == pytest.approx(0.05 + 0.1 * t, abs=1e-12)
+    loop.tick()
+    assert loop.faults["overrun"] == 1
+    assert device.sent[1][-1][2] > 1.0 and device.sent[0][-1][2] > 1.0
+
+
+def test_a_finger_over_shapes_of_its_own_is_refused():
+    """A finger built over another ShapeSet than the world's would touch shapes the loop
+    never moves: the loop refuses it, naming the finger and the fix."""
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_FLOOR))
+    stray = SoftFingerProxy(FingerParams(name="stray"), shapes_of(world.model, world.data), model("CH"))
+    with pytest.raises(ValueError, match="'stray' touches shapes of its own.*world.shapes"):
+        ServoLoop(world, [*box_fingers(world)[:1], stray], Pressing(), 1000.0)
