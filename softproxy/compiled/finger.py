@@ -1,11 +1,18 @@
-"""The fingers of one servo tick, compiled: coupling, torsion, wrench and device clamp.
+"""The fingers of one servo tick (numba): coupling, torsion, wrenches on the bodies, device clamp.
 
-numba twins of `SoftFingerProxy.update` / `hold` / `place`, `TorsionalFriction`,
-`World.push` / the wrench half of `World.end_step` and `ServoLoop._send`'s clamp (the same
-`softproxy.device_guard.guard_wrench`, compiled), on the
-finger rows of the state array (columns in `layout`). Like `softproxy.compiled.godobject`
-they follow the Python methods step by step, in the same order of floating-point
-operations; the Python classes are the reference and say why. Units: m, N, N·m, rad, s.
+Each finger is a 4-DOF soft-finger proxy (seed 002 §7): the god-object position
+(`softproxy.compiled.godobject`) plus the twist α_p about the contact normal n, coupled to
+the device by a virtual spring-damper, F = k(x_p - x_d) + b d/dt(x_p - x_d) and
+M = k_τ(α_p - α_g) + b_τ d/dt(α_p - α_g). F and M are what the finger feels; the touched
+body gets -F at the contact point and -M·n. The device's twist α_s is taken about the
+finger's own axis, from the fingertip back toward the hand: +n when it presses straight on.
+`tick` runs every finger of a servo tick in one call: each finger's update (or hold, without
+a usable sample), its wrench on the touched body (`push`; `write_wrenches` puts them in
+MuJoCo), and what each device finger is sent, through `softproxy.device_guard.guard_wrench`.
+
+These kernels are the only implementation: `SoftFingerProxy` and `TorsionalFriction` are
+views of a finger record (`layout.FINGER`, `f` here) that call the `*_row` entries, `World`
+calls `push` and `write_wrenches`, `ServoLoop` calls `tick`. Units: m, N, N·m, rad, s.
 """
 
 from __future__ import annotations
@@ -25,13 +32,20 @@ SPIKE_PATIENCE = 3
 
 @njit(cache=True)
 def _finite(v):
+    """True for a number that is neither NaN nor ±Inf."""
     return v == v and v != math.inf and v != -math.inf
 
 
 # -- torsion (eqs 38-42; `softproxy.torsion.TorsionalFriction` is the view) ---------------------
+# Seed 002 §7 with DESIGN's errata: eq 40 lacks sign(α_g - α_p), without which a slip in the
+# negative direction overshoots the goal and flips the torque; eq 41's |ω·n| loses the way the
+# object turned. The goal α_g is the device twist measured from where contact began: α_p
+# starts at the device twist, so M starts at zero. Angles are right-handed about n (out of
+# the object, toward the finger); M is the torque on the finger, the object gets -M about n.
 @njit(cache=True)
 def torsion_touch(f, alpha_s):
-    """Contact made: the proxy twist starts at the finger's current twist α_s (rad)."""
+    """Contact made: the proxy twist starts at the finger's current twist α_s (rad), so the
+    torque starts at zero (a non-finite twist counts as 0)."""
     if not _finite(alpha_s):
         alpha_s = 0.0
     f.in_contact = True
@@ -54,7 +68,9 @@ def torsion_step(f, alpha_s, P):
     """One servo tick (eqs 38-40): new α_p from device twist α_s (rad) and normal force P (N).
 
     Returns M = k_τ(α_p - α_g), the torque on the finger about n (N·m). A non-finite α_s
-    holds the state and returns 0; a non-finite P counts as no normal force."""
+    holds the state and returns 0; a non-finite P counts as no normal force, one above P_MAX
+    as P_MAX (so |P|^γ cannot overflow). The static limit is torsion_mu_s·|P|^γ, or eq 26's
+    saturating law; the dynamic torque is the static limit times μ_d/μ_s (`ratio`)."""
     if not f.in_contact:
         return 0.0
     if not _finite(alpha_s):
@@ -117,6 +133,7 @@ def torsion_follow(f, omega_n, dt):
 # -- the finger (softproxy.finger.SoftFingerProxy) -------------------------------------------
 @njit(cache=True)
 def clear_output(f):
+    """Zero force and torque, no contact reported, the sample not used: the safe state."""
     f.fx = f.fy = f.fz = 0.0
     f.torque = f.tx = f.ty = f.tz = 0.0
     f.px = f.py = f.pz = 0.0
@@ -136,7 +153,10 @@ def _follow_body(S, cvel, f):
 
 @njit(cache=True)
 def place(S, T, C, xpos, xmat, f, near, x, y, z):
-    """`SoftFingerProxy.place`: False (finger left unplaced) outside the workspace."""
+    """Put the proxy at a device position (device frame, m), out of contact and torsion, the
+    soft start's ramp back at zero. False, and the finger left unplaced, for a position
+    outside the workspace: an unplaced finger places itself at its first good sample and
+    renders nothing then."""
     xd, yd, zd = f.ox + f.scale * x, f.oy + f.scale * y, f.oz + f.scale * z
     if not godobject.reset(S, T, C, xpos, xmat, f, near, xd, yd, zd):
         f.placed = False
@@ -151,8 +171,11 @@ def place(S, T, C, xpos, xmat, f, near, x, y, z):
 
 @njit(cache=True)
 def hold(S, T, C, xpos, xmat, cvel, f, near):
-    """`SoftFingerProxy.hold`: no usable sample; zero force, the proxy follows its body, the
-    soft start's ramp winds down."""
+    """No usable device sample this tick: zero force, the proxy only follows its body. The
+    soft start's ramp winds down as fast as it winds up, so after an outage of T s (a device
+    error, invalid samples) the clamps come back from max·(1 - T/soft_start): a finger that
+    moved into an object meanwhile gets no kick; one lost sample costs a hundredth of the
+    clamp at 1 kHz (0.1 s soft start), not the grip."""
     if f.body >= 0.0:
         _follow_body(S, cvel, f)
     if f.soft_start > 0.0:
@@ -165,9 +188,11 @@ def hold(S, T, C, xpos, xmat, cvel, f, near):
 
 @njit(cache=True)
 def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
-    """`SoftFingerProxy.update` from a device sample (device frame, m, rad) over dt (s)."""
+    """One tick from a device sample (device frame, m and rad) over period dt (s): god-object,
+    virtual coupling, torsion. False when the sample was not used (a spike held back, a
+    position outside the workspace, a non-finite twist): the finger then renders zero force."""
     f.dt = dt
-    if f.body >= 0.0:
+    if f.body >= 0.0:  # in contact last tick: the body it touches turns α_p with it
         _follow_body(S, cvel, f)
     if not f.placed:
         ok = place(S, T, C, xpos, xmat, f, near, x, y, z) and _finite(twist)
@@ -176,12 +201,14 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     xd = f.ox + f.scale * x
     yd = f.oy + f.scale * y
     zd = f.oz + f.scale * z
+    # velocity-spike filter: a jump no hand makes in one period is held back for up to
+    # SPIKE_PATIENCE ticks; a device that really moved that far is followed after that
     ex, ey, ez = xd - f.xd, yd - f.yd, zd - f.zd
     reach = f.max_speed * dt
     if ex * ex + ey * ey + ez * ez > reach * reach and f.spike_run < SPIKE_PATIENCE:
         f.spike_run += 1
         f.spikes_rejected += 1
-        godobject.follow(S, T, C, xpos, xmat, f, near)  # _rest: the finger is placed here
+        godobject.follow(S, T, C, xpos, xmat, f, near)  # zero force; the proxy stays on its body
         clear_output(f)
         return False
     f.spike_run = 0
@@ -215,7 +242,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     fz = k * sz + c * (sz - f.sz)
     f.sx, f.sy, f.sz = sx, sy, sz
     ramp = f.ramp
-    if ramp < 1.0:
+    if ramp < 1.0:  # soft start: no kick when a finger starts inside an object
         v = ramp + dt / f.soft_start
         ramp = v if v < 1.0 else 1.0
         f.ramp = ramp
@@ -226,7 +253,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
         fx, fy, fz = fx * s, fy * s, fz * s
     nx, ny, nz = f.nx, f.ny, f.nz
     P = fx * nx + fy * ny + fz * nz
-    if P < 0.0:
+    if P < 0.0:  # damping pulling the finger into the surface: contact carries no pull
         fx, fy, fz = fx - P * nx, fy - P * ny, fz - P * nz
         P = 0.0
     f.fx, f.fy, f.fz = fx, fy, fz
@@ -248,6 +275,8 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     stretch = f.alpha_p - twist
     M += f.b_tau / dt * (stretch - f.stwist)
     f.stwist = stretch
+    # the damping never takes |M| past what friction holds (the static limit, or the spring
+    # torque where that is larger), nor past the clamp
     limit, torque = f.limit, abs(f.spring_torque)
     bound = limit if limit > torque else torque
     if bound > f.max_torque * ramp:
@@ -260,7 +289,8 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
 
 @njit(cache=True)
 def audit(S, T, C, xpos, xmat, f):
-    """`SoftFingerProxy.audit`: deepest the proxy sits inside any shape now (m)."""
+    """Deepest the proxy sits inside any shape now (m, >= 0), kept in penetration_max: the
+    check that no finger was let in. An unplaced finger has no proxy in the world yet: 0."""
     if not f.placed:
         return 0.0
     worst = 0.0
@@ -280,7 +310,7 @@ FIXED, TOUCHED, PUSHED = 0, 1, 2
 
 @njit(cache=True)
 def _listed(bodies, n, body):
-    """True when body is among bodies[:n] (`body in list`)."""
+    """True when body is among bodies[:n]."""
     for j in range(n):
         if bodies[j] == body:
             return True
@@ -290,7 +320,8 @@ def _listed(bodies, n, body):
 @njit(cache=True)
 def push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
     """Force (N) at world point p (m) plus a pure torque (N·m) on `body`, added to this tick's
-    wrench about the world origin (`World.push`); nothing on a body welded to the world."""
+    wrench about the world origin (so no body position is read per push); nothing on a body
+    welded to the world."""
     if bodies[FIXED, body]:
         return
     touched = bodies[TOUCHED]
@@ -337,8 +368,10 @@ guard_wrench = njit(device_guard.guard_wrench)  # compiled into its callers, cac
 
 @njit(cache=True)
 def _clamp_for_device(f, safe, fmax, tmax):
-    """`ServoLoop._send`: what the device is sent, zero when unsafe or invalid; False when
-    the guard refused the wrench (not finite, or limits that are not numbers)."""
+    """What the device is sent for this finger, into its sent_ fields: zero on the watchdog's
+    zero-force tick (`safe`) or when the sample was not used, otherwise the wrench through
+    `device_guard.guard_wrench` (finite, within the finger's and the device's clamps). False
+    when the guard refused the wrench (not finite, or limits that are not numbers)."""
     good = True
     if safe or not f.valid:
         fx = fy = fz = tx = ty = tz = 0.0

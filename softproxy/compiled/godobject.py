@@ -1,16 +1,29 @@
-"""The god-object solver of `softproxy.proxy`, compiled: the same steps on a finger's state row.
+"""The god-object solver (numba): the engine's 3-DOF proxy, kept outside every shape.
 
-A numba twin of `GodObject.update` / `follow` / `reset`. Each function mirrors the Python
-method of the same name line by line, in the same order of floating-point operations, so the
-two agree to the last bit on primitives (tests/test_compiled.py runs them side by side) and
-to rounding on meshes (`softproxy.compiled.mesh`). The Python class stays the reference and
-the documentation: read it for the why of every step; comments here only mark where the form
-differs.
+Each tick the proxy moves from where it was toward the device position x_d (Zilles &
+Salisbury's god-object, Ruspini's proxy): a sphere of radius r swept against every shape
+(`softproxy.compiled.shapes`), stopping at the first surface it moves into, then sliding on
+up to three constraint planes — faces, edges, corners and concave creases — all within one
+tick. A plane the proxy slides off (a curved shape's tangent plane, a rounded edge's, a
+face's past the face's edge) is replaced by the shape's tangent plane under the proxy; when
+the tick's MAX_ITERATIONS sweeps run out just after such a lift (a jump of centimetres deep
+into a curved surface), one more sweep straight toward the device puts the proxy back on
+the surface, in contact, rather than leaving it microns above with no force for a tick.
+Every sweep stays inside the ball whose shapes the tick's broad phase gathered. Friction is
+the proxy literature's friction cone: the proxy sticks while the device stays inside the
+static cone (tangential offset <= μ_s × penetration), otherwise it slides to the edge of the
+dynamic cone. The proxy is kept in the frame of the geom it touches, so a moving object
+carries it; an object that moves into it pushes it out.
 
-State: `g` is the finger's row of the state array (columns in `layout`), `near` its row of
-the broad phase's shape list; shapes are rows of the table `S` (a mesh's triangles and grid
-in the tables `T` and `C`), posed by MuJoCo's `geom_xpos` / `geom_xmat`. A list of
-constraint planes is an (n, 5) array of rows (nx, ny, nz, c, shape row) plus a count. Units: m.
+These kernels are the only god-object: `softproxy.proxy.GodObject` is a view of a finger
+record that calls the `*_row` entries at the end, and `softproxy.compiled.finger` calls
+`update` / `follow` / `reset` inside the tick.
+
+State: `g` is the finger's record (`layout.FINGER`), `near` its row of the broad phase's
+shape list; shapes are rows of the table `S` (a mesh's triangles and grid in the tables `T`
+and `C`), posed by MuJoCo's `geom_xpos` / `geom_xmat`. A list of constraint planes is an
+(n, 5) array of rows (nx, ny, nz, c, shape row) plus a count; a plane keeps the proxy's
+centre in {y: n·y >= c}. Units: m.
 """
 
 from __future__ import annotations
@@ -31,6 +44,7 @@ LIFT_TOL = 1e-7
 a face's plane past the face's edge), re-follow the surface when the proxy has lifted off
 the real shape by more than this (m); a proxy this far off a plane no longer rests on it."""
 PARALLEL = 1.0 - 1e-9
+"""Normals this aligned (cosine) are the same plane's (a plane met again, a face held)."""
 WORKSPACE_LIMIT = 1e3
 """A device position farther than this from the origin on any axis (m) is garbage, like NaN."""
 
@@ -51,7 +65,7 @@ def _load_planes(g, pl):
 
 @njit(cache=True)
 def _store_planes(g, pl, n):
-    """The finger's planes := the last three of pl[:n] (`resting[-3:]`)."""
+    """The finger's planes := the newest three of pl[:n] (a proxy rests on three at most)."""
     start = n - 3 if n > 3 else 0
     for j in range(start, n):
         for k in range(PLANE_WIDTH):
@@ -61,6 +75,8 @@ def _store_planes(g, pl, n):
 
 @njit(cache=True)
 def _feasible(pl, n, x, y, z, skip0, skip1):
+    """True when (x, y, z) is on or above every plane of pl[:n] (within CONTACT_TOL) but
+    pl[skip0] and pl[skip1], the ones it was put on."""
     for i in range(n):
         if i != skip0 and i != skip1 and pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z < pl[i, 3] - CONTACT_TOL:
             return False
@@ -69,22 +85,27 @@ def _feasible(pl, n, x, y, z, skip0, skip1):
 
 @njit(cache=True)
 def _corner(px, py, pz, pl):
-    """`proxy._corner`: (found, qx, qy, qz)."""
+    """The point q on all three planes of pl when it is the projection of p, i.e. q - p =
+    Σ λ_i n_i with every λ_i >= 0 (each plane pushes, none pulls): (found, qx, qy, qz)."""
     ax, ay, az, ca = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
     bx, by, bz, cb = pl[1, 0], pl[1, 1], pl[1, 2], pl[1, 3]
     cx, cy, cz, cc = pl[2, 0], pl[2, 1], pl[2, 2], pl[2, 3]
+    # the columns of the inverse of N = [a; b; c] (normals as rows) are b × c, c × a, a × b over det N
     ux, uy, uz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
     vx, vy, vz = cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax
     wx, wy, wz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
     det = ax * ux + ay * uy + az * uz
     if abs(det) <= 1e-12:
         return False, 0.0, 0.0, 0.0
+    # distances to push p along each plane's normal: e_i = c_i - n_i·p; q = p + N⁻¹ e
     ea = ca - (ax * px + ay * py + az * pz)
     eb = cb - (bx * px + by * py + bz * pz)
     ec = cc - (cx * px + cy * py + cz * pz)
     dx = (ux * ea + vx * eb + wx * ec) / det
     dy = (uy * ea + vy * eb + wy * ec) / det
     dz = (uz * ea + vz * eb + wz * ec) / det
+    # q - p = Nᵀλ and N q = c give G λ = e with the Gram matrix G = N Nᵀ (unit normals: ones
+    # on its diagonal); λ = G⁻¹ e by cofactors, only its signs matter
     gab, gac, gbc = ax * bx + ay * by + az * bz, ax * cx + ay * cy + az * cz, bx * cx + by * cy + bz * cz
     c00, c11, c22 = 1.0 - gbc * gbc, 1.0 - gac * gac, 1.0 - gab * gab
     c01, c02, c12 = gac * gbc - gab, gab * gbc - gac, gab * gac - gbc
@@ -99,17 +120,17 @@ def _corner(px, py, pz, pl):
 
 @njit(cache=True)
 def _project_by_enumeration(px, py, pz, pl, n):
-    """`proxy._project_by_enumeration`: (found, qx, qy, qz)."""
+    """`_project` by trying active sets of one, two, then three planes in turn: (found, qx, qy, qz)."""
     if _feasible(pl, n, px, py, pz, -1, -1):
         return True, px, py, pz
-    for i in range(n):
+    for i in range(n):  # one active plane
         nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
         lam = c - (nx * px + ny * py + nz * pz)
         if lam > 0.0:
             qx, qy, qz = px + lam * nx, py + lam * ny, pz + lam * nz
             if _feasible(pl, n, qx, qy, qz, i, -1):
                 return True, qx, qy, qz
-    for i in range(n):
+    for i in range(n):  # two active planes: q = p + a n_i + b n_j on both planes, a, b >= 0
         for j in range(i + 1, n):
             ax, ay, az, ci = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
             bx, by, bz, cj = pl[j, 0], pl[j, 1], pl[j, 2], pl[j, 3]
@@ -126,12 +147,12 @@ def _project_by_enumeration(px, py, pz, pl, n):
             qx, qy, qz = px + a * ax + b * bx, py + a * ay + b * by, pz + a * az + b * bz
             if _feasible(pl, n, qx, qy, qz, i, j):
                 return True, qx, qy, qz
-    if n == 3:
+    if n == 3:  # three active planes: the corner point
         ax, ay, az, ca = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
         bx, by, bz, cb = pl[1, 0], pl[1, 1], pl[1, 2], pl[1, 3]
         cx, cy, cz, cc = pl[2, 0], pl[2, 1], pl[2, 2], pl[2, 3]
         det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
-        if abs(det) > 1e-12:
+        if abs(det) > 1e-12:  # Cramer's rule for N q = c
             qx = (ca * (by * cz - bz * cy) - ay * (cb * cz - bz * cc) + az * (cb * cy - by * cc)) / det
             qy = (ax * (cb * cz - bz * cc) - ca * (bx * cz - bz * cx) + az * (bx * cc - cb * cx)) / det
             qz = (ax * (by * cc - cb * cy) - ay * (bx * cc - cb * cx) + ca * (bx * cy - by * cx)) / det
@@ -141,8 +162,10 @@ def _project_by_enumeration(px, py, pz, pl, n):
 
 @njit(cache=True)
 def _project(px, py, pz, pl, n):
-    """`proxy._project`: (found, qx, qy, qz)."""
-    if n == 1:
+    """Closest point to p in the intersection of the n <= 3 half-spaces of pl (KKT, active
+    sets): (found, qx, qy, qz); not found when the planes admit no point (a degenerate set,
+    e.g. opposite parallel faces closer than the proxy's diameter)."""
+    if n == 1:  # the common case, a face: inline
         nx, ny, nz, c = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
         lam = c - (nx * px + ny * py + nz * pz)
         if lam > 0.0:
@@ -155,7 +178,7 @@ def _project(px, py, pz, pl, n):
             break
     if not outside:
         return True, px, py, pz
-    if n == 3:
+    if n == 3:  # a proxy held in a corner: try the corner first
         found, qx, qy, qz = _corner(px, py, pz, pl)
         if found:
             return True, qx, qy, qz
@@ -164,7 +187,7 @@ def _project(px, py, pz, pl, n):
 
 @njit(cache=True)
 def _plane_of(pl, n, s, nx, ny, nz):
-    """`proxy._plane_of`: index of shape s's plane of normal n in pl[:n], or -1."""
+    """Index in pl[:n] of shape s's plane of normal n (parallel within PARALLEL), or -1."""
     for i in range(n):
         if int(pl[i, 4]) == s and pl[i, 0] * nx + pl[i, 1] * ny + pl[i, 2] * nz > PARALLEL:
             return i
@@ -173,7 +196,8 @@ def _plane_of(pl, n, s, nx, ny, nz):
 
 @njit(cache=True)
 def _add_plane(pl, n, nx, ny, nz, c, s):
-    """`softproxy.proxy._add_plane` on pl[:n]: the new count."""
+    """Add a constraint plane just hit to pl[:n]; returns the new count. The same plane met
+    again is replaced, not doubled, and the oldest goes when there would be four."""
     i = _plane_of(pl, n, s, nx, ny, nz)
     if i >= 0:
         for j in range(i, n - 1):
@@ -192,7 +216,7 @@ def _add_plane(pl, n, nx, ny, nz, c, s):
 
 @njit(cache=True)
 def _touched(pl, n, nx, ny, nz):
-    """`proxy._touched`: the shape row whose plane is most aligned with n."""
+    """The touched shape: the row whose plane in pl[:n] is most aligned with the force's n."""
     best, best_dot = int(pl[0, 4]), -2.0
     for i in range(n):
         dot = pl[i, 0] * nx + pl[i, 1] * ny + pl[i, 2] * nz
@@ -203,6 +227,8 @@ def _touched(pl, n, nx, ny, nz):
 
 @njit(cache=True)
 def _on_static_faces(S, xmat, pl, n):
+    """True when every plane is a planar face of a shape that never moves: such a plane holds
+    from tick to tick for as long as the proxy touches the face."""
     for i in range(n):
         s = int(pl[i, 4])
         if not (S[s].static and shape_on_face(S, xmat, s, pl[i, 0], pl[i, 1], pl[i, 2])):
@@ -212,14 +238,17 @@ def _on_static_faces(S, xmat, pl, n):
 
 @njit(cache=True)
 def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
-    """`GodObject._gather_ball`."""
+    """near: every shape the proxy can touch while its centre stays within `room` (m) of c,
+    the shapes whose bounding sphere meets the ball of radius room + r (a plane: when the
+    ball reaches its surface). The ball is kept (bx, by, bz, room): a sub-move that would
+    leave it widens it first."""
     g.bx, g.by, g.bz, g.room = cx, cy, cz, room
     reach = room + g.radius
     count = 0
     for s in range(S.shape[0]):
         k = int(S[s].geom)
         rb = S[s].rbound + reach
-        if rb == math.inf:
+        if rb == math.inf:  # a plane: near when the ball reaches its surface
             if xmat[k, 2] * (cx - xpos[k, 0]) + xmat[k, 5] * (cy - xpos[k, 1]) + xmat[k, 8] * (cz - xpos[k, 2]) <= reach:
                 near[count] = s
                 count += 1
@@ -233,7 +262,8 @@ def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
 
 @njit(cache=True)
 def push_out(S, T, C, xpos, xmat, g, near):
-    """`GodObject._push_out`."""
+    """Move the proxy out of any shape of `near` it overlaps (an object moved into it), to
+    CONTACT_TOL outside; a few rounds, as a push out of one shape can push into another."""
     r = g.radius
     for _ in range(3):
         moved = False
@@ -252,7 +282,8 @@ def push_out(S, T, C, xpos, xmat, g, near):
 
 @njit(cache=True)
 def reset(S, T, C, xpos, xmat, g, near, x, y, z):
-    """`GodObject.reset`; False (nothing changed) for a position outside the workspace."""
+    """Put the proxy at (x, y, z) with no contact, every shape near, pushed out of any it
+    overlaps; False (nothing changed) for a position outside the workspace."""
     if not (-WORKSPACE_LIMIT < x < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < y < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < z < WORKSPACE_LIMIT):
         return False
@@ -272,19 +303,25 @@ def reset(S, T, C, xpos, xmat, g, near, x, y, z):
 
 @njit(cache=True)
 def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
-    """`GodObject._settle`: returns the proxy position before the push."""
+    """Carry the proxy with the touched body, gather the shapes near it and the device, push
+    it out of any that moved into it. Returns the proxy position before the push."""
     shape = int(g.touched)
     carrier = -1
     if shape >= 0 and not S[shape].static:
+        # carried by the touched object (stored in its frame at the end of last tick)
         carrier = shape
         g.x, g.y, g.z = shape_to_world(S, xpos, xmat, shape, g.lx, g.ly, g.lz)
     x, y, z = g.x, g.y, g.z
+    # broad phase: the shapes near the ball that holds both the proxy and the device, with a
+    # margin of 1 mm (`_move_once` widens it if a sub-move would leave it)
     if around_proxy:
         gather_ball(S, T, C, xpos, xmat, g, near, x, y, z, g.radius + 1e-3)
     else:
         ex, ey, ez = xd - x, yd - y, zd - z
         gather_ball(S, T, C, xpos, xmat, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
                     0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + g.radius + 1e-3)
+    # Only a moving shape can have come into the proxy, or a static one if the proxy itself
+    # was carried; the carrier holds the proxy where it was, outside.
     for j in range(int(g.nnear)):
         s = near[j]
         if s != carrier and (carrier >= 0 or not S[s].static):
@@ -295,13 +332,19 @@ def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
 
 @njit(cache=True)
 def follow(S, T, C, xpos, xmat, g, near):
-    """`GodObject.follow`: no device sample; stay on the body, out of what moved in."""
+    """Without a device sample: the proxy stays on the body it touches and out of anything
+    that moved into it, so a skipped tick never leaves it inside a moving object."""
     _settle(S, T, C, xpos, xmat, g, near, g.x, g.y, g.z, True)
 
 
 @njit(cache=True)
 def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
-    """`GodObject._sweep`: (found, lam, nx, ny, nz, shape row) of the earliest hit."""
+    """Earliest hit over the near shapes of the sphere moving by (dx, dy, dz): (found, lam,
+    nx, ny, nz, shape row).
+
+    pl[:n]: constraint planes that the start and the end of the move both satisfy. A convex
+    shape owning one of them lies behind it, so a move on or above it cannot enter the shape:
+    it is not swept (a slide along a face or a tangent plane sweeps only the other shapes)."""
     r = g.radius
     found = False
     best_lam, bnx, bny, bnz, bs = 1.0, 0.0, 0.0, 0.0, -1
@@ -324,7 +367,11 @@ def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
 
 @njit(cache=True)
 def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
-    """`GodObject._rests_on` for plane pl[i]."""
+    """True when the proxy at (x, y, z) still rests on plane pl[i] and on its shape's real
+    surface, both within LIFT_TOL (m): a plane runs on past a face's edge, a curved shape
+    falls away from its tangent plane, and a point friction held back short of the plane (on
+    a rounded edge below a face's plane) does not rest on it. `on_surface`: the shape's
+    surface is known to be under the proxy already."""
     nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
     if not abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL:
         return False
@@ -333,8 +380,10 @@ def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
 
 @njit(cache=True)
 def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
-    """`GodObject._keep_resting`: resting[:nr] (self.planes) plus the planes of pl[:n] the
-    proxy at p still rests on; the last three become the finger's planes."""
+    """After friction held the proxy back from the frictionless end: the planes it rests on
+    at (x, y, z), resting[:nr] (those a slide itself ran into) plus those of pl[:n] (the
+    frictionless solve's) it still touches, on their real surfaces, not past an edge. The
+    newest three become the finger's planes: what the next tick's warm start builds on."""
     for i in range(n):
         if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, False) and \
                 _plane_of(resting, nr, int(pl[i, 4]), pl[i, 0], pl[i, 1], pl[i, 2]) < 0:
@@ -346,7 +395,8 @@ def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
 
 @njit(cache=True)
 def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
-    """`GodObject._still_in_corner`."""
+    """`_still_stuck` in a corner of three static faces: holds while projecting the device
+    onto the three planes gives the corner point, where the proxy is (every plane pushes)."""
     if not _on_static_faces(S, xmat, pl, n):
         return False
     found, qx, qy, qz = _corner(xd, yd, zd, pl)
@@ -361,13 +411,20 @@ def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
     best = _touched(pl, n, nx, ny, nz)
     g.nx, g.ny, g.nz = nx, ny, nz
     g.depth = depth
-    g.touched = best
+    g.touched = best  # a static face: nothing carries the proxy
     return True
 
 
 @njit(cache=True)
 def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
-    """`GodObject._still_stuck`."""
+    """Fast path of the hold: a stuck proxy that stays stuck, on one flat face or pinned in a
+    corner of three static faces; True when it does (n, depth and planes updated).
+
+    What the full solve would find, for a fraction of its cost. On a face: the proxy does not
+    move, the frictionless proxy f is the device projected onto the face (checked to lie on
+    the same face, the way there clear of every other shape), and the cone test passes. In a
+    corner: the device pushes into all three faces, so f is the corner, where the proxy
+    already is."""
     n = _load_planes(g, pl)
     if n == 3:
         return _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n)
@@ -388,7 +445,7 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
     sx, sy, sz = x - fx, y - fy, z - fz
     if sx * sx + sy * sy + sz * sz > (g.mu_s * depth) ** 2:
         return False
-    for j in range(int(g.nnear)):
+    for j in range(int(g.nnear)):  # an obstacle on the face between the proxy and f changes f
         s = near[j]
         if s != shape and shape_sweep(S, T, C, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
             return False
@@ -402,7 +459,17 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
 
 @njit(cache=True)
 def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
-    """`GodObject._warm_planes` into warm; returns the count (0: solve cold)."""
+    """Last tick's planes to start the solve from, into warm; returns their count (0: solve
+    cold), when every one belongs to a static shape.
+
+    A proxy resting on a face, an edge or a corner keeps resting on the same shapes from tick
+    to tick: starting from their planes saves a sweep per plane. A planar face's plane is kept
+    as it was; a convex shape's plane elsewhere (a rounded edge or corner, a curved surface)
+    is its tangent plane under the proxy now, one distance query, unless the last solve slid
+    round a curve (it would lift off again). A plane may run on past the shape's surface: a
+    proxy that lifts off one (past a face's edge, round a curve) is solved again from no
+    planes (`_move`), so a warm start ends where the cold solve ends. Never unsafe either way:
+    every motion is still swept."""
     n = int(g.nplanes)
     count = 0
     for j in range(n):
@@ -415,11 +482,13 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
                 warm[count, k] = p[k]
             count += 1
             continue
-        if not S[s].convex or g.rounding:
+        if not S[s].convex or g.rounding:  # sliding round a curve: a warm start would lift
             return 0
         d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
         if d - g.radius > LIFT_TOL:
             return 0
+        # (a box's face and its rounded edge at their seam give one plane; its offset is taken
+        # through the proxy in _move_once)
         if count == 0 or _plane_of(warm, count, s, nx, ny, nz) < 0:
             warm[count, 0], warm[count, 1], warm[count, 2], warm[count, 3], warm[count, 4] = nx, ny, nz, 0.0, s
             count += 1
@@ -428,9 +497,12 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
 
 @njit(cache=True)
 def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
-    """One pass of `GodObject._move`. Returns (restart, x, y, z, hx, hy, hz, straight, n):
-    restart when a warm start must be solved again cold (the Python method's recursion);
-    otherwise the end point, the first surface point, and the resting planes in pl[:n]."""
+    """Constrained motion from (x, y, z) toward (gx, gy, gz), starting from the planes
+    warm[:nwarm] the proxy rests on (none: cold). Returns (restart, x, y, z, hx, hy, hz,
+    straight, n): restart when what a warm start assumed no longer holds (`_move` solves
+    again cold); otherwise the end point, the first surface point reached (or the end point),
+    whether the way from that first point to the end was one straight swept segment (any
+    point on it is reachable), and the planes the proxy rests on at the end in pl[:n]."""
     n = 0
     has_first = False
     hx = hy = hz = 0.0
@@ -440,8 +512,12 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
     r = g.radius
     tx, ty, tz = gx, gy, gz
     if nwarm > 0:
+        # through the proxy as it is now: it may sit up to LIFT_TOL off a plane's old offset,
+        # and a target on the old offset would then lie a hair inside the face
         for j in range(nwarm):
             warm[j, 3] = warm[j, 0] * x + warm[j, 1] * y + warm[j, 2] * z
+        # only a device pressing into a plane keeps the proxy on it from the start, by more
+        # than a graze of the motion, as a sweep would count it
         ex, ey, ez = gx - x, gy - y, gz - z
         graze = GRAZE * math.sqrt(ex * ex + ey * ey + ez * ez)
         found = False
@@ -457,22 +533,32 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             has_first = True
             hx, hy, hz = x, y, z
             tx, ty, tz = qx, qy, qz
+    # a warm start saves the sweeps that would have found its planes, one each, not the budget
+    # of those that follow: it ends where a cold solve ends, for less
     bx, by, bz, room2 = g.bx, g.by, g.bz, g.room * g.room
-    following = False
+    following = False  # the last sweep slid along a tangent plane that then lifted off
     for _ in range(MAX_ITERATIONS - n):
         following = False
         dx, dy, dz = tx - x, ty - y, tz - z
         if dx * dx + dy * dy + dz * dz < 1e-24:
             break
+        # every sweep stays in the ball whose shapes were gathered: a target that slides out of
+        # it (round a curved surface, along a plane's projection) widens it first
         ex, ey, ez = tx - bx, ty - by, tz - bz
         if ex * ex + ey * ey + ez * ez > room2:
             gather_ball(S, T, C, xpos, xmat, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
             room2 = g.room * g.room
+        # the proxy and the target are on or above every plane (the target is projected onto
+        # them; a hit, a lifted plane's replacement lie below the proxy)
         hit, lam, nx, ny, nz, s = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n)
         if not hit:
             x, y, z = tx, ty, tz
             if n == 0 or (tx == gx and ty == gy and tz == gz):
                 break
+            # a plane whose shape fell away under the proxy (a curved shape's tangent plane, a
+            # rounded edge's, a face's plane past the face's edge) is replaced by the shape's
+            # tangent plane below the proxy now (its linearisation where the proxy is) and the
+            # others kept: a crease of a face and a curved shape is followed along both at once
             nk = 0
             lifted = False
             for i in range(n):
@@ -495,10 +581,10 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                     kept[nk, 4] = si
                     nk += 1
             if not lifted:
-                on_surfaces = True
+                on_surfaces = True  # every plane's real surface is under the proxy
                 break
             g.rounding = True
-            if nwarm > 0:
+            if nwarm > 0:  # what the warm start assumed no longer holds: solve cold
                 return True, x, y, z, hx, hy, hz, straight, 0
             straight = False
             for i in range(nk):
@@ -522,7 +608,10 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
         if not found:
             break
         tx, ty, tz = qx, qy, qz
-    if following:  # the budget ran out just after a lift: straight toward the goal, as in Python
+    if following:
+        # the budget ran out just after the proxy lifted off a curved surface it was following
+        # (a jump of centimetres a tick deep into it): one sweep straight toward the goal puts
+        # it back on the surface, in contact, instead of microns above it with no force for a tick
         dx, dy, dz = gx - x, gy - y, gz - z
         hit, lam, nx, ny, nz, s = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
         if not hit:
@@ -533,13 +622,14 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                 has_first = True
                 hx, hy, hz = x, y, z
             n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s)
-    nr = 0
+    nr = 0  # keep only the planes the proxy still rests on (the loop may end before it checked)
     for i in range(n):
         if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surfaces):
             for k in range(PLANE_WIDTH):
                 pl[nr, k] = pl[i, k]
             nr += 1
         elif nwarm > 0 and abs(pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z - pl[i, 3]) <= LIFT_TOL:
+            # on a plane, off its shape: solve again from no planes, as above
             return True, x, y, z, hx, hy, hz, straight, 0
     if not has_first:
         hx, hy, hz = x, y, z
@@ -548,7 +638,8 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
 
 @njit(cache=True)
 def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
-    """`GodObject._move`: (x, y, z, hx, hy, hz, straight, n), resting planes in pl[:n]."""
+    """`_move_once`, warm-started, and solved again cold when the warm start's planes did not
+    hold: (x, y, z, hx, hy, hz, straight, n), the resting planes in pl[:n]."""
     restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz,
                                                               warm, nwarm, pl, kept)
     if restart:  # what the warm start assumed no longer holds: solve again from no planes
@@ -559,10 +650,10 @@ def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, ke
 
 @njit(cache=True)
 def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
-    """`GodObject.update`: move the proxy toward the device position (m, world).
+    """Move the proxy toward the device position (m, world): the tick's god-object.
 
-    pl, saved, warm, kept: scratch plane lists of PLANE_ROOM rows. False on garbage input
-    (the proxy then only follows its body)."""
+    pl, saved, warm, kept: scratch plane lists of PLANE_ROOM rows. False on NaN, Inf or a
+    position outside the workspace: the proxy then only follows its body (`follow`)."""
     if not (-WORKSPACE_LIMIT < xd < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < yd < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < zd < WORKSPACE_LIMIT):
         follow(S, T, C, xpos, xmat, g, near)
@@ -583,6 +674,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
         g.sticking = False
         return True
 
+    # constraint direction: from the device to the frictionless proxy
     ex, ey, ez = fx - xd, fy - yd, fz - zd
     depth = math.sqrt(ex * ex + ey * ey + ez * ez)
     if depth > 0.0:
@@ -591,18 +683,21 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
         nx, ny, nz = pl[n - 1, 0], pl[n - 1, 1], pl[n - 1, 2]
     best = int(pl[0, 4]) if n == 1 else _touched(pl, n, nx, ny, nz)
 
+    # friction cone, tested from the first surface point the proxy reached this tick
     sx, sy, sz = hx - fx, hy - fy, hz - fz
     slide = math.sqrt(sx * sx + sy * sy + sz * sz)
     sticking = slide <= g.mu_s * depth
     _store_planes(g, pl, n)
     if sticking:
         fx, fy, fz = hx, hy, hz
-        if slide > 0.0:
+        if slide > 0.0:  # held back: keep the planes that reach back to h
             _keep_resting(S, T, C, xpos, xmat, g, saved, 0, pl, n, hx, hy, hz)
     elif g.mu_d > 0.0 and slide > 0.0:
+        # back to the dynamic cone's edge: a point on the way from h to the frictionless proxy
+        # (back < 1 since slide > μ_s·depth >= μ_d·depth)
         back = g.mu_d * depth / slide
         tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
-        if straight:
+        if straight:  # h to f was one swept, clear segment: t lies on it, nothing to sweep
             fx, fy, fz = tx, ty, tz
         else:
             for j in range(n):  # the frictionless solve's planes, kept aside
@@ -616,7 +711,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
     g.depth = depth
     g.sticking = sticking
     g.touched = best
-    if not S[best].static:
+    if not S[best].static:  # remember the proxy in the touched geom's frame: it carries it
         g.lx, g.ly, g.lz = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
     return True
 
