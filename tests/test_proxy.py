@@ -625,8 +625,8 @@ def test_a_moving_body_carries_the_proxy_in_its_frame():
         assert god.sticking
         assert np.linalg.norm(position(god) - (R @ local + pos)) < 1e-12
         assert god.lx == pytest.approx(local[0], abs=1e-12) and god.lz == pytest.approx(local[2], abs=1e-12)
-    # the box slides 5 mm under a device 2 mm deep with μ_s = 1, left where it was: inside
-    # the cone (5 mm <= 1 × 2 mm is false, so press deeper first: 6 mm)
+    # the box slides 5 mm under a device left where it was, 6 mm deep with μ_s = 1: inside
+    # the cone (5 mm <= 1 × 6 mm), so the proxy goes with the box
     scene.d.mocap_pos[0] = (0.0, 0.0, 0.0)
     scene.d.mocap_quat[0] = (1.0, 0.0, 0.0, 0.0)
     scene.forward()
@@ -724,6 +724,7 @@ def test_a_slide_down_a_bowl_meets_the_floor_it_did_not_start_near():
     god.update(0.05, 0.025, 0.0425)
     god.update(0.0, 0.0, 0.03)
     p = position(god)
+    assert god.contact and p[2] == pytest.approx(r, abs=1e-9)  # on the floor, at the bowl's foot
     floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "table")
     bowl = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "bowl")
     assert signed_distance(m, d, floor, p) >= r - TOL
