@@ -872,9 +872,6 @@ def test_the_touched_body_turns_the_twist_proxy_with_it(omega):
     assert f.torsion.alpha_p == pytest.approx(0.2 + omega * DT, abs=1e-15)
 
 
-@pytest.mark.xfail(strict=True, reason="kernel bug: compiled/finger.py hold() turns α_p with the body only "
-                   "while f.body >= 0, and its own clear_output() sets body = -1, so only the first held tick "
-                   "follows the spin (the god-object follows on every one)")
 def test_the_twist_proxy_follows_a_spinning_body_through_every_held_tick():
     """Eqs 41-42 while held: α_p turns with the knob on every tick without a sample, as the
     god-object follows the body on every one, so a sample after an outage finds α_p where
@@ -912,9 +909,6 @@ def test_garbage_samples_render_zero_and_leave_the_proxy():
     assert f.update(0.0, 0.0, 0.004, 0.1, DT) and f.valid and f.fz == pytest.approx(1.0, rel=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="kernel bug: compiled/finger.py update() moves the god-object to the "
-                   "device position before it checks the twist, so a sample with a non-finite twist moves the "
-                   "proxy (SoftFingerProxy.update promises it stays where it was)")
 def test_a_non_finite_twist_leaves_the_proxy_where_it_was():
     """An unusable sample (here: a good position with a NaN twist) leaves the proxy where
     it was, as `SoftFingerProxy.update` says."""

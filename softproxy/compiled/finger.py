@@ -175,8 +175,10 @@ def hold(S, T, C, xpos, xmat, cvel, f, near):
     soft start's ramp winds down as fast as it winds up, so after an outage of T s (a device
     error, invalid samples) the clamps come back from max·(1 - T/soft_start): a finger that
     moved into an object meanwhile gets no kick; one lost sample costs a hundredth of the
-    clamp at 1 kHz (0.1 s soft start), not the grip."""
-    if f.body >= 0.0:
+    clamp at 1 kHz (0.1 s soft start), not the grip. α_p turns with the touched body on every
+    held tick, as the proxy follows it (keyed on the contact, not on `body`: clear_output
+    empties that)."""
+    if f.touched >= 0:
         _follow_body(S, cvel, f)
     if f.soft_start > 0.0:
         ramp = f.ramp - f.dt / f.soft_start
@@ -192,7 +194,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     virtual coupling, torsion. False when the sample was not used (a spike held back, a
     position outside the workspace, a non-finite twist): the finger then renders zero force."""
     f.dt = dt
-    if f.body >= 0.0:  # in contact last tick: the body it touches turns α_p with it
+    if f.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
         _follow_body(S, cvel, f)
     if not f.placed:
         ok = place(S, T, C, xpos, xmat, f, near, x, y, z) and _finite(twist)
@@ -212,8 +214,11 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
         clear_output(f)
         return False
     f.spike_run = 0
-    if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3]) \
-            or not _finite(twist):
+    if not _finite(twist):  # an unusable sample: the proxy stays where it was, on its body
+        godobject.follow(S, T, C, xpos, xmat, f, near)
+        clear_output(f)
+        return False
+    if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3]):
         clear_output(f)
         return False
     f.xd, f.yd, f.zd = xd, yd, zd
