@@ -57,7 +57,7 @@ PLANE_WIDTH = 5
 """A constraint plane: unit normal (nx, ny, nz), offset c (m), the shape row it belongs to."""
 
 # -- mesh triangle table T: one row per triangle, geom frame (softproxy.compiled.mesh) -------
-# the first 22 columns are `softproxy.mesh`'s triangle tuple: A, B, C, AB, AC, unit normal N,
+# the first 22 columns are the triangle as `softproxy.mesh.MeshShape` builds it: A, B, C, AB, AC, unit normal N,
 # AB·AB, AB·AC, AC·AC, 1 / (AB·AB AC·AC - (AB·AC)²)
 T_A, T_B, T_C, T_AB, T_AC, T_N = 0, 3, 6, 9, 12, 15
 T_AA, T_ABAC, T_CC, T_INV = 18, 19, 20, 21
@@ -83,7 +83,7 @@ bounding ball (centre, radius; m) and its row of T, so that a scan reads a cell'
 one sequential pass and opens only the triangles they cannot rule out."""
 RECORD_WIDTH = 9
 C_FEW = 1
-FEW_SLOTS = 16   # two faces' lists at an edge, STATIC_ABOVE (softproxy.mesh) each
+FEW_SLOTS = 16   # two faces' lists at an edge, STATIC_ABOVE (softproxy.compiled.certificate) each
 C_STAMPS = C_FEW + FEW_SLOTS
 # a mesh's vertex records in C (softproxy.compiled.certificate), from C[S_VERTS]:
 V_X = 0          # the vertex (m, geom frame), 0..2

@@ -1,15 +1,13 @@
-"""Numba twins of `softproxy.geometry`'s shapes, for the compiled god-object.
+"""Proxy-vs-shape queries: signed distance, outward normal and swept contact, per shape record.
 
-Each function answers one `Shape` query (distance, sweep, on_face, to_local) for row k of a
-flat shape table (`shape_tables`, columns in `softproxy.compiled.layout`) with the pose read
-straight from MuJoCo's `geom_xpos` / `geom_xmat`. On the primitives every function repeats
-the floating-point operations of the Python method in the same order, so the results are
-bit-identical; this is checked by tests/test_compiled_shapes.py. Change both sides together.
-Meshes are answered by `softproxy.compiled.mesh` from the mesh tables T and C (empty in a
-world without meshes), which every query takes along.
-
-numba freezes the module-level constants (CONTACT_TOL, GRAZE, …) into its on-disk cache;
-`softproxy.compiled.cache` drops that cache when any file they come from changes.
+Each function answers one query (distance, sweep, on_face, to_local) for row k of the shape
+table S (`SHAPE` records, `softproxy.compiled.layout`) with the pose read straight from
+MuJoCo's `geom_xpos` / `geom_xmat`; the `Shape` methods users call are these functions.
+Every primitive is convex, so a sphere that touches it and moves along or away from the
+tangent plane can never enter it: `shape_sweep` reports nothing then, which is what lets
+the god-object slide along faces. Meshes are answered by `softproxy.compiled.mesh` from the
+mesh tables T and C; in a world without meshes T and C are None, and numba prunes the mesh
+branch on that type, so the mesh kernels are not compiled at all.
 """
 
 import math
