@@ -8,6 +8,10 @@ tick over every finger; `native` MuJoCo's C step and a monotonic clock for kerne
 keeps numba's on-disk cache in step with every file the kernels are built from. The classes
 users see (`softproxy.finger`, `proxy`, `torsion`, `geometry`, `mesh`) are views onto the
 records these kernels read and write. `NUMBA_DISABLE_JIT=1` runs the same source as Python.
+
+Every kernel is compiled with numpy's error model: a division by zero (a NaN pose from a
+diverged simulation, say) gives Inf or NaN, which the device guard turns into zero force
+and a counted fault, never an exception out of a tick.
 """
 
 from softproxy.compiled.cache import drop_stale

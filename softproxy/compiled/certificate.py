@@ -108,7 +108,7 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     return columns, np.concatenate([p.ravel() for p in parts]), float(s._kept)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
     """The side (±1.0) of neighbour row o that the tangent plane of normal n at a point on its
     edge with row i sees (side0: the side of row i it sees, dot0 = n · row i's normal), when
@@ -128,7 +128,7 @@ def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
     return side1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _face_few(T, C, i, side, at):
     """Row i's list of triangles rising above its plane on `side`, copied to C[C_FEW + at:];
     the new count, or -1 when it has none (a concave patch)."""
@@ -142,7 +142,7 @@ def _face_few(T, C, i, side, at):
     return at + count
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     """`static_clear` when the nearest point is vertex `feature - 4` of row `hint`: the fan lies
     behind the tangent plane when n is inside the vertex's cone (else every edge leaving it is
@@ -189,7 +189,7 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
     """How many triangles (rows of T, listed in C[C_FEW:]) within
     `need` (m) of the nearest point on `feature` of row `hint` may reach above the tangent

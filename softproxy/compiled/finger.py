@@ -30,7 +30,7 @@ SPIKE_PATIENCE = 3
 """Consecutive ticks a position jump is held back as a spike before it is believed."""
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _finite(v):
     """True for a number that is neither NaN nor ±Inf."""
     return v == v and v != math.inf and v != -math.inf
@@ -42,7 +42,7 @@ def _finite(v):
 # object turned. The goal α_g is the device twist measured from where contact began: α_p
 # starts at the device twist, so M starts at zero. Angles are right-handed about n (out of
 # the object, toward the finger); M is the torque on the finger, the object gets -M about n.
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_touch(f, alpha_s):
     """Contact made: the proxy twist starts at the finger's current twist α_s (rad), so the
     torque starts at zero (a non-finite twist counts as 0)."""
@@ -54,7 +54,7 @@ def torsion_touch(f, alpha_s):
     f.slipping = False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_release(f):
     """Contact broken: torsion state cleared, no torque."""
     f.in_contact = False
@@ -63,7 +63,7 @@ def torsion_release(f):
     f.slipping = False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_step(f, alpha_s, P):
     """One servo tick (eqs 38-40): new α_p from device twist α_s (rad) and normal force P (N).
 
@@ -118,7 +118,7 @@ def torsion_step(f, alpha_s, P):
     return f.spring_torque
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_follow(f, omega_n, dt):
     """Eqs 41-42: α_p += (ω·n)Δt, the touched object's signed spin about n (rad/s) over Δt (s).
     The seed's |ω·n| would drag the proxy forwards whichever way the object turned; the signed
@@ -131,7 +131,7 @@ def torsion_follow(f, omega_n, dt):
 
 
 # -- the finger (softproxy.finger.SoftFingerProxy) -------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def clear_output(f):
     """Zero force and torque, no contact reported, the sample not used: the safe state."""
     f.fx = f.fy = f.fz = 0.0
@@ -142,7 +142,7 @@ def clear_output(f):
     f.valid = False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _follow_body(S, cvel, f):
     """Eqs 41-42: the touched body's spin about n (rad/s, world; MuJoCo's cvel after mj_step1)
     drags α_p, signed."""
@@ -151,7 +151,7 @@ def _follow_body(S, cvel, f):
         torsion_follow(f, cvel[b, 0] * f.nx + cvel[b, 1] * f.ny + cvel[b, 2] * f.nz, f.dt)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def place(S, T, C, xpos, xmat, f, near, x, y, z):
     """Put the proxy at a device position (device frame, m), out of contact and torsion, the
     soft start's ramp back at zero. False, and the finger left unplaced, for a position
@@ -169,7 +169,7 @@ def place(S, T, C, xpos, xmat, f, near, x, y, z):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def hold(S, T, C, xpos, xmat, cvel, f, near):
     """No usable device sample this tick: zero force, the proxy only follows its body. The
     soft start's ramp winds down as fast as it winds up, so after an outage of T s (a device
@@ -188,7 +188,7 @@ def hold(S, T, C, xpos, xmat, cvel, f, near):
     clear_output(f)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     """One tick from a device sample (device frame, m and rad) over period dt (s): god-object,
     virtual coupling, torsion. False when the sample was not used (a spike held back, a
@@ -292,7 +292,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def audit(S, T, C, xpos, xmat, f):
     """Deepest the proxy sits inside any shape now (m, >= 0), kept in penetration_max: the
     check that no finger was let in. An unplaced finger has no proxy in the world yet: 0."""
@@ -313,7 +313,7 @@ FIXED, TOUCHED, PUSHED = 0, 1, 2
 """Rows of the `bodies` array: welded to the world (1/0), touched this tick, pushed last tick."""
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _listed(bodies, n, body):
     """True when body is among bodies[:n]."""
     for j in range(n):
@@ -322,7 +322,7 @@ def _listed(bodies, n, body):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
     """Force (N) at world point p (m) plus a pure torque (N·m) on `body`, added to this tick's
     wrench about the world origin (so no body position is read per push); nothing on a body
@@ -342,7 +342,7 @@ def push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
     w[5] += px * fy - py * fx + tz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def write_wrenches(xfrc, xipos, wrench, bodies, counts):
     """This tick's wrenches into xfrc_applied, each moved to its body's centre of mass
     (M_com = M_origin - c × F); last tick's cleared. counts = (touched this tick, pushed last tick)."""
@@ -368,10 +368,10 @@ def write_wrenches(xfrc, xipos, wrench, bodies, counts):
     counts[0] = 0
 
 
-guard_wrench = njit(device_guard.guard_wrench)  # compiled into its callers, cached with them
+guard_wrench = njit(error_model="numpy")(device_guard.guard_wrench)  # compiled into its callers, cached with them
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _clamp_for_device(f, safe, fmax, tmax):
     """What the device is sent for this finger, into its sent_ fields: zero on the watchdog's
     zero-force tick (`safe`) or when the sample was not used, otherwise the wrench through
@@ -387,7 +387,7 @@ def _clamp_for_device(f, safe, fmax, tmax):
     return good
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies, counts):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2.
 
@@ -428,46 +428,46 @@ def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratc
 
 
 # -- entries for the views: record i of a table ----------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_touch_row(F, i, alpha_s):
     torsion_touch(F[i], alpha_s)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_release_row(F, i):
     torsion_release(F[i])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_step_row(F, i, alpha_s, P):
     return torsion_step(F[i], alpha_s, P)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torsion_follow_row(F, i, omega_n, dt):
     torsion_follow(F[i], omega_n, dt)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def place_row(S, T, C, xpos, xmat, F, near, i, x, y, z):
     return place(S, T, C, xpos, xmat, F[i], near[i], x, y, z)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def hold_row(S, T, C, xpos, xmat, cvel, F, near, i):
     hold(S, T, C, xpos, xmat, cvel, F[i], near[i])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update_row(S, T, C, xpos, xmat, cvel, F, near, i, x, y, z, twist, dt, scratch):
     return update(S, T, C, xpos, xmat, cvel, F[i], near[i], x, y, z, twist, dt, scratch)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def clear_output_row(F, i):
     clear_output(F[i])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def audit_row(S, T, C, xpos, xmat, F, i):
     return audit(S, T, C, xpos, xmat, F[i])

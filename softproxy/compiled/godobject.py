@@ -53,7 +53,7 @@ PLANE_ROOM = 8
 keeps the last three."""
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _load_planes(g, pl):
     """Copy the finger's planes into the scratch list pl; returns their count."""
     n = int(g.nplanes)
@@ -63,7 +63,7 @@ def _load_planes(g, pl):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _store_planes(g, pl, n):
     """The finger's planes := the newest three of pl[:n] (a proxy rests on three at most)."""
     start = n - 3 if n > 3 else 0
@@ -73,7 +73,7 @@ def _store_planes(g, pl, n):
     g.nplanes = n - start
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _feasible(pl, n, x, y, z, skip0, skip1):
     """True when (x, y, z) is on or above every plane of pl[:n] (within CONTACT_TOL) but
     pl[skip0] and pl[skip1], the ones it was put on."""
@@ -83,7 +83,7 @@ def _feasible(pl, n, x, y, z, skip0, skip1):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _corner(px, py, pz, pl):
     """The point q on all three planes of pl when it is the projection of p, i.e. q - p =
     Σ λ_i n_i with every λ_i >= 0 (each plane pushes, none pulls): (found, qx, qy, qz)."""
@@ -118,7 +118,7 @@ def _corner(px, py, pz, pl):
     return True, px + dx, py + dy, pz + dz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _project_by_enumeration(px, py, pz, pl, n):
     """`_project` by trying active sets of one, two, then three planes in turn: (found, qx, qy, qz)."""
     if _feasible(pl, n, px, py, pz, -1, -1):
@@ -160,7 +160,7 @@ def _project_by_enumeration(px, py, pz, pl, n):
     return False, 0.0, 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _project(px, py, pz, pl, n):
     """Closest point to p in the intersection of the n <= 3 half-spaces of pl (KKT, active
     sets): (found, qx, qy, qz); not found when the planes admit no point (a degenerate set,
@@ -185,7 +185,7 @@ def _project(px, py, pz, pl, n):
     return _project_by_enumeration(px, py, pz, pl, n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _plane_of(pl, n, s, nx, ny, nz):
     """Index in pl[:n] of shape s's plane of normal n (parallel within PARALLEL), or -1."""
     for i in range(n):
@@ -194,7 +194,7 @@ def _plane_of(pl, n, s, nx, ny, nz):
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _add_plane(pl, n, nx, ny, nz, c, s):
     """Add a constraint plane just hit to pl[:n]; returns the new count. The same plane met
     again is replaced, not doubled, and the oldest goes when there would be four."""
@@ -214,7 +214,7 @@ def _add_plane(pl, n, nx, ny, nz, c, s):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _touched(pl, n, nx, ny, nz):
     """The touched shape: the row whose plane in pl[:n] is most aligned with the force's n."""
     best, best_dot = int(pl[0, 4]), -2.0
@@ -225,7 +225,7 @@ def _touched(pl, n, nx, ny, nz):
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _on_static_faces(S, xmat, pl, n):
     """True when every plane is a planar face of a shape that never moves: such a plane holds
     from tick to tick for as long as the proxy touches the face."""
@@ -236,7 +236,7 @@ def _on_static_faces(S, xmat, pl, n):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
     """near: every shape the proxy can touch while its centre stays within `room` (m) of c,
     the shapes whose bounding sphere meets the ball of radius room + r (a plane: when the
@@ -260,7 +260,7 @@ def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
     g.nnear = count
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def push_out(S, T, C, xpos, xmat, g, near):
     """Move the proxy out of any shape of `near` it overlaps (an object moved into it), to
     CONTACT_TOL outside; a few rounds, as a push out of one shape can push into another."""
@@ -280,7 +280,7 @@ def push_out(S, T, C, xpos, xmat, g, near):
             return
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reset(S, T, C, xpos, xmat, g, near, x, y, z):
     """Put the proxy at (x, y, z) with no contact, every shape near, pushed out of any it
     overlaps; False (nothing changed) for a position outside the workspace."""
@@ -301,7 +301,7 @@ def reset(S, T, C, xpos, xmat, g, near, x, y, z):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
     """Carry the proxy with the touched body, gather the shapes near it and the device, push
     it out of any that moved into it. Returns the proxy position before the push."""
@@ -330,14 +330,14 @@ def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
     return x, y, z
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def follow(S, T, C, xpos, xmat, g, near):
     """Without a device sample: the proxy stays on the body it touches and out of anything
     that moved into it, so a skipped tick never leaves it inside a moving object."""
     _settle(S, T, C, xpos, xmat, g, near, g.x, g.y, g.z, True)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
     """Earliest hit over the near shapes of the sphere moving by (dx, dy, dz): (found, lam,
     nx, ny, nz, shape row).
@@ -365,7 +365,7 @@ def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
     return found, best_lam, bnx, bny, bnz, bs
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
     """True when the proxy at (x, y, z) still rests on plane pl[i] and on its shape's real
     surface, both within LIFT_TOL (m): a plane runs on past a face's edge, a curved shape
@@ -378,7 +378,7 @@ def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
     return on_surface or shape_distance(S, T, C, xpos, xmat, int(pl[i, 4]), x, y, z)[0] - g.radius <= LIFT_TOL
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
     """After friction held the proxy back from the frictionless end: the planes it rests on
     at (x, y, z), resting[:nr] (those a slide itself ran into) plus those of pl[:n] (the
@@ -393,7 +393,7 @@ def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
     _store_planes(g, resting, nr)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
     """`_still_stuck` in a corner of three static faces: holds while projecting the device
     onto the three planes gives the corner point, where the proxy is (every plane pushes)."""
@@ -415,7 +415,7 @@ def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
     """Fast path of the hold: a stuck proxy that stays stuck, on one flat face or pinned in a
     corner of three static faces; True when it does (n, depth and planes updated).
@@ -457,7 +457,7 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
     """Last tick's planes to start the solve from, into warm; returns their count (0: solve
     cold), when every one belongs to a static shape.
@@ -495,7 +495,7 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
     """Constrained motion from (x, y, z) toward (gx, gy, gz), starting from the planes
     warm[:nwarm] the proxy rests on (none: cold). Returns (restart, x, y, z, hx, hy, hz,
@@ -636,7 +636,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
     return False, x, y, z, hx, hy, hz, straight, nr
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
     """`_move_once`, warm-started, and solved again cold when the warm start's planes did not
     hold: (x, y, z, hx, hy, hz, straight, n), the resting planes in pl[:n]."""
@@ -648,7 +648,7 @@ def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, ke
     return ex, ey, ez, hx, hy, hz, straight, n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
     """Move the proxy toward the device position (m, world): the tick's god-object.
 
@@ -722,16 +722,16 @@ def scratch() -> np.ndarray:
 
 
 # -- entries for the views (`softproxy.proxy.GodObject`): finger i of a table ------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reset_row(S, T, C, xpos, xmat, F, near, i, x, y, z):
     return reset(S, T, C, xpos, xmat, F[i], near[i], x, y, z)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update_row(S, T, C, xpos, xmat, F, near, i, xd, yd, zd, scratch):
     return update(S, T, C, xpos, xmat, F[i], near[i], xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def follow_row(S, T, C, xpos, xmat, F, near, i):
     follow(S, T, C, xpos, xmat, F[i], near[i])

@@ -154,7 +154,7 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # One triangle: features 0 the face, 1-3 its edges AB, BC, CA, 4-6 its vertices A, B, C
 # ---------------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _closest(T, i, px, py, pz):
     """Closest point of triangle row i to p: (squared distance, qx, qy, qz, feature).
     Ericson's Voronoi-region walk, the dot products about B and C derived from those about A."""
@@ -199,7 +199,7 @@ def _closest(T, i, px, py, pz):
     return (h * h, px - h * nx, py - h * ny, pz - h * nz, 0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     """First touch of a sphere (radius r) from a moving by d into triangle row i, geom frame:
     (lam, nx, ny, nz, feature), lam in [0, 1), n the unit normal of the inflated triangle at
@@ -303,7 +303,7 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     return (best if best > 0.0 else 0.0, mx, my, mz, feature)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _shade(T, i, qx, qy, qz, nx, ny, nz):
     """Force shading: the vertex normals of triangle row i interpolated at q (barycentric,
     clamped to the triangle), on n's side; n itself where they disagree with the face."""
@@ -334,7 +334,7 @@ def _shade(T, i, qx, qy, qz, nx, ny, nz):
 # The grid
 # ---------------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cells(S, k, x0, y0, z0, x1, y1, z1):
     """The range of mesh k's grid cells a box (geom frame, m) overlaps, clamped to the grid:
     (ix0, ix1, iy0, iy1, iz0, iz1, whole), whole when that is every cell."""
@@ -351,7 +351,7 @@ def _cells(S, k, x0, y0, z0, x1, y1, z1):
     return ix0, ix1, iy0, iy1, iz0, iz1, whole
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _outside_grid(S, k, x0, y0, z0, x1, y1, z1):
     """True when a box (geom frame, m) misses mesh k's grid box, so holds no triangle."""
     h = S[k].h
@@ -364,7 +364,7 @@ def _outside_grid(S, k, x0, y0, z0, x1, y1, z1):
 # Queries (geom frame inside, world frame outside)
 # ---------------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _column(S, k, ix, iy, x, y, z, radius):
     """The cells (iz0, iz1) of column (ix, iy) of mesh k's grid that come within `radius` (m)
     of p (geom frame); iz0 > iz1 when none does. A column's cells are contiguous in C, so
@@ -386,7 +386,7 @@ def _column(S, k, ix, iy, x, y, z, radius):
     return iz0, iz1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
     """From the hint's nearest point q to p on an edge or a vertex, step to a nearer triangle:
     across the edge (p may lie over the neighbour's face, or beyond it), or from a vertex to
@@ -420,7 +420,7 @@ def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
     return d2, qx, qy, qz, feature, hint
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _from_hint(S, T, C, k, hint0, x, y, z):
     """The nearest point to p (geom frame) on row hint0, or on the triangle across the edge it
     lies on when that is nearer (p may lie over the neighbour's face), walked on from there
@@ -439,7 +439,7 @@ def _from_hint(S, T, C, k, hint0, x, y, z):
     return d2, qx, qy, qz, f, hint
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _nearest(S, T, C, k, x, y, z):
     """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame).
 
@@ -514,7 +514,7 @@ def _nearest(S, T, C, k, x, y, z):
     return best, qx, qy, qz, bf, bi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
     """The signed distance (m) and outward normal at p (geom frame) from its nearest point q
     (at distance `best`) on `feature` of row i: negative behind the feature's pseudo-normal
@@ -543,14 +543,14 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
     return sign * best, nx, ny, nz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _local_distance(S, T, C, k, x, y, z):
     """Signed distance (m) and outward normal at p, geom frame."""
     best, qx, qy, qz, feature, i = _nearest(S, T, C, k, x, y, z)
     return _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _keep(S, k, x, y, z, d, nx, ny, nz):
     """Keep the answer (signed distance (m), outward normal) at p (geom frame) as the newest
     of mesh k's two, the older dropped."""
@@ -561,7 +561,7 @@ def _keep(S, k, x, y, z, d, nx, ny, nz):
     key[0, 3], key[0, 4], key[0, 5], key[0, 6] = d, nx, ny, nz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
     the outward unit normal, world frame. The last two answers are kept,
@@ -591,7 +591,7 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
             r20 * nx + r21 * ny + r22 * nz)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
                best_lam, bnx, bny, bnz, bi, far2):
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
@@ -629,7 +629,7 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
     return best_lam, bnx, bny, bnz, bi, far2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze):
     """The touch of row `tri` at fraction lam: its normal (geom frame) shaded when asked (while
     the shaded one still opposes the motion) and turned into the world frame; the triangle
@@ -646,7 +646,7 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graz
             xmat[g, 6] * nx + xmat[g, 7] * ny + xmat[g, 8] * nz)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
                graze, lam, mx, my, mz):
     """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
@@ -680,7 +680,7 @@ def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az,
     return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, ax, ay, az, ux, uy, uz, r, graze)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none.

@@ -21,7 +21,7 @@ from softproxy.compiled.mesh import mesh_distance, mesh_sweep
 from softproxy.compiled.tolerances import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def shape_to_local(S, xpos, xmat, k, x, y, z):
     """World point (m) to shape k's geom frame (m), as `Shape.to_local`."""
     g = int(S[k].geom)
@@ -31,7 +31,7 @@ def shape_to_local(S, xpos, xmat, k, x, y, z):
             xmat[g, 2] * dx + xmat[g, 5] * dy + xmat[g, 8] * dz)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
     """Point in shape k's geom frame (m) to world (m): the inverse of `shape_to_local`."""
     g = int(S[k].geom)
@@ -40,7 +40,7 @@ def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
             xmat[g, 6] * lx + xmat[g, 7] * ly + xmat[g, 8] * lz + xpos[g, 2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _capsule_local(radius, half, x, y, z):
     """CapsuleShape.local_distance: signed distance (m) and outward normal, geom frame."""
     h = half
@@ -51,7 +51,7 @@ def _capsule_local(radius, half, x, y, z):
     return (n - radius, x / n, y / n, zc / n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cylinder_local(radius, half, x, y, z):
     """CylinderShape.local_distance: signed distance (m) and outward normal, geom frame."""
     rho = math.sqrt(x * x + y * y)
@@ -74,7 +74,7 @@ def _cylinder_local(radius, half, x, y, z):
     return (n, ux * dr / n, uy * dr / n, sz * dz / n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ellipsoid_local(a, b, c, x, y, z):
     """EllipsoidShape.local_distance: signed distance (m) and outward normal, geom frame."""
     a2, b2, c2 = a * a, b * b, c * c
@@ -116,7 +116,7 @@ def _ellipsoid_local(a, b, c, x, y, z):
     return ((dist if g >= 1.0 else -dist), gx / gn, gy / gn, gz / gn)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside) from shape k and outward unit normal, world frame."""
     t = int(S[k].type)
@@ -174,7 +174,7 @@ def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
             r20 * nx + r21 * ny + r22 * nz)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def shape_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by (dx, dy, dz) (m) into shape k; (-1.0, 0.0, 0.0, 0.0) when it touches nothing."""
@@ -216,7 +216,7 @@ def shape_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     return (lam, nx, ny, nz)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def shape_on_face(S, xmat, k, nx, ny, nz):
     """True when world normal n lies on a planar face of shape k (plane always, box faces;
     never on a mesh: see `softproxy.compiled.mesh`)."""
