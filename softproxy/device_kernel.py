@@ -49,6 +49,8 @@ import numpy as np
 from numba import carray, njit, types
 from numba.extending import intrinsic
 
+from softproxy.compiled.cache import renew
+
 JIT = not numba.config.DISABLE_JIT
 """False under NUMBA_DISABLE_JIT=1: no cfunc can be built, `compiled_io()` returns None."""
 
@@ -300,20 +302,6 @@ def drop_stale_kernels(probe) -> bool:
     cache = getattr(probe, "_cache", None)
     if not JIT or cache is None:
         return False
-    where = Path(cache.cache_path)
     module = Path(probe.py_func.__code__.co_filename).stem
-    stamp = where / f"{module}.device_kernel.stamp"
-    current = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
-    try:
-        if stamp.read_text() == current:
-            return False
-    except OSError:
-        pass
-    for path in where.glob(f"{module}.*.nb[ic]"):
-        path.unlink(missing_ok=True)
-    try:
-        where.mkdir(parents=True, exist_ok=True)
-        stamp.write_text(current)
-    except OSError:  # a read-only cache: numba will not save there either
-        pass
-    return True
+    return renew(Path(cache.cache_path), f"{module}.device_kernel.stamp",
+                 hashlib.sha256(Path(__file__).read_bytes()).hexdigest(), f"{module}.*.nb[ic]")

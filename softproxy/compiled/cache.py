@@ -70,15 +70,20 @@ def drop_stale() -> bool:
     """Delete the package's cached kernels if they were built from other sources; True if so."""
     if not hasattr(_probe, "_cache"):  # NUMBA_DISABLE_JIT=1: plain functions, nothing cached
         return False
-    where = Path(_probe._cache.cache_path)
-    stamp = where / STAMP
-    current = digest()
+    return renew(Path(_probe._cache.cache_path), STAMP, digest(), "*.nb[ic]")
+
+
+def renew(where: Path, stamp_name: str, current: str, pattern: str) -> bool:
+    """In numba's cache folder `where`: unless the stamp `stamp_name` holds `current` (a
+    digest of the sources), delete the cached kernels matching `pattern` and stamp `current`;
+    True if they were dropped."""
+    stamp = where / stamp_name
     try:
         if stamp.read_text() == current:
             return False
     except OSError:
         pass
-    for path in where.glob("*.nb[ic]"):
+    for path in where.glob(pattern):
         path.unlink(missing_ok=True)
     try:
         where.mkdir(parents=True, exist_ok=True)
