@@ -20,7 +20,7 @@ from typing import ClassVar
 
 from softproxy.compiled import finger as kernel
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
-from softproxy.finger_rows import Field, FingerRows
+from softproxy.finger_rows import Field, FingerRows, RecordView
 from softproxy.fingertip import MODELS, FingertipModel, _check_finite
 from softproxy.geometry import Shape, ShapeSet
 from softproxy.proxy import GodObject
@@ -119,7 +119,7 @@ class FingerParams:
         return value
 
 
-class SoftFingerProxy:
+class SoftFingerProxy(RecordView):
     """One finger: god-object + torsion + virtual coupling. `update(...)` (or `hold()`) once
     per tick, after mj_step1: it first turns α_p with the body it touched last tick.
 
@@ -186,7 +186,7 @@ class SoftFingerProxy:
 
     def _bind(self, rows: FingerRows, i: int) -> None:
         """Live in record i of `rows` (its god-object and torsion views too)."""
-        self._rows, self._i, self._rec = rows, i, rows.record(i)
+        super()._bind(rows, i)
         if getattr(self, "god", None) is not None and self.god._rows is not rows:
             self.god._bind(rows, i)
         if getattr(self, "torsion", None) is not None:
@@ -212,7 +212,7 @@ class SoftFingerProxy:
         (a device error, invalid samples) the clamps come back from max·(1 − T/soft_start):
         a finger that moved into an object meanwhile gets no kick."""
         r = self._rows
-        r.run(kernel.hold_row, *self._args(), r.shapes.data.cvel, r.F, r.near, self._i)
+        r.run(kernel.hold_row, *self._args(), r.shapes.cvel, r.F, r.near, self._i)
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
@@ -225,7 +225,7 @@ class SoftFingerProxy:
         the finger then renders zero force and its proxy stays where it was.
         """
         r = self._rows
-        return r.run(kernel.update_row, *self._args(), r.shapes.data.cvel, r.F, r.near, self._i, float(x), float(y),
+        return r.run(kernel.update_row, *self._args(), r.shapes.cvel, r.F, r.near, self._i, float(x), float(y),
                      float(z), float(twist), float(dt), r.scratch)
 
     def use_torsion(self, model: FingertipModel | None) -> None:

@@ -39,17 +39,22 @@ class FingerRows:
 
     @classmethod
     def gather(cls, views: list) -> "FingerRows":
-        """One table holding the records of `views` (objects with `_rows` and `_i`, all over the
-        same ShapeSet), in order; each view is rebound to its new row."""
-        shapes = views[0]._rows.shapes
-        table = cls(shapes, len(views))
+        """One table holding the records of `views` (`RecordView`s over one ShapeSet: the
+        caller checks that, as `ServoLoop` does), in order; each view is rebound to its new row."""
+        table = cls(views[0]._rows.shapes, len(views))
         for i, v in enumerate(views):
-            if v._rows.shapes is not shapes:
-                raise ValueError("fingers over different shape sets cannot share a servo loop")
             table.F[i] = v._rows.F[v._i]
             table.near[i] = v._rows.near[v._i]
             v._bind(table, i)
         return table
+
+
+class RecordView:
+    """A view onto record `_i` of a `FingerRows` table `_rows`: its `Field`s read and write
+    that record (`_rec`), and `_bind` moves it to another."""
+
+    def _bind(self, rows: FingerRows, i: int) -> None:
+        self._rows, self._i, self._rec = rows, i, rows.record(i)
 
 
 class Field:

@@ -37,7 +37,7 @@ class Shape:
     flat = False
     convex = False
 
-    __slots__ = ("geom", "body", "name", "static", "rbound", "cvel", "data", "set", "row")
+    __slots__ = ("geom", "body", "name", "static", "rbound", "data", "set", "row")
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool) -> None:
         self.geom = geom
@@ -47,9 +47,6 @@ class Shape:
         plane = int(model.geom_type[geom]) == int(mujoco.mjtGeom.mjGEOM_PLANE)
         self.rbound = math.inf if plane else float(model.geom_rbound[geom])
         self.data = data
-        self.cvel = data.cvel[self.body]
-        """The body's velocity (ω, v) in MuJoCo's com-based frame, rad/s and m/s, current after
-        mj_step1: a view into mjData."""
         self.set: ShapeSet | None = None  # the first set made of it answers its queries
         self.row = -1
 
@@ -178,8 +175,9 @@ class ShapeSet(list):
     """The shapes of one world, in order, and the engine's tables of them.
 
     `S`: one `SHAPE` record per shape; `T`, `C`: the mesh tables (None without meshes, so a
-    world of primitives never compiles the mesh kernels); `xpos`, `xmat`: MuJoCo's geom poses
-    (views into mjData, read by every query). A list, so it reads like the list of shapes."""
+    world of primitives never compiles the mesh kernels); `xpos`, `xmat`: MuJoCo's geom poses,
+    `cvel` its bodies' velocities (views into mjData, read by the kernels). A list, so it
+    reads like the list of shapes."""
 
     def __init__(self, shapes, data: mujoco.MjData | None = None) -> None:
         super().__init__(shapes)
@@ -190,6 +188,7 @@ class ShapeSet(list):
         self.data = data
         self.xpos = data.geom_xpos
         self.xmat = data.geom_xmat
+        self.cvel = data.cvel  # the bodies' velocities (ω, v) after mj_step1: ω drags the torsion (eqs 41-42)
         self.run = EntryPoints()  # the shapes' queries, without numba's per-call dispatch
         for k, s in enumerate(self):
             if s.set is None:

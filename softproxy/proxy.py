@@ -27,11 +27,11 @@ import math
 
 from softproxy.compiled import godobject as kernel
 from softproxy.compiled.godobject import WORKSPACE_LIMIT  # noqa: F401 (the workspace a device position must lie in)
-from softproxy.finger_rows import Field, FingerRows
+from softproxy.finger_rows import Field, FingerRows, RecordView
 from softproxy.geometry import Shape, ShapeSet
 
 
-class GodObject:
+class GodObject(RecordView):
     """Translational proxy of one finger. `update(x_d)` moves it; read the contact fields after.
 
     Fields after `update`: x, y, z (proxy centre, m); contact (bool); nx, ny, nz (unit
@@ -79,9 +79,6 @@ class GodObject:
         god = cls.__new__(cls)
         god._bind(rows, i)
         return god
-
-    def _bind(self, rows: FingerRows, i: int) -> None:
-        self._rows, self._i, self._rec = rows, i, rows.record(i)
 
     @property
     def shapes(self) -> ShapeSet:

@@ -158,7 +158,7 @@ class ServoLoop:
         the tick writes."""
         world, rows = self.world, self.rows
         s = world.shapes
-        args = (s.S.copy(), s.T, None if s.C is None else s.C.copy(), s.xpos, s.xmat, world.cvel, rows.F.copy(),
+        args = (s.S.copy(), s.T, None if s.C is None else s.C.copy(), s.xpos, s.xmat, s.cvel, rows.F.copy(),
                 rows.near.copy(), self.period, False, False, 1.0, 1.0, rows.scratch.copy(), world.wrench.copy(),
                 world.bodies.copy(), world.counts.copy())
         self._tick_kernel = entry(kernel.tick, args, "the servo tick")
@@ -240,7 +240,7 @@ class ServoLoop:
                 unusable += ok
         world, rows, device = self.world, self.rows, self.device
         shapes = world.shapes
-        refused, unsafe = self._tick_kernel(shapes.S, shapes.T, shapes.C, shapes.xpos, shapes.xmat, world.cvel, rows.F,
+        refused, unsafe = self._tick_kernel(shapes.S, shapes.T, shapes.C, shapes.xpos, shapes.xmat, shapes.cvel, rows.F,
                                       rows.near, dt, safe, bool(self.audit), as_limit(device.max_force),
                                       as_limit(device.max_torque), rows.scratch, world.wrench, world.bodies,
                                       world.counts)

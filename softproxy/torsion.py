@@ -21,10 +21,10 @@ from __future__ import annotations
 
 from softproxy.compiled import finger as kernel
 from softproxy.fingertip import FingertipModel, _check_finite
-from softproxy.finger_rows import Field, FingerRows
+from softproxy.finger_rows import Field, FingerRows, RecordView
 
 
-class TorsionalFriction:
+class TorsionalFriction(RecordView):
     """Stick/slip state of one finger's twist proxy α_p. `step` never returns NaN.
 
     `mu_s` and `mu_d` scale the model's law: the static limit is mu_s·|P|^γ and the dynamic
@@ -66,9 +66,6 @@ class TorsionalFriction:
         rec["mu_prime"], rec["r0"], rec["p_star"] = model.mu_prime, model.r0, model.p_star
         rec["slip_events"] = 0
         self.release()
-
-    def _bind(self, rows: FingerRows, i: int) -> None:
-        self._rows, self._i, self._rec = rows, i, rows.record(i)
 
     def touch(self, alpha_s: float) -> None:
         """Contact made: the proxy twist starts at the finger's current twist α_s (rad)."""

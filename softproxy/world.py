@@ -45,7 +45,6 @@ class World:
         self.counts = np.zeros(2, dtype=np.int64)
         self._xfrc = self.data.xfrc_applied  # views into mjData, kept
         self._xipos = self.data.xipos
-        self.cvel = self.data.cvel  # bodies' velocities after mj_step1 (ω drags the torsion, eqs 41-42)
         self._write = entry(kernel.write_wrenches, (self._xfrc, self._xipos, self.wrench, self.bodies, self.counts),
                             "the wrench writer")
 
