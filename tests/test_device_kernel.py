@@ -304,22 +304,19 @@ def test_the_interpreted_kernels_give_the_compiled_numbers():
         dev.send(0, 30.0, 0.0, -40.0, 0.0, 0.0, 0.2)
         print(json.dumps([out, dev.injected, dev.last_force, dev.compiled_io() is None]))
     """)
-    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
-    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120,
-                          cwd=os.path.dirname(os.path.dirname(__file__)))
-    assert done.returncode == 0, done.stderr[-2000:]
-    assert "Warning" not in done.stderr, done.stderr[-2000:]
-    interpreted, injected, last_force, no_io = json.loads(done.stdout)
-    dev = SimulatedDevice([KEYS, OTHER], noise_m=2e-4, noise_rad=3e-3, quantum_m=1e-5, seed=9,
-                          faults={"nan": 0.1, "drop": 0.1, "spike": 0.1})
-    samples = [DeviceSample(), DeviceSample()]
-    out = []
-    for k in range(150):
-        dev.read(k * 4e-3, samples)
-        out.append([repr((s.t, s.x, s.y, s.z, s.twist, s.valid)) for s in samples])
-    dev.send(0, 30.0, 0.0, -40.0, 0.0, 0.0, 0.2)
-    assert no_io and dev.compiled_io() is not None
-    assert interpreted == out and injected == dev.injected and [tuple(f) for f in last_force] == dev.last_force
+
+    def run(disable_jit: str):
+        env = dict(os.environ, NUMBA_DISABLE_JIT=disable_jit)
+        done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120,
+                              cwd=os.path.dirname(os.path.dirname(__file__)))
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert "Warning" not in done.stderr, done.stderr[-2000:]
+        return json.loads(done.stdout)
+
+    interpreted, injected, last_force, no_io = run("1")
+    compiled, compiled_injected, compiled_force, compiled_no_io = run("0")
+    assert no_io and not compiled_no_io
+    assert interpreted == compiled and injected == compiled_injected and last_force == compiled_force
 
 
 # --- the replay device ----------------------------------------------------------------------------
