@@ -118,7 +118,6 @@ class ServoLoop:
         self.period = 1.0 / self.rate_hz
         world.timestep = self.period
         self.samples = [DeviceSample() for _ in range(device.fingers)]
-        self._pairs = [(f, self.samples[f.params.device_finger]) for f in fingers]  # each finger's sample
         self.stats = TickStats(stats_capacity)
         self.faults = dict.fromkeys(FAULTS, 0)
         self.overrun_limit = overrun_factor * self.period
