@@ -1,27 +1,35 @@
 """`softproxy bench latency`: the full servo tick against a bare mj_step of the same scene.
 
 Two soft fingers hold the box of `two_finger_grasp` (device read + two god-objects +
-torsion + coupling + MuJoCo). Each tick is timed, and after each tick a bare `mj_step` is
-timed on a copy of the very same MuJoCo state, so the ratio compares like with like on a
-shared, noisy machine. A second pass times the tick's stages one by one (the loop's own
-methods, in the tick's order). Paced runs at the scene's rate and at 10 kHz give the
-deadline-miss rates. Prints a table, writes latency.json and latency.png.
+torsion + coupling + sends + MuJoCo), with the simulated device run compiled, as
+`softproxy run` runs it. Each tick is timed by the compiled tick itself (CLOCK_MONOTONIC,
+its stages too: `softproxy.compiled.servo.STAGES`), and after each tick a bare `mj_step` is
+timed the same way, from compiled code, on a copy of the very same MuJoCo state, so the
+ratio compares like with like on a shared, noisy machine. Paced runs at the scene's rate and
+at 10 kHz give the deadline-miss rates. Prints a table, writes latency.json and latency.png.
 """
 
 from __future__ import annotations
 
 import json
-import time
 
 import mujoco
 import numpy as np
+from numba import njit
 
 from benchmarks.report import Progress, figure, save
+from softproxy.compiled import native
+from softproxy.compiled.servo import STAGES
 from softproxy.run import build, open_device
 from softproxy.scene import load_scene
 
-_clock = time.perf_counter
-STAGES = ("device read", "mj_step1", "fingers (compiled)", "device sends", "mj_step2")
+
+@njit(nogil=True)  # not cached: numba's cache would not see a change in native (compiles in a second)
+def _bare_step_ns(m, d):
+    """One mj_step of the mjData at `d`, timed from compiled code (ns)."""
+    start = native.monotonic_ns()
+    native.mj_step(m, d)
+    return native.monotonic_ns() - start
 
 
 def _percentiles(us: np.ndarray) -> dict:
@@ -37,68 +45,44 @@ def _paced(scene, seconds: float, rate_hz: float) -> dict:
             "miss_rate": paced.stats.misses / max(paced.ticks, 1), "tick_us": paced.stats.summary_us()}
 
 
-def _timed_pass(loop, ticks: int, scratch, progress):
-    """Time `ticks` ticks of `loop`, each followed by a bare mj_step on a copy of its state
-    (into scratch): (tick µs, mj_step µs)."""
-    tick_us, step_us = np.empty(ticks), np.empty(ticks)
+def _timed_pass(loop, ticks: int, progress):
+    """`ticks` ticks of `loop`, each timed by the tick itself with its stages, then a bare
+    mj_step on a copy of its state: (tick µs, mj_step µs, stages µs: ticks × stages)."""
+    tick_us, step_us, stage_us = np.empty(ticks), np.empty(ticks), np.empty((ticks, len(STAGES)))
     m, d = loop.world.model, loop.world.data
-    for i in range(ticks):
-        t0 = _clock()
-        loop.tick()
-        tick_us[i] = (_clock() - t0) * 1e6
-        mujoco.mj_copyData(scratch, m, d)
-        t0 = _clock()
-        mujoco.mj_step(m, scratch)
-        step_us[i] = (_clock() - t0) * 1e6
-        if progress is not None and i % 500 == 0:
-            progress(0.5 * i / ticks)
-    return tick_us, step_us
-
-
-def _stage_pass(loop, ticks: int, progress) -> np.ndarray:
-    """The tick's stages timed one by one (µs, ticks × stages): the loop's own methods, in
-    the order `ServoLoop.tick` calls them, with the sends timed apart from the fingers."""
-    out = np.empty((ticks, len(STAGES)))
-    world, device, samples = loop.world, loop.device, loop.samples
-    sends = loop._sends
-    loop._sends = lambda: None  # the fingers' stage without the sends, which are timed next
+    scratch = mujoco.MjData(m)
+    m_at, scratch_at = native.addresses(m, scratch)
+    stats, state = loop.stats, loop.state[0]
+    state.profile = True
     try:
         for i in range(ticks):
-            t0 = _clock()
-            device.read(loop.t, samples)
-            t1 = _clock()
-            world.begin_step()
-            t2 = _clock()
-            loop._fingers(True, False, loop.period)
-            t3 = _clock()
-            sends()
-            t4 = _clock()
-            world.end_step()
-            t5 = _clock()
-            loop.t += loop.period
-            loop.ticks += 1
-            out[i] = np.diff([t0, t1, t2, t3, t4, t5]) * 1e6
+            loop.tick()
+            tick_us[i] = stats.duration[(stats.count - 1) % stats.capacity] * 1e6
+            stage_us[i] = state.stage_ns * 1e-3
+            mujoco.mj_copyData(scratch, m, d)
+            step_us[i] = _bare_step_ns(m_at, scratch_at) * 1e-3
             if progress is not None and i % 500 == 0:
-                progress(0.5 + 0.5 * i / ticks)
+                progress(i / ticks)
     finally:
-        loop._sends = sends
-    return out
+        state.profile = False
+    return tick_us, step_us, stage_us
 
 
 def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "two_finger_grasp",
             progress=None) -> dict:
-    """Run the benchmark and return the result dict (times in µs): the tick, then its stages,
-    each tick followed by a bare `mj_step` of the same state, in one process."""
+    """Run the benchmark and return the result dict (times in µs): each tick followed by a
+    bare `mj_step` of the same state, in one process, then the paced runs."""
     scene = load_scene(scene_name)
     loop = build(scene, open_device("sim", scene), audit=False, realtime=False)
+    if not loop.compiled_block:
+        raise RuntimeError("bench latency times the compiled tick; it cannot run under NUMBA_DISABLE_JIT=1")
     ticks = int(duration_s * loop.rate_hz)
-    scratch = mujoco.MjData(loop.world.model)
     warm = min(int(1.0 * loop.rate_hz), ticks // 4)  # squeeze and lift first: time the hold
     loop.run(warm)
-    loop._started = True
-    tick_us, step_us = _timed_pass(loop, ticks, scratch, progress)
-    stage_us = _stage_pass(loop, min(ticks, 2000), progress)
-    loop.stop()
+    spare = mujoco.MjData(loop.world.model)  # kept alive while its address is in use
+    _bare_step_ns(*native.addresses(loop.world.model, spare))  # compile it now, outside the timed pass
+    tick_us, step_us, stage_us = _timed_pass(loop, ticks, progress)
+    loop.close()
     tick = _percentiles(tick_us)
     step = _percentiles(step_us)
     return {

@@ -106,11 +106,12 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
-              record: str | None = None) -> dict:
+              record: str | None = None, every: int = 10) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
-    `on_tick(loop)` after every tick, outside the timed region. `record` streams every device
+    `on_tick(loop)` after every `every` ticks (and the last), outside the timed region; the
+    ticks between run as one compiled block where the device allows (`ServoLoop.run`). `record` streams every device
     sample to that file as the run goes (see `softproxy.recording`). ValueError, before anything is built, for a
     duration or a rate out of bounds (`check_run`).
     """
@@ -140,13 +141,13 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
             def on_tick(lp: ServoLoop) -> None:
                 if lp.ticks == start_tick or (track["q0"] is None and lp.ticks > start_tick):
                     track["q0"] = xquat[body].copy()
-                elif track["q0"] is not None and lp.ticks % 10 == 0:
+                elif track["q0"] is not None:
                     track["max_deg"] = max(track["max_deg"], abs(_rotation_about(track["q0"], xquat[body], measure.axis)))
                 if user_on_tick is not None:
                     user_on_tick(lp)
         else:
             on_tick = user_on_tick
-        loop.run(ticks, realtime=realtime, on_tick=on_tick)
+        loop.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
     finally:
         if recorder is not None:
             recorder.finish()  # drain and close the file however the run ends (the caller closes the device)

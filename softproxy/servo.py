@@ -2,20 +2,28 @@
 
 One tick (../shared/DESIGN.md): read the device; MuJoCo's first half-step (bodies where
 they are now); each proxy follows its body (α_c, eqs 41–42); god-object, force, torsion for
-every finger; -F and -M·n onto the touched bodies; F and M to the device; MuJoCo's second
+every finger; F and M to the device; -F and -M·n onto the touched bodies; MuJoCo's second
 half-step. `tick()` can be called from another application's loop (lockstep, no threads);
 `run(..., realtime=True)` paces the ticks itself, sleeping then spinning to hold the period.
 
-Every finger's part of the tick is one compiled call (`softproxy.compiled.finger.tick`) on
-the loop's table of finger records (`softproxy.finger_rows`); the fingers' attributes are
-views of that table, so they read what the tick computed with nothing to copy back.
+The tick is compiled (`softproxy.compiled.servo`). With a device that offers its read and
+send as compiled code (`compiled_io()`: the simulated and replay devices) a whole block of
+ticks runs in one call, MuJoCo's half-steps included, without the GIL: `run` returns to
+Python only between blocks (to call `on_tick`, at most every 100 ms otherwise), so another
+thread can draw or log meanwhile (`run_in_thread`). A device written in Python (HID, a
+recording wrapper, an application's own) is called from Python each tick, around the same
+compiled pieces; so are fingertip sensor channels, which need every tick. The fingers'
+attributes are views of the loop's table of finger records, so they read what the tick
+computed with nothing to copy back.
 
 The watchdog answers every fault with zero force for that tick and a count in `faults`:
 a device that raises, a NaN/invalid sample, a tick that overran its period badly (then the
-next tick renders zero). `stop()` (and leaving `run`) sends zero force to every finger.
-The overrun watchdog guards real time: by default it watches only `run(realtime=True)`, so a
-lockstep run in simulated time (an application calling `tick()`, tests, benchmarks,
-`softproxy run` without `--realtime`) gives the same result however loaded the machine is.
+next tick renders zero). `stop()` (and leaving `run`) sends zero force to every finger, and
+so does a MuJoCo error inside the compiled tick before the process exits
+(`softproxy.compiled.native`). The overrun watchdog guards real time: by default it watches
+only `run(realtime=True)`, so a lockstep run in simulated time (an application calling
+`tick()`, tests, benchmarks, `softproxy run` without `--realtime`) gives the same result
+however loaded the machine is.
 """
 
 from __future__ import annotations
@@ -23,16 +31,18 @@ from __future__ import annotations
 import atexit
 import gc
 import math
-import time
+import threading
 import weakref
 
 import numpy as np
 
 from softproxy import termination
-from softproxy.device import Device, DeviceSample, check_device
-from softproxy.compiled import finger as kernel
+from softproxy.compiled import native
+from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
+from softproxy.device import Device, check_device, DeviceSample
 from softproxy.device_guard import as_limit
+from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
 from softproxy.finger_rows import FingerRows
 from softproxy.world import World
@@ -43,30 +53,38 @@ FAULTS = ("device_error", "invalid_sample", "overrun", "send_error", "unsafe_out
 """What `ServoLoop.faults` counts; each fault renders zero force on the fingers it touched.
 unsafe_output: a finger computed a wrench that is not finite (parameters at their extremes),
 or the device's limits were not numbers it can be clamped to (`softproxy.device_guard`)."""
+BLOCK_S = 0.1
+"""Longest block of compiled ticks `run` runs between two returns to Python (s of loop time):
+how long Ctrl-C or a stop request may wait."""
 
 
 class TickStats:
-    """Preallocated ring buffers of tick duration and period (s); counters of misses."""
+    """Preallocated ring buffers of tick duration and period (s), and the counts of ticks
+    recorded and of deadlines missed; the compiled tick writes them."""
 
     def __init__(self, capacity: int = 1 << 16) -> None:
         self.duration = np.zeros(capacity)
         self.period = np.zeros(capacity)
         self.capacity = capacity
-        self.count = 0
-        self.misses = 0
+        self.counters = np.zeros(2, dtype=np.int64)  # [count, misses] (softproxy.compiled.servo)
 
-    def record(self, duration: float, period: float) -> None:
-        i = self.count % self.capacity
-        self.duration[i] = duration
-        self.period[i] = period
-        self.count += 1
+    @property
+    def count(self) -> int:
+        """Ticks recorded."""
+        return int(self.counters[kernel.COUNT])
+
+    @property
+    def misses(self) -> int:
+        """Paced ticks that ended after the next tick's deadline."""
+        return int(self.counters[kernel.MISSES])
 
     def durations(self) -> np.ndarray:
         """The recorded durations (s), oldest first (at most `capacity`)."""
-        n = min(self.count, self.capacity)
-        if self.count <= self.capacity:
+        count = self.count
+        n = min(count, self.capacity)
+        if count <= self.capacity:
             return self.duration[:n].copy()
-        i = self.count % self.capacity
+        i = count % self.capacity
         return np.concatenate([self.duration[i:], self.duration[:i]])
 
     def summary_us(self) -> dict:
@@ -86,6 +104,19 @@ _open_loops: "weakref.WeakSet[ServoLoop]" = weakref.WeakSet()
 def _close_open_loops() -> None:
     for loop in list(_open_loops):
         loop.close()
+
+
+def _compiled_io(device):
+    """The device's `compiled_io()`, or None when it has none, or when its read or send is not
+    the one its compiled_io belongs with (replaced on the instance or in a subclass): then
+    the Python call is what the caller asked for."""
+    owner = next((c for c in type(device).__mro__ if "compiled_io" in vars(c)), None)
+    if owner is None:
+        return None
+    for name in ("read", "send"):
+        if name in vars(device) or getattr(type(device), name, None) is not getattr(owner, name, None):
+            return None
+    return device.compiled_io()
 
 
 class ServoLoop:
@@ -117,51 +148,117 @@ class ServoLoop:
         self.rate_hz = float(rate_hz)
         self.period = 1.0 / self.rate_hz
         world.timestep = self.period
+        self.state = np.zeros(1, dtype=kernel.LOOP).view(np.recarray)
+        """The loop's scalar state (`softproxy.compiled.servo.LOOP`), which the compiled tick
+        reads and writes: `t`, `ticks` and `faults` are views of it."""
+        st = self.state[0]
+        st.period = self.period
+        st.period_ns = max(1, int(round(self.period * 1e9)))
+        st.overrun_ns = int(overrun_factor * self.period * 1e9)
         self.samples = [DeviceSample() for _ in range(device.fingers)]
+        """The device's last samples as `DeviceSample`s (after a block of compiled ticks: its last)."""
+        self._sample_rows = SampleBuffer(device.fingers)  # the same samples as SAMPLE rows, what the tick reads
         self.stats = TickStats(stats_capacity)
-        self.faults = dict.fromkeys(FAULTS, 0)
-        self.overrun_limit = overrun_factor * self.period
         self.overrun_watchdog = overrun_watchdog
         """True: a tick that overran `overrun_factor` periods makes the next render zero. None
         (default): only inside `run(realtime=True)`, so an application ticking in lockstep gets
         the same results however loaded the machine is. False: never."""
-        self._watching = overrun_watchdog is True
+        st.watching = overrun_watchdog is True
         self.paced = False  # True while run(realtime=True) paces the ticks
         self.audit = audit
-        self.t = 0.0
-        self.ticks = 0
-        self._safe_next = False  # the watchdog asks for one tick of zero force
         self._started = False
         self.closed = False
         self.handle_signals = handle_signals
         self._signals = None  # this loop's claim on softproxy.termination's handlers: its release
+        self._unregister_fatal = None  # ... and on the emergency path of a MuJoCo error in a kernel
         self.last_device_error = ""  # what the device said when it last failed to read
         self.last_send_error = ""  # ... and to send
         self.sensors = []  # fingertip sensor channels (softproxy.fingertip_sensors): tick(loop) each tick
         self.rows = FingerRows.gather(fingers) if fingers else FingerRows(world.shapes, 0)
         """The fingers' records, one table: the fingers are views of its rows."""
-        # the records as flat buffers: a sample is written in, and what is sent read out, with
-        # plain item stores and loads (a numpy field access costs more than the copies it saves)
-        raw = self.rows.F.view(np.ndarray).view(np.uint8)
+        self._device_of = np.array([f.params.device_finger for f in fingers], dtype=np.int64)
+        self.io = _compiled_io(device)
+        """The device's read and send as compiled code (`softproxy.device_kernel.CompiledIO`),
+        or None: the device is then called from Python every tick."""
+        if self.io is not None:
+            if self.io.fingers != device.fingers:
+                raise ValueError(f"the device's compiled_io() drives {self.io.fingers} fingers, the device "
+                                 f"{device.fingers}: they must agree")
+            st.stall_code = self.io.stall_code
+            st.stall_ns = int(self.io.stall_s * 1e9)
+        # the SAMPLE rows as flat buffers, for a Python device's samples: plain item stores
+        raw = self._sample_rows.array.view(np.uint8)
         self._floats = memoryview(raw).cast("d")
         self._bytes = memoryview(raw)
-        size = self.rows.F.dtype.itemsize
-        at = {name: self.rows.F.dtype.fields[name][1] for name in ("in_x", "in_valid", "sent_fx")}
-        self._io = [((i * size + at["in_x"]) // 8, i * size + at["in_valid"], (i * size + at["sent_fx"]) // 8,
-                     f.params.device_finger) for i, f in enumerate(fingers)]
+        row = SAMPLE.itemsize
+        self._slots = [(j * row // 8, j * row + SAMPLE.fields["valid"][1]) for j in range(device.fingers)]
+        # ... and the finger records', for what a Python device is sent: plain item loads
+        self._sent = memoryview(self.rows.F.view(np.ndarray).view(np.uint8)).cast("d")
+        size, at = self.rows.F.dtype.itemsize, self.rows.F.dtype.fields["sent_fx"][1]
+        self._sent_slots = [((i * size + at) // 8, f.params.device_finger) for i, f in enumerate(fingers)]
+        self.error = None  # what ended a run_in_thread, if it failed
         self._compile()
 
+    # -- views of the state record ---------------------------------------------------------
+    @property
+    def t(self) -> float:
+        """Loop time (s) of the next tick."""
+        return float(self.state[0].t)
+
+    @property
+    def ticks(self) -> int:
+        """Ticks run."""
+        return int(self.state[0].ticks)
+
+    @property
+    def faults(self) -> dict:
+        """Faults counted so far, by kind (`FAULTS`); a copy."""
+        st = self.state[0]
+        return {name: int(st[name]) for name in FAULTS}
+
+    @property
+    def audit(self) -> bool:
+        """Measure each proxy's depth inside the shapes every tick (slow; a test aid)."""
+        return bool(self.state[0].audit)
+
+    @audit.setter
+    def audit(self, on: bool) -> None:
+        self.state[0].audit = bool(on)
+
+    # -- the compiled pieces ---------------------------------------------------------------
+    def _world_args(self) -> tuple:
+        s = self.world.shapes
+        return (s.S, s.T, s.C, s.xpos, s.xmat, s.cvel, self.rows.F, self.rows.near, self.rows.scratch,
+                self.world.wrench, self.world.bodies, self.world.counts)
+
     def _compile(self) -> None:
-        """Compile (or load from numba's cache) the tick now, not inside the first tick, and
-        keep its entry point (`softproxy.compiled.dispatch`): one call on copies of everything
-        the tick writes."""
-        world, rows = self.world, self.rows
-        s = world.shapes
-        args = (s.S.copy(), s.T, None if s.C is None else s.C.copy(), s.xpos, s.xmat, s.cvel, rows.F.copy(),
-                rows.near.copy(), self.period, False, False, 1.0, 1.0, rows.scratch.copy(), world.wrench.copy(),
-                world.bodies.copy(), world.counts.copy())
-        self._tick_kernel = entry(kernel.tick, args, "the servo tick")
-        self._tick_kernel(*args)
+        """Resolve (compile, or load from numba's cache) the tick's kernels now, not inside the
+        first tick, and keep their entry points (`softproxy.compiled.dispatch`)."""
+        world = self.world
+        m, d = (np.uintp(a) for a in native.addresses(world.model, world.data))
+        self._m, self._d = m, d
+        stats = self.stats
+        samples = self._sample_rows.array
+        self._begin_args = (self.state, m, d, samples, True, self._device_of) + self._world_args()
+        self._end_args = (self.state, m, d, world.data.xfrc_applied, world.data.xipos, world.wrench, world.bodies,
+                          world.counts, stats.duration, stats.period, stats.counters)
+        with_names = "the servo tick"
+        self._begin = entry(kernel.begin_tick, self._begin_args, with_names)
+        self._end = entry(kernel.end_tick, self._end_args + (0,), with_names)
+        self._pace = entry(kernel.pace, (self.state,), with_names)
+        self._paced_done = entry(kernel.paced_done, (self.state, stats.counters), with_names)
+        if self.io is not None:
+            io = self.io
+            self._block_args = ((self.state, m, d, io.read, io.send, io.address, samples,
+                                 np.uintp(samples.ctypes.data), self._device_of) + self._world_args()
+                                + self._end_args[3:5] + self._end_args[8:])
+            self._block = entry(kernel.run_ticks, self._block_args + (1, False), with_names)
+
+    @property
+    def compiled_block(self) -> bool:
+        """True when ticks run as compiled blocks (the device gives `compiled_io()` and no
+        fingertip sensor channel needs Python every tick)."""
+        return self.io is not None and not self.sensors
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -171,10 +268,12 @@ class ServoLoop:
         _open_loops.add(self)
         if self.handle_signals and self._signals is None and termination.install():
             self._signals = weakref.finalize(self, termination.uninstall)  # also if dropped unclosed
+        if self._unregister_fatal is None:
+            self._unregister_fatal = native.on_fatal(self._zero_all)
         try:
             self.device.read(self.t, self.samples)
         except Exception:
-            self.faults["device_error"] += 1
+            self.state[0].device_error += 1
             for f in self.fingers:
                 f.placed = False
             return
@@ -185,123 +284,172 @@ class ServoLoop:
             else:
                 f.place(s.x, s.y, s.z)
 
+    def _limits(self) -> None:
+        st = self.state[0]
+        st.fmax = as_limit(self.device.max_force)
+        st.tmax = as_limit(self.device.max_torque)
+
     def tick(self) -> None:
         """One servo tick at loop time `self.t`; advances time by one period."""
         if not self._started or self.closed:
             self.start()
-        start = time.perf_counter()
-        dt = self.period
-        world = self.world
-        device = self.device
-        samples = self.samples
+        self._limits()
+        if self.compiled_block:
+            self._run_block(1, False)
+        else:
+            self._python_tick()
+
+    def _run_block(self, n: int, paced: bool) -> int:
+        """Up to n compiled ticks in one call (GIL released); then the device's error messages
+        and its last samples as DeviceSamples. Returns the ticks run."""
+        args = self._block_args
+        done = self._block(*args, n, paced)
+        self._after_block()
+        return done
+
+    def _after_block(self) -> None:
+        st = self.state[0]
+        if st.read_code:
+            self.last_device_error = self.io.read_error(int(st.read_code))
+            st.read_code = 0
+        if st.send_code:
+            self.last_send_error = self.io.read_error(int(st.send_code))
+            st.send_code = 0
+        self._sample_rows.copy_into(self.samples)
+
+    def _python_tick(self) -> None:
+        """One tick with the device called from Python: read, the compiled tick up to the
+        sends, the sends, the sensor channels, the rest of the compiled tick."""
+        start = native.monotonic_ns()
         ok = True
         try:
-            device.read(self.t, samples)
+            self.device.read(self.t, self.samples)
         except Exception as exc:  # a device that fails must not take the loop (and a motor) with it
-            self.faults["device_error"] += 1
+            self.state[0].device_error += 1
             self.last_device_error = str(exc) or type(exc).__name__
             ok = False
-        safe = self._safe_next
-        self._safe_next = False
-        world.begin_step()
-        self._fingers(ok, safe, dt)
+        if ok:
+            self._take_samples()
+        args = self._begin_args
+        self._begin(args[0], args[1], args[2], args[3], ok, *args[5:])
         self._sends()
         for ch in self.sensors:
             ch.tick(self)
-        world.end_step()
-        self.t += dt
-        self.ticks += 1
-        duration = time.perf_counter() - start
-        if duration > self.overrun_limit and self._watching:
-            self.faults["overrun"] += 1
-            self._safe_next = True
-        self.stats.record(duration, dt)
+        self._end(*self._end_args, start)
 
-    def _fingers(self, ok: bool, safe: bool, dt: float) -> None:
-        """Every finger's part of the tick: this tick's samples into the finger records, then
-        one compiled call (update or hold, wrench, the device guard)."""
-        floats, flags, samples = self._floats, self._bytes, self.samples
-        unusable = 0
-        for k, valid, _, j in self._io:
-            s = samples[j]
-            if ok and s.usable():  # every field is now a finite float
-                floats[k] = s.x
-                floats[k + 1] = s.y
-                floats[k + 2] = s.z
-                floats[k + 3] = s.twist
+    def _take_samples(self) -> None:
+        """The device's DeviceSamples into the SAMPLE rows the tick reads; a sample that is not
+        usable (not valid, or a field that is no finite number) is marked not valid."""
+        floats, flags = self._floats, self._bytes
+        for (k, valid), s in zip(self._slots, self.samples):
+            if s.usable():  # every field is now a finite float
+                floats[k + 1] = s.x
+                floats[k + 2] = s.y
+                floats[k + 3] = s.z
                 floats[k + 4] = s.qw
                 floats[k + 5] = s.qx
                 floats[k + 6] = s.qy
                 floats[k + 7] = s.qz
+                floats[k + 8] = s.twist
                 flags[valid] = 1
             else:
                 flags[valid] = 0
-                unusable += ok
-        world, rows, device = self.world, self.rows, self.device
-        shapes = world.shapes
-        refused, unsafe = self._tick_kernel(shapes.S, shapes.T, shapes.C, shapes.xpos, shapes.xmat, shapes.cvel, rows.F,
-                                      rows.near, dt, safe, bool(self.audit), as_limit(device.max_force),
-                                      as_limit(device.max_torque), rows.scratch, world.wrench, world.bodies,
-                                      world.counts)
-        if unusable or refused:
-            self.faults["invalid_sample"] += unusable + refused
-        if unsafe:
-            self.faults["unsafe_output"] += unsafe
 
     def _sends(self) -> None:
-        """Each device finger is sent what the tick computed for it (guarded, clamped)."""
-        floats, device = self._floats, self.device
-        for _, _, k, j in self._io:
+        """Each finger's device finger is sent what the tick computed for it (guarded, clamped)."""
+        floats, device = self._sent, self.device
+        for k, j in self._sent_slots:
             try:
                 device.send(j, floats[k], floats[k + 1], floats[k + 2], floats[k + 3], floats[k + 4], floats[k + 5])
             except Exception as exc:
                 self._send_failed(exc)
 
     def _send_failed(self, exc: Exception) -> None:
-        self.faults["send_error"] += 1
+        self.state[0].send_error += 1
         self.last_send_error = str(exc) or type(exc).__name__
 
-    def run(self, ticks: int, realtime: bool = False, on_tick=None, spin_s: float = 1.5e-3) -> None:
+    def run(self, ticks: int, realtime: bool = False, on_tick=None, spin_s: float = 1.5e-3, every: int = 1) -> None:
         """Run `ticks` ticks: lockstep (as fast as possible, deterministic) or paced in real time.
 
-        Paced: the loop sleeps only when more than `spin_s` remains before the next tick and
+        Paced: a tick sleeps only when more than `spin_s` remains before its deadline and
         spins for the rest (a sleep can overshoot by a millisecond on a busy machine), and
         Python's cyclic garbage collector is paused for the run (a collection is a pause of
         its own). At 1 kHz that means one core spinning, as a haptic servo thread does.
-        `on_tick(loop)` is called after every tick, outside the timed region. Zero force is
-        sent to every finger when the run ends, however it ends.
+        `on_tick(loop)` is called after every `every` ticks (and after the last), outside
+        the timed region; with compiled blocks a larger `every` leaves more of the run
+        compiled. `request_stop()` (from another thread) ends the run after the current
+        tick. Zero force is sent to every finger when the run ends, however it ends.
         """
+        if every < 1:
+            raise ValueError(f"every must be >= 1 tick, got {every!r}")
         gc_was_enabled = gc.isenabled()
+        st = self.state[0]
         try:
-            if not realtime:
-                for _ in range(ticks):
-                    self.tick()
-                    if on_tick is not None:
-                        on_tick(self)
-                return
-            period = self.period
-            self.paced = True
-            self._watching = self.overrun_watchdog is not False
-            gc.disable()
-            next_start = time.perf_counter()
-            for _ in range(ticks):
-                now = time.perf_counter()
-                if next_start - now > spin_s:
-                    time.sleep(next_start - now - spin_s)
-                while time.perf_counter() < next_start:
-                    pass
-                self.tick()
-                if time.perf_counter() > next_start + period:
-                    self.stats.misses += 1
-                next_start += period
-                if on_tick is not None:
+            if not self._started or self.closed:
+                self.start()
+            self._limits()
+            if realtime:
+                self.paced = True
+                st.watching = self.overrun_watchdog is not False
+                st.spin_ns = int(spin_s * 1e9)
+                st.next_ns = native.monotonic_ns()
+                gc.disable()
+            block = every if on_tick is not None else max(1, int(BLOCK_S * self.rate_hz))
+            left = ticks
+            while left > 0 and not st.stop:
+                n = min(block, left)
+                if self.compiled_block:
+                    done = self._run_block(n, realtime)
+                else:
+                    done = 0
+                    while done < n and not st.stop:
+                        if realtime:
+                            self._pace(self.state)
+                        self._python_tick()
+                        if realtime:
+                            self._paced_done(self.state, self.stats.counters)
+                        done += 1
+                left -= done
+                if on_tick is not None and done:
                     on_tick(self)
         finally:
+            st.stop = False
             self.paced = False
-            self._watching = self.overrun_watchdog is True
+            st.watching = self.overrun_watchdog is True
             if gc_was_enabled:
                 gc.enable()
             self.stop()
+
+    def request_stop(self) -> None:
+        """Ask a `run` in progress (in another thread) to end after the tick it is in;
+        thread-safe. The run then sends zero force, as every run does when it ends."""
+        self.state[0].stop = True
+
+    def run_in_thread(self, ticks: int, realtime: bool = True, on_tick=None, every: int = 1) -> threading.Thread:
+        """`run(...)` in a new thread, started, returned. With a compiled device the ticks run
+        without the GIL, so this thread can draw or log meanwhile; it must not touch
+        `world.data` (MuJoCo steps it) until the thread has ended: read state in `on_tick`,
+        which runs on the servo thread between blocks. A failure in the run is kept in
+        `error` and the safe state is sent as always."""
+        self.error = None
+
+        def servo() -> None:
+            try:
+                self.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
+            except BaseException as exc:
+                self.error = exc
+
+        thread = threading.Thread(target=servo, name="softproxy-servo", daemon=True)
+        thread.start()
+        return thread
+
+    def _zero_all(self) -> None:
+        """The emergency path (a MuJoCo error inside the compiled tick): zero force to every finger."""
+        for f in self.fingers:
+            try:
+                self.device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            except Exception:
+                pass
 
     def stop(self) -> None:
         """The safe state: zero force to every finger first, then no finger wrench left on the
@@ -333,6 +481,8 @@ class ServoLoop:
                     self.last_device_error = f"closing the device: {exc or type(exc).__name__}"
                 if self._signals is not None:
                     self._signals()
+                if self._unregister_fatal is not None:
+                    self._unregister_fatal()
 
     def __enter__(self) -> "ServoLoop":
         return self

@@ -11,7 +11,8 @@ The compiled tick runs a block of servo ticks, MuJoCo's half-steps included, in 
   bit-identical to `mujoco.mj_step1/2` on the same model and data.
 - `monotonic_ns()`: CLOCK_MONOTONIC in ns, the clock of `time.monotonic_ns()` on Linux, so a
   kernel and Python compare times. In a kernel it calls libc's `clock_gettime` on the stack
-  (no allocation, no GIL), so a kernel can spin until a deadline.
+  (no allocation, no GIL), so a kernel can spin until a deadline; `sleep_until_ns(deadline)`
+  sleeps until one (clock_nanosleep, absolute), so a paced kernel need not spin a whole period.
 - `install_error_handler()` and `on_fatal(callback)`: the emergency path when MuJoCo raises an
   error inside one of these direct calls (see 1 below).
 
@@ -150,6 +151,51 @@ def monotonic_ns() -> int:
 def _compiled_monotonic_ns():
     def impl():
         return _clock_monotonic_ns()
+    return impl
+
+
+TIMER_ABSTIME = 1
+"""clock_nanosleep's flag for an absolute deadline (Linux)."""
+
+
+@intrinsic
+def _clock_sleep_until_ns(typingctx, deadline):
+    """clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME) until `deadline` (int64 ns), timespec on
+    the stack. A signal may end the sleep early; callers spin the rest."""
+    if not isinstance(deadline, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        i32, i64 = ir.IntType(32), ir.IntType(64)
+        timespec = ir.LiteralStructType([i64, i64])
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(i32, [i32, i32, timespec.as_pointer(), timespec.as_pointer()]),
+            "clock_nanosleep")
+        ts = cgutils.alloca_once(builder, timespec)
+        at = builder.sext(args[0], i64) if args[0].type.width < 64 else args[0]
+        billion = ir.Constant(i64, 1_000_000_000)
+        builder.store(builder.sdiv(at, billion), cgutils.gep_inbounds(builder, ts, 0, 0))
+        builder.store(builder.srem(at, billion), cgutils.gep_inbounds(builder, ts, 0, 1))
+        builder.call(fn, [ir.Constant(i32, CLOCK_MONOTONIC), ir.Constant(i32, TIMER_ABSTIME), ts,
+                          ir.Constant(timespec.as_pointer(), None)])
+        return context.get_dummy_value()
+
+    return types.none(deadline), codegen
+
+
+def sleep_until_ns(deadline: int) -> None:
+    """Sleep until CLOCK_MONOTONIC reads `deadline` (ns); at once if it has passed. In a
+    kernel the thread sleeps in the kernel, without the GIL."""
+    remaining = deadline - time.monotonic_ns()
+    if remaining > 0:
+        time.sleep(remaining * 1e-9)
+
+
+@overload(sleep_until_ns)
+def _compiled_sleep_until_ns(deadline):
+    def impl(deadline):
+        if deadline > 0:
+            _clock_sleep_until_ns(deadline)
     return impl
 
 

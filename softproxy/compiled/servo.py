@@ -1,0 +1,175 @@
+"""The servo tick as compiled code: a block of ticks, device and MuJoCo included, in one call.
+
+`run_ticks` runs n ticks without returning to the interpreter and without the GIL: pacing
+(sleep, then spin to the deadline), the device's read (its cfunc, `softproxy.device_kernel`),
+the samples into the finger records, MuJoCo's first half-step, every finger
+(`finger.tick`), the sends (the device's cfunc), the wrenches into xfrc_applied, MuJoCo's
+second half-step, and the tick's statistics and watchdog. A device written in Python cannot
+be called from here; `ServoLoop` then runs the same pieces one tick at a time, `begin_tick`
+and `end_tick` around its own read and sends, so both paths share every line of the tick
+but the device I/O.
+
+The loop's scalar state is one `LOOP` record (`loop`, an array of one): loop time, period, the watchdog, the fault
+counters, the device's last error codes and a `stop` flag another thread may set to end a
+block early (the kernel reads it every tick), and, while `profile` is set, the time of each
+stage of the last tick (`STAGES`; the device's stages only in a compiled block). Tick statistics go into the ring buffers of
+`softproxy.servo.TickStats` (durations in s) and its counters [count, misses].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from softproxy.compiled import finger
+from softproxy.compiled.native import mj_step1, mj_step2, monotonic_ns, sleep_until_ns
+
+STAGES = ("device read", "mj_step1", "fingers", "device sends", "wrenches + mj_step2")
+"""The stages of a tick, in order, as `stage_ns` times them (`LOOP.profile`)."""
+READ_STAGE, STEP1_STAGE, FINGERS_STAGE, SENDS_STAGE, STEP2_STAGE = range(len(STAGES))
+
+LOOP = np.dtype([
+    ("t", np.float64),  # loop time (s) of the next tick
+    ("period", np.float64),  # s
+    ("period_ns", np.int64),
+    ("ticks", np.int64),
+    ("next_ns", np.int64),  # CLOCK_MONOTONIC deadline of the next paced tick
+    ("spin_ns", np.int64),  # a paced tick sleeps until this long before its deadline, then spins
+    ("overrun_ns", np.int64),  # a tick longer than this trips the watchdog (when watching)
+    ("fmax", np.float64), ("tmax", np.float64),  # the device's force (N) and torque (N·m) limits
+    ("stall_code", np.int64), ("stall_ns", np.int64),  # the device's "no answer" code and its wait
+    ("read_code", np.int64), ("send_code", np.int64),  # the device's last error codes (0: none yet)
+    ("device_error", np.int64), ("invalid_sample", np.int64), ("overrun", np.int64),
+    ("send_error", np.int64), ("unsafe_output", np.int64),  # softproxy.servo.FAULTS, in order
+    ("safe_next", np.bool_),  # the watchdog asks for one tick of zero force
+    ("watching", np.bool_),  # the overrun watchdog is on
+    ("audit", np.bool_),  # measure every proxy's depth inside the shapes (slow)
+    ("stop", np.bool_),  # set from outside: end the block after the current tick
+    ("profile", np.bool_),  # time the stages of each tick into stage_ns
+    ("mark", np.int64),  # when the last stage ended (ns), while profiling
+    ("stage_ns", np.int64, (len(STAGES),)),  # the last tick's stages (ns), while profiling
+], align=True)
+"""A servo loop's scalar state, one record."""
+
+COUNT, MISSES = 0, 1
+"""Slots of TickStats' counters."""
+
+
+@njit(cache=True, error_model="numpy")
+def _stage(L, k):
+    """While profiling: stage k ended now; its time since the last mark into stage_ns[k]."""
+    if L.profile:
+        now = monotonic_ns()
+        L.stage_ns[k] = now - L.mark
+        L.mark = now
+
+
+@njit(cache=True, error_model="numpy")
+def pace(loop):
+    """Wait for the next paced tick's deadline: sleep until `spin_ns` before it, then spin
+    (a sleep can overshoot by a millisecond on a busy machine; the spin cannot)."""
+    L = loop[0]
+    deadline = L.next_ns
+    if deadline - monotonic_ns() > L.spin_ns:
+        sleep_until_ns(deadline - L.spin_ns)
+    while monotonic_ns() < deadline:
+        pass
+
+
+@njit(cache=True, error_model="numpy")
+def paced_done(loop, counters):
+    """After a paced tick: a miss when it ended after the next deadline; next deadline."""
+    L = loop[0]
+    if monotonic_ns() > L.next_ns + L.period_ns:
+        counters[MISSES] += 1
+    L.next_ns += L.period_ns
+
+
+@njit(cache=True, error_model="numpy")
+def begin_tick(loop, m, d, samples, ok, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch, wrench, bodies,
+               counts):
+    """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
+    failed) into the finger records, mj_step1 on the mjModel/mjData at `m`/`d`, then every
+    finger (`finger.tick`). A sample the device marked not valid is an invalid_sample fault."""
+    L = loop[0]
+    safe = L.safe_next
+    L.safe_next = False
+    for i in range(F.shape[0]):
+        f = F[i]
+        if not ok:
+            f.in_valid = False
+            continue
+        s = samples[device_of[i]]
+        if not s.valid:
+            f.in_valid = False
+            L.invalid_sample += 1
+            continue
+        f.in_x, f.in_y, f.in_z, f.in_twist = s.x, s.y, s.z, s.twist
+        f.in_qw, f.in_qx, f.in_qy, f.in_qz = s.qw, s.qx, s.qy, s.qz
+        f.in_valid = True
+    mj_step1(m, d)
+    _stage(L, STEP1_STAGE)
+    refused, unsafe = finger.tick(S, T, C, xpos, xmat, cvel, F, near, L.period, safe, L.audit, L.fmax, L.tmax,
+                                  scratch, wrench, bodies, counts)
+    L.invalid_sample += refused
+    L.unsafe_output += unsafe
+    _stage(L, FINGERS_STAGE)
+
+
+@njit(cache=True, error_model="numpy")
+def end_tick(loop, m, d, xfrc, xipos, wrench, bodies, counts, durations, periods, counters, start_ns):
+    """The tick after the sends: the wrenches into xfrc_applied, mj_step2, loop time, and the
+    tick's duration since `start_ns` into the statistics; an overrun (while watching) makes
+    the next tick render zero."""
+    L = loop[0]
+    finger.write_wrenches(xfrc, xipos, wrench, bodies, counts)
+    mj_step2(m, d)
+    _stage(L, STEP2_STAGE)
+    L.t += L.period
+    L.ticks += 1
+    elapsed = monotonic_ns() - start_ns
+    if L.watching and elapsed > L.overrun_ns:
+        L.overrun += 1
+        L.safe_next = True
+    k = counters[COUNT] % durations.shape[0]
+    durations[k] = elapsed * 1e-9
+    periods[k] = L.period
+    counters[COUNT] += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def run_ticks(loop, m, d, read, send, io, samples, samples_at, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch,
+              wrench, bodies, counts, xfrc, xipos, durations, periods, counters, n, paced):
+    """Up to n ticks (fewer if `L.stop` is set), paced in real time or not; returns how many
+    ran. `read`/`send`: the device's cfuncs over its state at `io`; `samples` its SAMPLE rows
+    (at address `samples_at`). A read that fails renders no finger (each holds) and counts a
+    device_error; one that stalled waits the device's stall time first."""
+    L = loop[0]
+    rows = samples.shape[0]
+    done = 0
+    while done < n and not L.stop:
+        if paced:
+            pace(loop)
+        start = monotonic_ns()
+        L.mark = start
+        code = read(io, L.t, samples_at, rows)
+        _stage(L, READ_STAGE)
+        if code != 0:
+            L.device_error += 1
+            L.read_code = code
+            if code == L.stall_code:
+                sleep_until_ns(start + L.stall_ns)
+        begin_tick(loop, m, d, samples, code == 0, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch, wrench,
+                   bodies, counts)
+        for i in range(F.shape[0]):
+            f = F[i]
+            code = send(io, device_of[i], f.sent_fx, f.sent_fy, f.sent_fz, f.sent_tx, f.sent_ty, f.sent_tz)
+            if code != 0:
+                L.send_error += 1
+                L.send_code = code
+        _stage(L, SENDS_STAGE)
+        end_tick(loop, m, d, xfrc, xipos, wrench, bodies, counts, durations, periods, counters, start)
+        if paced:
+            paced_done(loop, counters)
+        done += 1
+    return done
