@@ -238,7 +238,7 @@ class ServoLoop:
         m, d = (np.uintp(a) for a in native.addresses(world.model, world.data))
         self._m, self._d = m, d
         stats = self.stats
-        samples = self._sample_rows.array
+        samples = self._sample_rows.array.view(np.recarray)  # fields by attribute, interpreted too
         self._begin_args = (self.state, m, d, samples, True, self._device_of) + self._world_args()
         self._end_args = (self.state, m, d, world.data.xfrc_applied, world.data.xipos, world.wrench, world.bodies,
                           world.counts, stats.duration, stats.period, stats.counters)

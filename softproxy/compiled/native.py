@@ -87,7 +87,7 @@ def _c_step(name: str):
     external = types.ExternalFunction(name, _STEP_SIGNATURE)
 
     def step(m_addr, d_addr):
-        cfunc(m_addr, d_addr)  # ctypes releases the GIL for the call
+        cfunc(int(m_addr), int(d_addr))  # ctypes releases the GIL for the call
 
     step.__name__ = step.__qualname__ = name
     step.__doc__ = f"MuJoCo's `{name}` on the mjModel at `m_addr` and the mjData at `d_addr` (ints)."
