@@ -237,7 +237,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         try:
             result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
                                finger_model=args.finger_model, realtime=realtime, record=args.record,
-                               on_built=views.on_built if views else None, on_tick=views.on_tick if views else None)
+                               on_built=views.on_built if views else None, on_tick=views.on_tick if views else None,
+                               every=1 if views is not None and views.video is not None else 10)  # video frames on time
         finally:
             device.close()
         if views is not None:
