@@ -127,6 +127,11 @@ class ServoLoop:
     and while a loop is open SIGTERM and SIGHUP (where still at their defaults) end the
     program through SystemExit, so the hook and every `finally` on the way run
     (`softproxy.termination`; `handle_signals=False` leaves the signals alone).
+
+    The loop sets `world.model.opt.timestep` to its period (1 / rate_hz): MuJoCo takes exactly
+    one step per servo tick, which the coupling needs (each tick the proxies follow the bodies
+    where that step put them). A model's own timestep is replaced; for a finer MuJoCo step,
+    raise the rate.
     """
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
