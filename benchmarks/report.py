@@ -8,19 +8,20 @@ from pathlib import Path
 
 
 class Progress:
-    """One status line on stderr, rewritten in place: `progress("wall 3/45")`; `done()` clears it."""
+    """One status line on stderr, redrawn in place by tqdm: `progress("wall 3/45")`; `done()`
+    clears it. Silent when stderr is not a terminal (a file or a pipe gets no control codes)."""
 
     def __init__(self, name: str) -> None:
-        self.name = name
-        self.width = 0
+        from tqdm import tqdm
+
+        self.bar = tqdm(desc=f"  {name}", bar_format="{desc}: {postfix} [{elapsed}]", file=sys.stderr, leave=False,
+                        disable=not sys.stderr.isatty())
 
     def __call__(self, message: str) -> None:
-        line = f"  {self.name}: {message}"
-        print("\r" + line.ljust(self.width), end="", file=sys.stderr, flush=True)
-        self.width = max(self.width, len(line))
+        self.bar.set_postfix_str(message)
 
     def done(self) -> None:
-        print("\r" + " " * self.width + "\r", end="", file=sys.stderr, flush=True)
+        self.bar.close()
 
 
 def figure(nrows: int, ncols: int, size: tuple[float, float], **kwargs):

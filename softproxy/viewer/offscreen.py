@@ -8,6 +8,7 @@ a plain one and read back as an RGB image: `softproxy run --snapshot FILE.png` a
 from __future__ import annotations
 
 import os
+import sys
 
 import moderngl
 import numpy as np
@@ -130,8 +131,11 @@ def write_video(path, frames: list[Frame], renderer: OffscreenRenderer, fps: flo
                                          pix_fmt_out="yuv420p", macro_block_size=1, quality=7,
                                          ffmpeg_log_level="error")
     writer.send(None)
+    from tqdm import tqdm  # a bar on a terminal, nothing in a file or a pipe
+
     try:
-        for f in frames:
+        for f in tqdm(frames, desc="softproxy: rendering the video", unit="frame", leave=False,
+                      disable=not sys.stderr.isatty()):
             writer.send(renderer.render(f, cam).tobytes())
     finally:
         writer.close()
