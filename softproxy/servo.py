@@ -241,7 +241,6 @@ class ServoLoop:
         first tick, and keep their entry points (`softproxy.compiled.dispatch`)."""
         world = self.world
         m, d = (np.uintp(a) for a in native.addresses(world.model, world.data))
-        self._m, self._d = m, d
         stats = self.stats
         samples = self._sample_rows.array.view(np.recarray)  # fields by attribute, interpreted too
         self._begin_args = (self.state, m, d, samples, True, self._device_of) + self._world_args()
