@@ -8,6 +8,11 @@ finger feels; the touched object gets -F at the contact point and -M·n.
 The twist α_s read from the device is taken about the finger's own axis pointing from the
 fingertip back toward the hand, which is +n when the finger presses straight on a surface.
 
+Both friction laws (the god-object's cone, the torsion) keep a slip state: a slipping
+contact stays in dynamic friction until the motion stops or reverses, so a steady slide or
+twist renders a steady force or torque (docs/friction.md); `FingerParams.restick_time = 0`
+re-tests the static limits every tick, as the seed prints eq 39.
+
 The tick runs in the compiled kernels (`softproxy.compiled.finger`); `SoftFingerProxy` is a
 view onto the finger's record (`softproxy.finger_rows`): its god-object and torsion views
 read the same record.
@@ -19,7 +24,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from softproxy.compiled import finger as kernel
-from softproxy.compiled.godobject import WORKSPACE_LIMIT
+from softproxy.compiled.godobject import RESTICK_TIME, WORKSPACE_LIMIT
 from softproxy.finger_rows import Field, FingerRows, RecordView
 from softproxy.fingertip import MODELS, FingertipModel, _check_finite
 from softproxy.geometry import Shape, ShapeSet
@@ -46,6 +51,8 @@ class FingerParams:
     torsion_mu_s: float | None = None  # static torsional coefficient, N·m/N^γ (default: Table 1)
     torsion_mu_d: float | None = None  # dynamic torsional coefficient (default: 0.8 static)
     saturate: bool = False          # torsion limit follows eq 26 above P*
+    restick_time: float = RESTICK_TIME  # a slipping contact (cone, torsion) stopped this long re-sticks, s;
+                                        # 0: static limits re-tested every tick (seed 002 eq 39 as printed)
     max_force: float = 40.0         # clamp on |F|, N
     max_torque: float = 1.0         # clamp on |M|, N·m
     max_speed: float = 20.0         # a device sample farther than max_speed·dt from the last is a spike, m/s
@@ -76,6 +83,7 @@ class FingerParams:
         "max_torque": (0.0, 1e3, "N·m"),           # devices render ≤ ~1 N·m
         "max_speed": (0.0, 1e4, "m/s"),            # a hand moves at ≤ ~5 m/s; the spike test is off well below this
         "soft_start": (0.0, 60.0, "s"),            # a ramp of a minute is already no force at all to a user
+        "restick_time": (0.0, 60.0, "s"),          # shipped 0.05; a minute is already never re-sticking
         "scale": (0.0, 1e3, ""),                   # device workspace (cm) to world; 1e3 maps 1 mm to 1 m
         "offset": (-WORKSPACE_LIMIT, WORKSPACE_LIMIT, "m"),  # each component: inside the workspace
     }
@@ -88,7 +96,7 @@ class FingerParams:
             raise ValueError(f"model must be one of {', '.join(MODELS)}, got {self.model!r}")
         if not isinstance(self.saturate, bool):
             raise ValueError(f"saturate must be true or false, got {self.saturate!r}")
-        for name in ("radius", "damping", "torsion_damping", "mu_s", "mu_d", "soft_start"):
+        for name in ("radius", "damping", "torsion_damping", "mu_s", "mu_d", "soft_start", "restick_time"):
             self._check_range(name, _check_finite(name, getattr(self, name), non_negative=True))
         for name in ("stiffness", "torsion_stiffness", "max_force", "max_torque", "scale", "max_speed"):
             self._check_range(name, _check_finite(name, getattr(self, name), positive=True))
@@ -170,10 +178,11 @@ class SoftFingerProxy(RecordView):
                  start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         self.params = params
         self.model = model
-        self.god = GodObject(ShapeSet.of(shapes), params.radius, params.mu_s, params.mu_d, start)
+        self.god = GodObject(ShapeSet.of(shapes), params.radius, params.mu_s, params.mu_d, start, params.restick_time)
         self._bind(self.god._rows, 0)
         self.torsion = TorsionalFriction(model, params.torsion_stiffness, params.torsion_mu_s, params.torsion_mu_d,
-                                         params.saturate, rows=self._rows) if model.has_torsion else None
+                                         params.saturate, rows=self._rows,
+                                         restick_time=params.restick_time) if model.has_torsion else None
         rec = self._rec
         rec["placed"] = True
         rec["k"], rec["b"], rec["b_tau"] = params.stiffness, params.damping, params.torsion_damping
@@ -245,7 +254,7 @@ class SoftFingerProxy(RecordView):
         p = self.params
         self.model = model
         self.torsion = TorsionalFriction(model, p.torsion_stiffness, p.torsion_mu_s, p.torsion_mu_d, p.saturate,
-                                         rows=self._rows, i=self._i)
+                                         rows=self._rows, i=self._i, restick_time=p.restick_time)
         rec["slip_events"] = slips
 
     @property

@@ -12,7 +12,8 @@ the proxy back on the surface, in contact, rather than leaving it microns above 
 force for a tick. Every sweep stays inside the ball whose shapes the tick's broad phase
 gathered. Friction follows the proxy literature's friction cone: the proxy sticks while
 the device stays inside the static cone (tangential offset ≤ μ_s × penetration) and
-otherwise slides to the edge of the dynamic cone.
+otherwise slides to the edge of the dynamic cone; once slipping it stays in the dynamic
+cone until the motion stops or reverses (a slip state; docs/friction.md).
 
 The proxy is stored in the frame of the geom it touches, so a moving object carries it;
 an object that moves into it pushes it out. Units: m, N, N/m, N·s/m.
@@ -26,6 +27,7 @@ from __future__ import annotations
 import math
 
 from softproxy.compiled import godobject as kernel
+from softproxy.compiled.godobject import RESTICK_TIME
 from softproxy.compiled.godobject import WORKSPACE_LIMIT  # noqa: F401 (the workspace a device position must lie in)
 from softproxy.finger_rows import Field, FingerRows, RecordView
 from softproxy.geometry import Shape, ShapeSet
@@ -36,8 +38,12 @@ class GodObject(RecordView):
 
     Fields after `update`: x, y, z (proxy centre, m); contact (bool); nx, ny, nz (unit
     contact normal, out of the object); shape (the touched Shape or None); depth (how far
-    the device is inside the constraint, m); sticking (bool); lx, ly, lz (the proxy in the
-    touched geom's frame, m); planes (the constraint planes it rests on).
+    the device is inside the constraint, m); sticking (bool: static friction; False in
+    contact is the slip state, dynamic friction); lx, ly, lz (the proxy in the touched
+    geom's frame, m); planes (the constraint planes it rests on).
+
+    `restick_time` (s): a slipping proxy that has not had to slide for this long sticks
+    again; 0 re-tests the static cone every tick (the literature's cone as printed).
     """
 
     x = Field()
@@ -55,9 +61,10 @@ class GodObject(RecordView):
     radius = Field()
     mu_s = Field()
     mu_d = Field()
+    restick_time = Field("slide_restick")
 
     def __init__(self, shapes: list[Shape], radius: float, mu_s: float = 0.0, mu_d: float = 0.0,
-                 position: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+                 position: tuple[float, float, float] = (0.0, 0.0, 0.0), restick_time: float = RESTICK_TIME) -> None:
         if not (math.isfinite(radius) and radius >= 0.0):
             raise ValueError(f"radius must be a finite number >= 0 (m), got {radius!r}")
         for name, mu in (("mu_s", mu_s), ("mu_d", mu_d)):
@@ -65,12 +72,15 @@ class GodObject(RecordView):
                 raise ValueError(f"{name} must be a finite number >= 0, got {mu!r}")
         if mu_d > mu_s:
             raise ValueError(f"mu_d ({mu_d}) must be <= mu_s ({mu_s})")
+        if not (math.isfinite(restick_time) and restick_time >= 0.0):
+            raise ValueError(f"restick_time must be a finite number >= 0 (s), got {restick_time!r}")
         shapes = ShapeSet.of(shapes)
         shapes.prepare(float(radius))  # nothing the queries need is built in the tick
         self._bind(FingerRows(shapes, 1), 0)
         self.radius = float(radius)
         self.mu_s = float(mu_s)
         self.mu_d = float(mu_d)
+        self.restick_time = float(restick_time)
         self.reset(*position)
 
     @classmethod
@@ -111,13 +121,14 @@ class GodObject(RecordView):
                      float(z)):
             raise ValueError(f"proxy position must lie within ±{WORKSPACE_LIMIT} m, got {(x, y, z)!r}")
 
-    def update(self, xd: float, yd: float, zd: float) -> bool:
-        """Move the proxy toward the device position (m, world). False on NaN/Inf/garbage:
-        the proxy then only follows its body (`follow`)."""
+    def update(self, xd: float, yd: float, zd: float, dt: float = 1e-3) -> bool:
+        """Move the proxy toward the device position (m, world), a tick of dt s later (the
+        re-stick time counts in it). False on NaN/Inf/garbage: the proxy then only follows
+        its body (`follow`)."""
         r = self._rows
         s = r.shapes
         return r.run(kernel.update_row, s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i, float(xd), float(yd),
-                     float(zd), r.scratch)
+                     float(zd), float(dt), r.scratch)
 
     def follow(self) -> None:
         """Without a device sample: the proxy stays on the body it touches and out of anything

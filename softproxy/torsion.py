@@ -9,7 +9,14 @@ Seed `002_36b58acb2f958b03.txt`, §7, eqs 38–42, with two errata fixed (../sha
 
 The goal is the device twist measured from where contact began (DESIGN's reading of §7's
 α_g): α_p starts at the device twist α_s when contact is made, so M starts at zero and
-M = k_τ(α_p - α_s) thereafter. All angles are right-handed about the contact normal n
+M = k_τ(α_p - α_s) thereafter.
+
+A choice beyond the seed: a slip state. Eq 39 read literally re-tests the static limit every
+tick, so a steady twist saw-tooths between μ_d|P|^γ and μ_s|P|^γ (~110 Hz at 0.1 rad/s,
+P = 1 N, k_τ = 2: a buzz in the finger). By default a slipping contact stays in dynamic
+friction, |M| = μ_d|P|^γ, until the twist stops (no slide for `restick_time`, 0.05 s) or
+reverses (the torque along the slip falls below 0.6 μ_d|P|^γ), as in Karnopp's model;
+`restick_time=0` is eq 39 as printed. Constants and figures: docs/friction.md. All angles are right-handed about the contact normal n
 (pointing out of the object, toward the finger). M is the torque on the finger; the object
 gets -M about n. Units: rad, N, N·m, N·m/rad.
 
@@ -20,6 +27,7 @@ The law runs in the compiled kernels (`softproxy.compiled.finger`, `torsion_*`);
 from __future__ import annotations
 
 from softproxy.compiled import finger as kernel
+from softproxy.compiled.godobject import RESTICK_TIME
 from softproxy.fingertip import FingertipModel, _check_finite
 from softproxy.finger_rows import Field, FingerRows, RecordView
 
@@ -32,6 +40,10 @@ class TorsionalFriction(RecordView):
     0.8·mu_s (the seed leaves μ_d to experiment; 0.8 is a typical static-to-kinetic ratio
     for skin). With `saturate=True` the static limit follows the piecewise law of eq 26
     (linear above P*) and the dynamic one is scaled by mu_d/mu_s.
+
+    `restick_time` (s): a slipping contact that has not had to slip for this long sticks
+    again (RESTICK_TIME by default); 0 re-tests the static limit every tick, eq 39 as printed.
+    `slipping` is the slip state: True from a slip until the contact re-sticks.
     """
 
     k_tau = Field()
@@ -47,11 +59,14 @@ class TorsionalFriction(RecordView):
     limit = Field()
     slipping = Field(kind=bool)
     slip_events = Field(kind=int)
+    restick_time = Field("torsion_restick")
 
     def __init__(self, model: FingertipModel, k_tau: float, mu_s: float | None = None, mu_d: float | None = None,
-                 saturate: bool = False, rows: FingerRows | None = None, i: int = 0) -> None:
+                 saturate: bool = False, rows: FingerRows | None = None, i: int = 0,
+                 restick_time: float = RESTICK_TIME) -> None:
         """`rows`, `i`: the finger record to live in (a table of its own by default)."""
         k_tau = _check_finite("k_tau", k_tau, positive=True)
+        restick_time = _check_finite("restick_time", restick_time, non_negative=True)
         mu_s = model.mu_prime if mu_s is None else _check_finite("mu_s", mu_s, non_negative=True)
         mu_d = 0.8 * mu_s if mu_d is None else _check_finite("mu_d", mu_d, non_negative=True)
         if mu_d > mu_s:
@@ -64,6 +79,7 @@ class TorsionalFriction(RecordView):
         rec["gamma"], rec["saturate"] = model.gamma, bool(saturate)
         rec["ratio"] = mu_d / mu_s if mu_s > 0.0 else 0.0
         rec["mu_prime"], rec["r0"], rec["p_star"] = model.mu_prime, model.r0, model.p_star
+        rec["torsion_restick"] = restick_time
         rec["slip_events"] = 0
         self.release()
 
@@ -75,10 +91,10 @@ class TorsionalFriction(RecordView):
         """Contact broken: torsion state cleared, no torque."""
         self._rows.run(kernel.torsion_release_row, self._rows.F, self._i)
 
-    def step(self, alpha_s: float, P: float) -> float:
-        """One servo tick (eqs 38-40): new α_p from device twist α_s (rad) and normal force P
-        (N); returns M = k_τ(α_p - α_g) on the finger about n (N·m)."""
-        return self._rows.run(kernel.torsion_step_row, self._rows.F, self._i, float(alpha_s), float(P))
+    def step(self, alpha_s: float, P: float, dt: float = 1e-3) -> float:
+        """One servo tick of dt s (eqs 38-40, with the slip state): new α_p from device twist
+        α_s (rad) and normal force P (N); returns M = k_τ(α_p - α_g) on the finger about n (N·m)."""
+        return self._rows.run(kernel.torsion_step_row, self._rows.F, self._i, float(alpha_s), float(P), float(dt))
 
     def follow_object(self, omega_n: float, dt: float) -> None:
         """Eqs 41-42: α_p += (ω·n)Δt, the object's signed spin about n (rad/s) over Δt (s)."""

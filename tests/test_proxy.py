@@ -511,7 +511,8 @@ def test_friction_cone_on_a_plane(normal, offset, radius, mu_s, ratio, path):
     dragging, lifting off, in jumps and in small steps): every tick the proxy is where the
     friction cone puts it (`cone_step`): stuck while the tangential offset is at most
     μ_s × depth, otherwise trailing the device's projection by μ_d × depth; in contact, the
-    normal is the plane's and the depth the device's below the proxy's plane."""
+    normal is the plane's and the depth the device's below the proxy's plane. The cone is
+    re-tested every tick (restick_time 0: no slip state, which tests/test_friction_slip.py checks)."""
     n = np.array(normal) / np.linalg.norm(normal)
     mu_d = ratio * mu_s
     scene = Scene(plane_xml(n, offset))
@@ -521,7 +522,7 @@ def test_friction_cone_on_a_plane(normal, offset, radius, mu_s, ratio, path):
     e2 = np.cross(n, e1)
     level = offset + radius
     device = (level + 0.02) * n
-    god = GodObject(scene.shapes, radius, mu_s, mu_d, tuple(device))
+    god = GodObject(scene.shapes, radius, mu_s, mu_d, tuple(device), restick_time=0.0)
     for u, v, depth, steps in path:
         target = (level - depth) * n + u * e1 + v * e2
         start = device
@@ -578,11 +579,12 @@ def test_shortcuts_end_where_a_cold_solve_ends(scenery, path, mu, radius):
     stuck proxy on a face or in a corner without a solve) ends every tick where a fresh
     god-object, placed where the first one started the tick and solving from no planes,
     ends: the same position, contact, force direction and depth, on faces, creases,
-    corners, past edges and on curved shapes, and never inside."""
+    corners, past edges and on curved shapes, and never inside. (No slip state, restick_time
+    0: a fresh god-object has none to start from.)"""
     scene = Scene(scenery)
-    fast = GodObject(scene.shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1))
+    fast = GodObject(scene.shapes, radius, mu, 0.8 * mu, (0.02, 0.02, 0.1), restick_time=0.0)
     for q in _in_small_steps(fast, path):
-        cold = GodObject(scene.shapes, radius, mu, 0.8 * mu, (fast.x, fast.y, fast.z))
+        cold = GodObject(scene.shapes, radius, mu, 0.8 * mu, (fast.x, fast.y, fast.z), restick_time=0.0)
         fast.update(*q)
         cold.update(*q)
         assert scene.deepest(fast) <= TOL

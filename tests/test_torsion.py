@@ -108,8 +108,8 @@ def test_sticks_below_static_limit():
 @pytest.mark.parametrize("direction", [+1, -1])
 def test_slips_above_limit_with_torque_clamped_to_dynamic(direction):
     """002 soft-finger proxy, eq 39/40 with the sign erratum: above μ_s|P|^γ, |M| = μ_d|P|^γ,
-    the twist's sign kept, whichever way the finger turns."""
-    t = make(k_tau=1.0, mu_s=TABLE_1["CH"], mu_d=0.5 * TABLE_1["CH"])
+    the twist's sign kept, whichever way the finger turns (eq 39 every tick: restick_time 0)."""
+    t = make(k_tau=1.0, mu_s=TABLE_1["CH"], mu_d=0.5 * TABLE_1["CH"], restick_time=0.0)
     P = 2.0
     limit = seed_limit("CH", P, False)
     M = t.step(0.3 + direction * 1.5 * limit, P)
@@ -240,9 +240,9 @@ def test_the_engine_follows_the_seed_law(name, k_tau, scale, ratio, saturate, ti
     the saturating limit or not, and the sequence of device twists, normal forces and object
     spins, every tick the engine's torque, α_p, limit, slipping and slip count are `SeedLaw`'s
     (where a tick falls on eq 39's tie, to rounding, either answer is the law's: the
-    reference then takes the engine's)."""
+    reference then takes the engine's). Eq 39 every tick: restick_time 0."""
     mu_s = scale * 2.0 * TABLE_1[name]
-    t = TorsionalFriction(model(name), k_tau, mu_s=mu_s, mu_d=ratio * mu_s, saturate=saturate)
+    t = TorsionalFriction(model(name), k_tau, mu_s=mu_s, mu_d=ratio * mu_s, saturate=saturate, restick_time=0.0)
     law = SeedLaw(k_tau, lambda P: mu_s / TABLE_1[name] * seed_limit(name, P, saturate), ratio)
     t.touch(ticks[0][0])
     law.touch(ticks[0][0])
@@ -289,12 +289,12 @@ def test_the_finger_renders_the_seed_law_about_the_contact_normal():
     spring torque for the finger's own normal force P, plus the damping b_τ/dt of the change
     in α_p - α_s, bounded by the larger of the limit and the spring (and max_torque); the
     twist proxy starts at the twist contact was made with; tx, ty, tz is M·n; leaving the
-    floor ends the torque and the contact."""
+    floor ends the torque and the contact. Eq 39 every tick: restick_time 0."""
     m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom type="plane" size="1 1 .1"/></worldbody></mujoco>')
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     params = FingerParams(radius=0.005, stiffness=1000.0, damping=0.0, torsion_stiffness=0.5,
-                          torsion_damping=0.001, soft_start=0.0, max_torque=0.02)
+                          torsion_damping=0.001, soft_start=0.0, max_torque=0.02, restick_time=0.0)
     f = SoftFingerProxy(params, shapes_of(m, d), CH, (0.0, 0.0, 0.02))
     f.place(0.0, 0.0, 0.02)
     dt = 1e-3

@@ -23,6 +23,7 @@ from numba import njit
 
 from softproxy import device_guard
 from softproxy.compiled import godobject
+from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_TRAVEL
 from softproxy.compiled.shapes import shape_distance
 from softproxy.fingertip import P_MAX
 
@@ -42,16 +43,26 @@ def _finite(v):
 # object turned. The goal α_g is the device twist measured from where contact began: α_p
 # starts at the device twist, so M starts at zero. Angles are right-handed about n (out of
 # the object, toward the finger); M is the torque on the finger, the object gets -M about n.
+#
+# The slip state (a choice; docs/friction.md): eq 39 read literally re-tests the static limit
+# every tick, so under a steady twist the proxy slips to μ_d|P|^γ, sticks until the spring
+# climbs back to μ_s|P|^γ, slips again: a saw-tooth of ~110 Hz at 0.1 rad/s (P = 1 N,
+# k_τ = 2). Here, as in Karnopp's model, a slipping contact stays in dynamic friction
+# (|M| = μ_d|P|^γ, α_p trailing the goal) until the relative motion stops (it takes longer
+# than `torsion_restick` s to slide a further RESTICK_TRAVEL of its offset) or reverses (k_τ(α_p - α_g) along the slip below RESTICK_FRACTION of
+# μ_d|P|^γ); only then is eq 39's static limit needed to slip again. `torsion_restick` = 0
+# is eq 39 as printed, every tick.
 @njit(cache=True, error_model="numpy")
 def torsion_touch(f, alpha_s):
     """Contact made: the proxy twist starts at the finger's current twist α_s (rad), so the
-    torque starts at zero (a non-finite twist counts as 0)."""
+    torque starts at zero (a non-finite twist counts as 0); stuck."""
     if not _finite(alpha_s):
         alpha_s = 0.0
     f.in_contact = True
     f.alpha_0 = f.alpha_p = f.alpha_g = alpha_s
     f.spring_torque = f.limit = 0.0
     f.slipping = False
+    f.slip_dir = f.slip_idle = f.slip_travel = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -61,16 +72,25 @@ def torsion_release(f):
     f.alpha_0 = f.alpha_p = f.alpha_g = 0.0
     f.spring_torque = f.limit = 0.0
     f.slipping = False
+    f.slip_dir = f.slip_idle = f.slip_travel = 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def torsion_step(f, alpha_s, P):
-    """One servo tick (eqs 38-40): new α_p from device twist α_s (rad) and normal force P (N).
+def torsion_step(f, alpha_s, P, dt):
+    """One servo tick of dt s (eqs 38-40, with the slip state): new α_p from device twist α_s
+    (rad) and normal force P (N).
 
     Returns M = k_τ(α_p - α_g), the torque on the finger about n (N·m). A non-finite α_s
     holds the state and returns 0; a non-finite P counts as no normal force, one above P_MAX
     as P_MAX (so |P|^γ cannot overflow). The static limit is torsion_mu_s·|P|^γ, or eq 26's
-    saturating law; the dynamic torque is the static limit times μ_d/μ_s (`ratio`)."""
+    saturating law; the dynamic torque is the static limit times μ_d/μ_s (`ratio`).
+
+    Stuck, α_p stays while the static limit exceeds |M| (eq 39); past it the contact slips
+    (one slip event) and α_p goes to μ_d|P|^γ/k_τ short of the goal (eq 40, signed).
+    Slipping, it keeps slipping while it has slid RESTICK_TRAVEL of its dynamic offset within
+    `torsion_restick` s and the spring torque along the slip is at least RESTICK_FRACTION of
+    μ_d|P|^γ: α_p trails the goal by μ_d|P|^γ/k_τ when the goal pulls on, and holds when it
+    does not."""
     if not f.in_contact:
         return 0.0
     if not _finite(alpha_s):
@@ -97,22 +117,38 @@ def torsion_step(f, alpha_s, P):
     f.alpha_g = alpha_s
     k_tau = f.k_tau
     stretch = f.alpha_p - alpha_s
+    slack = limit * f.ratio / k_tau  # the dynamic offset μ_d|P|^γ/k_τ (rad)
+    was = f.slipping
+    # the slip state: still moving (slid RESTICK_TRAVEL of the offset within torsion_restick s)
+    # the same way (the spring along the slip at least RESTICK_FRACTION of the dynamic
+    # torque): dynamic friction
+    if was and f.slip_idle < f.torsion_restick and stretch * f.slip_dir >= RESTICK_FRACTION * slack:
+        if stretch * f.slip_dir > slack:  # the goal pulls on: trail it at the dynamic offset
+            f.slip_travel += stretch * f.slip_dir - slack
+            f.alpha_p = alpha_s + f.slip_dir * slack
+        # the stop watch: time since α_p last slid RESTICK_TRAVEL of the offset
+        if f.slip_travel >= RESTICK_TRAVEL * slack:
+            f.slip_idle = f.slip_travel = 0.0
+        else:
+            f.slip_idle += dt
     # eq 39: the proxy sticks while the static limit exceeds the spring torque.
-    if limit > abs(k_tau * stretch):
+    elif limit > abs(k_tau * stretch):
         f.slipping = False
     else:
         # eq 40 with its missing sign: stay μ_d|P|^γ/k_τ behind the goal, on the side the
         # proxy was on, so the slipping torque keeps the twist's direction.
-        slack = limit * f.ratio / k_tau
         if stretch > 0.0:
             f.alpha_p = alpha_s + slack
+            f.slip_dir = 1.0
         elif stretch < 0.0:
             f.alpha_p = alpha_s - slack
+            f.slip_dir = -1.0
         else:
             f.alpha_p = alpha_s
-        if not f.slipping and stretch != 0.0:
+        if not was and stretch != 0.0:
             f.slip_events += 1
         f.slipping = stretch != 0.0
+        f.slip_idle = f.slip_travel = 0.0
     f.limit = limit
     f.spring_torque = k_tau * (f.alpha_p - alpha_s)
     return f.spring_torque
@@ -218,7 +254,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
         godobject.follow(S, T, C, xpos, xmat, f, near)
         clear_output(f)
         return False
-    if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3]):
+    if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
         clear_output(f)
         return False
     f.xd, f.yd, f.zd = xd, yd, zd
@@ -276,7 +312,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     if not f.in_contact:
         torsion_touch(f, twist)
         f.stwist = 0.0
-    M = torsion_step(f, twist, P)
+    M = torsion_step(f, twist, P, dt)
     stretch = f.alpha_p - twist
     M += f.b_tau / dt * (stretch - f.stwist)
     f.stwist = stretch
@@ -439,8 +475,8 @@ def torsion_release_row(F, i):
 
 
 @njit(cache=True, error_model="numpy")
-def torsion_step_row(F, i, alpha_s, P):
-    return torsion_step(F[i], alpha_s, P)
+def torsion_step_row(F, i, alpha_s, P, dt):
+    return torsion_step(F[i], alpha_s, P, dt)
 
 
 @njit(cache=True, error_model="numpy")

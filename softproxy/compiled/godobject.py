@@ -10,10 +10,18 @@ the tick's MAX_ITERATIONS sweeps run out just after such a lift (a jump of centi
 into a curved surface), one more sweep straight toward the device puts the proxy back on
 the surface, in contact, rather than leaving it microns above with no force for a tick.
 Every sweep stays inside the ball whose shapes the tick's broad phase gathered. Friction is
-the proxy literature's friction cone: the proxy sticks while the device stays inside the
-static cone (tangential offset <= μ_s × penetration), otherwise it slides to the edge of the
-dynamic cone. The proxy is kept in the frame of the geom it touches, so a moving object
-carries it; an object that moves into it pushes it out.
+the proxy literature's friction cone with a slip state: a stuck proxy stays put while the
+device stays inside the static cone (tangential offset <= μ_s × penetration), otherwise it
+slips, to the edge of the dynamic cone (μ_d × penetration). A slipping proxy stays in
+dynamic friction, trailing the device at the dynamic cone's edge, until the motion stops
+(it takes longer than `slide_restick` s to slide a further RESTICK_TRAVEL of its offset) or
+reverses (its offset along the way it slid falls below RESTICK_FRACTION × the dynamic
+cone), as CHAI3D's finger proxy keeps its slip state and re-sticks below a fraction of the
+dynamic cone's angle. Without it (the
+literature's per-tick test, `slide_restick` = 0) a steady slide sticks and slips every few
+ticks: the lag saw-tooths between the two cones. Details and figures: docs/friction.md.
+The proxy is kept in the frame of the geom it touches, so a moving object carries it; an
+object that moves into it pushes it out.
 
 These kernels are the only god-object: `softproxy.proxy.GodObject` is a view of a finger
 record that calls the `*_row` entries at the end, and `softproxy.compiled.finger` calls
@@ -47,6 +55,26 @@ PARALLEL = 1.0 - 1e-9
 """Normals this aligned (cosine) are the same plane's (a plane met again, a face held)."""
 WORKSPACE_LIMIT = 1e3
 """A device position farther than this from the origin on any axis (m) is garbage, like NaN."""
+
+RESTICK_FRACTION = 0.6
+"""Both friction laws (this cone, and the torsion in `softproxy.compiled.finger`): a slipping
+contact re-sticks when its offset (torque), measured along the way it was slipping, falls
+below this fraction of the dynamic limit, i.e. the motion reversed by 40 % of the dynamic
+offset. CHAI3D's finger proxy ships the same 0.6, on the cone's angle: a band wide enough for
+a device's jitter, narrow enough that a real reversal re-sticks within a few ticks."""
+RESTICK_TIME = 0.05
+"""Default re-stick time of both friction laws (s): a slipping contact that takes longer than
+this to slide a further RESTICK_TRAVEL of its dynamic offset has stopped, and sticks again.
+Long against a servo period and the gap between encoder counts of a slow slide; short
+against a deliberate pause of the hand (~0.1 s and more). 0 re-tests the static limit every
+tick (the seed's eq 39, the proxy literature's cone, as printed)."""
+RESTICK_TRAVEL = 0.1
+"""Both friction laws: the slide (a fraction of the dynamic offset μ_d·depth, or
+μ_d|P|^γ/k_τ) a slipping contact must add up within the re-stick time to count as still
+moving: Karnopp's zero-velocity band, |v| < 0.1 × offset / restick_time (1.6 mm/s at
+μ_d·depth = 0.8 mm; 6.5 mrad/s for a CH torsion at P = 1 N, k_τ = 2), averaged over the
+re-stick time so that a device's counts, a force's noise (which moves a slipping proxy a
+bounded amount, on new extremes only) and rounding do not keep a stopped contact slipping."""
 
 PLANE_ROOM = 8
 """Rows of a scratch plane list: three planes, plus the ones `_keep_resting` adds before it
@@ -293,6 +321,7 @@ def reset(S, T, C, xpos, xmat, g, near, x, y, z):
     g.touched = -1
     g.depth = 0.0
     g.sticking = False
+    g.slide_idle = 0.0
     g.lx = g.ly = g.lz = 0.0
     for s in range(S.shape[0]):
         near[s] = s
@@ -649,8 +678,28 @@ def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, ke
 
 
 @njit(cache=True, error_model="numpy")
-def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
-    """Move the proxy toward the device position (m, world): the tick's god-object.
+def _slips(g, sx, sy, sz, slide, depth):
+    """The friction cone's state this tick, from the offset s = h - f (m) of the proxy's first
+    surface point h from the frictionless proxy f, |s| = slide, and the depth (m): True for
+    slipping (dynamic cone), False for stuck (static cone).
+
+    A proxy that slipped last tick keeps slipping while it has slid RESTICK_TRAVEL of its
+    offset within `slide_restick` s (the motion has not stopped) and s along the way it last
+    slid (slide_u) is at least
+    RESTICK_FRACTION × μ_d·depth (the motion has not reversed). Otherwise, stuck or
+    re-stuck, it slips when s leaves the static cone, |s| > μ_s·depth: with `slide_restick`
+    0 that is the only test, every tick."""
+    if g.contact and not g.sticking and g.slide_idle < g.slide_restick:
+        along = sx * g.slide_ux + sy * g.slide_uy + sz * g.slide_uz
+        if along >= RESTICK_FRACTION * g.mu_d * depth:
+            return True
+    return slide > g.mu_s * depth
+
+
+@njit(cache=True, error_model="numpy")
+def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
+    """Move the proxy toward the device position (m, world) over a tick of dt s (the friction
+    cone's re-stick time counts in it): the tick's god-object.
 
     pl, saved, warm, kept: scratch plane lists of PLANE_ROOM rows. False on NaN, Inf or a
     position outside the workspace: the proxy then only follows its body (`follow`)."""
@@ -686,15 +735,28 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
     # friction cone, tested from the first surface point the proxy reached this tick
     sx, sy, sz = hx - fx, hy - fy, hz - fz
     slide = math.sqrt(sx * sx + sy * sy + sz * sz)
-    sticking = slide <= g.mu_s * depth
+    slipping = _slips(g, sx, sy, sz, slide, depth)
+    # held at h: stuck, or slipping with the device inside the dynamic cone (not pulling on)
+    held = not slipping or slide <= g.mu_d * depth
     _store_planes(g, pl, n)
-    if sticking:
+    if held:
         fx, fy, fz = hx, hy, hz
         if slide > 0.0:  # held back: keep the planes that reach back to h
             _keep_resting(S, T, C, xpos, xmat, g, saved, 0, pl, n, hx, hy, hz)
-    elif g.mu_d > 0.0 and slide > 0.0:
+    else:
+        # slides: remember which way, for the reversal test of the next ticks
+        g.slide_ux, g.slide_uy, g.slide_uz = sx / slide, sy / slide, sz / slide
+        if g.sticking or not g.contact:  # a new slip
+            g.slide_idle = g.slide_travel = 0.0
+        g.slide_travel += slide - g.mu_d * depth
+    if slipping:  # the stop watch: time since the proxy last slid RESTICK_TRAVEL of its offset
+        if g.slide_travel >= RESTICK_TRAVEL * g.mu_d * depth:
+            g.slide_idle = g.slide_travel = 0.0
+        else:
+            g.slide_idle += dt
+    if not held and g.mu_d > 0.0:
         # back to the dynamic cone's edge: a point on the way from h to the frictionless proxy
-        # (back < 1 since slide > μ_s·depth >= μ_d·depth)
+        # (back < 1 since slide > μ_d·depth)
         back = g.mu_d * depth / slide
         tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
         if straight:  # h to f was one swept, clear segment: t lies on it, nothing to sweep
@@ -709,7 +771,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl, saved, warm, kept):
     g.contact = True
     g.nx, g.ny, g.nz = nx, ny, nz
     g.depth = depth
-    g.sticking = sticking
+    g.sticking = not slipping
     g.touched = best
     if not S[best].static:  # remember the proxy in the touched geom's frame: it carries it
         g.lx, g.ly, g.lz = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
@@ -728,8 +790,8 @@ def reset_row(S, T, C, xpos, xmat, F, near, i, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def update_row(S, T, C, xpos, xmat, F, near, i, xd, yd, zd, scratch):
-    return update(S, T, C, xpos, xmat, F[i], near[i], xd, yd, zd, scratch[0], scratch[1], scratch[2], scratch[3])
+def update_row(S, T, C, xpos, xmat, F, near, i, xd, yd, zd, dt, scratch):
+    return update(S, T, C, xpos, xmat, F[i], near[i], xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3])
 
 
 @njit(cache=True, error_model="numpy")

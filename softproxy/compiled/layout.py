@@ -110,6 +110,11 @@ FINGER = np.dtype([
     ("nplanes", np.int64),
     ("planes", np.float64, (3, PLANE_WIDTH)),                     # constraint planes: nx, ny, nz, c, shape row
     ("radius", np.float64), ("mu_s", np.float64), ("mu_d", np.float64),
+    # the friction cone's slip state (sticking False while in contact: slipping, dynamic cone)
+    ("slide_ux", np.float64), ("slide_uy", np.float64), ("slide_uz", np.float64),  # unit offset of the last slide
+    ("slide_idle", np.float64),                                   # s since it last slid RESTICK_TRAVEL of its offset
+    ("slide_travel", np.float64),                                 # m slid since then
+    ("slide_restick", np.float64),                                # re-stick after this long still (s); 0: per tick
     ("nnear", np.int64),                                          # how many shape rows `near` holds
     # the finger (`softproxy.finger.SoftFingerProxy`)
     ("placed", np.bool_),
@@ -142,6 +147,10 @@ FINGER = np.dtype([
     ("spring_torque", np.float64),                                # k_τ(α_p - α_g) (N·m)
     ("limit", np.float64),                                        # the static limit this tick (N·m)
     ("slipping", np.bool_),
+    ("slip_dir", np.float64),                                     # sign of α_p - α_g while slipping
+    ("slip_idle", np.float64),                                    # s since it last slid RESTICK_TRAVEL of its offset
+    ("slip_travel", np.float64),                                  # rad slid since then
+    ("torsion_restick", np.float64),                              # re-stick after this long still (s); 0: per tick
     ("slip_events", np.int64),
     ("k_tau", np.float64), ("torsion_mu_s", np.float64), ("torsion_mu_d", np.float64), ("gamma", np.float64),
     ("saturate", np.bool_),                                       # the limit follows eq 26 above P*
