@@ -1,6 +1,6 @@
 """`softproxy bench godobject`: cost of one god-object update, per finger per tick.
 
-The situations CHAI3D's finger proxy is measured in (../shared/TARGETS.md): free space, held
+The situations CHAI3D's finger proxy is measured in (its figures in the README): free space, held
 on a box face, on an edge, on a corner, sliding on a face, and a 10k-triangle sphere mesh
 pressed and sliding; plus ours: a concave three-plane corner and the inside of the
 non-convex bowl of the `mesh_object` scene, pressed and sliding. A 5 mm proxy, the device

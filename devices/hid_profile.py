@@ -7,7 +7,7 @@ axis of the finger, and, for a device that renders force, how a force and a torq
 packed into its output report. A user adds a device by writing a profile, not code.
 
 Everything here is a pure function of its arguments, because HID reports are untrusted
-input (../shared/DESIGN.md, "Devices are untrusted input"):
+input (README, "Safety"):
 
 * `parse_input(profile, data, mode)` turns one input report (bytes as `hid.device.read`
   returns them: report id first for a numbered report) into SI values. On a truncated,

@@ -11,7 +11,7 @@ The other functions are the laws the paper derives those exponents from; they ar
 here so the models can be checked, plotted and calibrated, not because the tick needs
 them.
 
-Readings chosen where the extracted seed is ambiguous (see ../shared/DESIGN.md):
+Readings chosen where the extracted seed is ambiguous (README, "Decisions the seeds leave open"):
 - eq 14 is read a = (3PR/4E*)^(1/3) (the printed 3π/16·P factor belongs to eq 28);
 - eq 18's φ is arcsin(a/R);
 - eq 26/27: μ_m is the linear slope r0 of eq 24 and Table 1's column is μ'_m; P* is

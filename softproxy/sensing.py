@@ -57,7 +57,7 @@ below); friction ratio > `mu_max`; contact below `z_min` (off the skin — how a
 shows: for τ = 0 its pushing twin is the far intersection of the force line, on the other
 side of the fingertip); deformation beyond the skin thickness.
 
-Readings chosen where the seed is ambiguous (see ../shared/DESIGN.md):
+Readings chosen where the seed is ambiguous:
 - eq 3's R_oc is misprinted: it is the rotation about z by θ, third column (0, 0, 1). In eq 4
   and Algorithm 1, d is the ellipsoid centre in the sensor frame, so p_c = d + R_oc p_o
   (Algorithm 1's locations A and B follow from it). d = [-sin 60°, cos 60°, 0] is read in mm

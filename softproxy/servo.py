@@ -1,6 +1,6 @@
 """`ServoLoop`: the haptic tick, its timing, its statistics and its watchdog.
 
-One tick (../shared/DESIGN.md): read the device; MuJoCo's first half-step (bodies where
+One tick (docs/architecture.md): read the device; MuJoCo's first half-step (bodies where
 they are now); each proxy follows its body (α_c, eqs 41–42); god-object, force, torsion for
 every finger; F and M to the device; -F and -M·n onto the touched bodies; MuJoCo's second
 half-step. `tick()` can be called from another application's loop (lockstep, no threads);
