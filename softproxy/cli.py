@@ -418,7 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_devices)
 
-    p = sub.add_parser("bench", help="run a benchmark: latency, godobject, peer, stability, tradeoff, sensing, or all")
+    p = sub.add_parser("bench", help="run a benchmark: latency, godobject, friction, peer, stability, tradeoff, sensing, or all")
     p.add_argument("name", help="benchmark name, or all")
     p.add_argument("--duration", type=float, default=5.0, help="seconds of servo time to time (default 5)")
     p.add_argument("--paced", type=float, default=None, help="seconds of the paced (real-time) run (default: --duration)")
