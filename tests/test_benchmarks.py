@@ -80,3 +80,18 @@ def test_godobject_bench_times_every_situation_without_penetration():
         assert row["p50_us"] > 0.0 and row["penetration_max_m"] <= 1e-6, name
         if name != "free space":
             assert row["contact_fraction"] == 1.0, name
+
+
+def test_friction_bench(tmp_path):
+    """Steady twist and slide rows for both options; on every motion the slip state has fewer
+    transitions and no more ripple than the per-tick option (docs/friction.md)."""
+    data, text = bench(tmp_path, "friction", "--duration", "2")
+    rows = data["rows"]
+    motions = sorted({r["motion"] for r in rows})
+    assert any(m.startswith("twist") for m in motions) and any(m.startswith("slide") for m in motions)
+    for motion in motions:
+        state = [r for r in rows if r["motion"] == motion and r["option"] == "slip state"]
+        tick = [r for r in rows if r["motion"] == motion and r["option"].startswith("per tick")]
+        assert len(state) == len(tick) == 1, motion
+        assert state[0]["transitions"] < tick[0]["transitions"] and state[0]["ripple"] <= tick[0]["ripple"], motion
+    assert "trans/s" in text
