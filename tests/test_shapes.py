@@ -3,10 +3,15 @@ against oracles written here, independently of the kernels.
 
 - Plane, sphere, capsule, cylinder, box: closed-form signed distance, outward normal and
   support function in the geom frame.
-- Ellipsoid: the nearest surface point by brute force: a dense sampling of the surface, the
-  best few samples refined by least squares on the *normal* (the point of the surface whose
-  outward normal m satisfies p = q(m) + d m, a zero-residual problem, so it converges to
-  machine precision, normal included).
+- Ellipsoid: the nearest surface point by brute force, without the kernel's Lagrange
+  parameter (nor scipy): a dense sampling of the surface A s (s unit vectors), the best few
+  samples descended by Newton's method on the sphere of s (along the most negative curvature
+  where it is not convex), in spherical coordinates whose pole is on the longest semi-axis
+  (a ring of near-nearest points about it, inside an ellipsoid of two equal shortest
+  semi-axes, is then a straight valley) and again with the pole on the shortest one (for
+  feet near the tips of the longest). Every answer is the distance to a surface point, so
+  it is never below the true distance; the kernel's foot (p - d n) is checked to lie on the
+  surface too, so the two agree only at the nearest point.
 - Sweep: g(λ) = distance(p0 + λ d) - r is convex on a convex shape; its minimum is found by
   dense sampling, refined, and its first root by bisection (vectorised: each step samples
   the bracket densely). The kernel's hit must lie in the contact window before that root
@@ -17,17 +22,12 @@ Tolerances (m), all far below anything a finger can feel and below the engine's 
 CONTACT_TOL (1e-9 m) where a contact decision depends on them:
 - DIST_TOL: 1e-12 m + 1e-14 per metre of the point's distance from the geom. The kernels
   take ~10 float64 roundings of coordinates; points here are within 150 m of a geom.
-- ELLIPSOID_TOL: 1e-12 m + 1e-13 per metre: the kernel's root finder stops at a relative
-  step of 1e-15 and the oracle's least squares at ~1e-15; observed agreement ~3e-14 m.
-  Except inside, near the mid-plane across the shortest semi-axis (or the axis, or the centre,
-  when the shortest semi-axes are equal): there the kernel's error grows as ~1.5e-18 m² over
-  the distance s from that set, and at s -> 0 it is millimetres (a bug:
-  `test_ellipsoid_inside_on_the_mid_plane_of_its_shortest_axis`); the random tests leave
-  out inside points with s < MID_PLANE (where the kernel is still within 2e-13 m).
+- ELLIPSOID_TOL: 1e-12 m + 1e-13 per metre: the kernel's root finder stops at its rounding
+  and the oracle's descent at f's; observed agreement ~3e-17 m, on the mid-planes and axes too.
 - NORMAL_TOL: 1e-9 (unit vectors), compared only where the normal is well conditioned
-  (the nearest feature is at least WELL_CONDITIONED away, and no tie within TIE);
-  elsewhere (edges, centres, ties) the normal must be a supporting-plane normal at the
-  nearest point, which any of the tied normals is.
+  (the nearest feature is at least WELL_CONDITIONED away, and no tie within TIE; on an
+  ellipsoid, where the minimum pins the foot: STIFF); elsewhere (edges, centres, ties) the
+  normal must be a supporting-plane normal at the nearest point, which any tied normal is.
 A point within UNDERFLOW (1e-140 m) of a geom's centre is taken as the centre (below it the
 squares of its offset underflow and no direction is measurable).
 """
@@ -38,7 +38,6 @@ import mujoco
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from softproxy.compiled.layout import (
@@ -57,10 +56,16 @@ WELL_CONDITIONED = 1e-4
 its rounding is then below 1e-10 for points within 150 m."""
 TIE = 1e-9
 """Two faces (or roots) nearer than this (m) to each other are a tie: either normal is right."""
-MID_PLANE = 1e-5
-"""Inside an ellipsoid, points this close (m) to the mid-plane across its shortest semi-axis are
-left to the ellipsoid mid-plane test (see ELLIPSOID_TOL above); the oracle is exact from here
-on too (closer still to an axis of two equal shortest semi-axes its least squares may stall)."""
+STIFF = 1e-6
+"""An ellipsoid oracle's normal is compared only where ½ |A s - p|², as the foot A s moves on
+the surface, curves by at least this times the longest semi-axis squared (per rad² of s):
+its descent then pins the foot's direction to far below NORMAL_TOL. Elsewhere (near a ring
+of near-nearest points about an axis of two equal shortest semi-axes) the direction is only
+as good as f's rounding allows."""
+CUTS = 2.0 ** -np.arange(60)
+"""The lengths a descent step tries, the whole step first: the first that lowers f is taken."""
+MAX_TURN = 0.5
+"""The longest descent step (rad of θ or φ)."""
 
 PRIMITIVES = [
     ("ball", 'type="sphere" size=".03"'),
@@ -202,16 +207,99 @@ SAMPLES = fibonacci_sphere(4000)
 """Directions that sample an ellipsoid's surface (as A u): ~0.06 rad apart."""
 
 
-def ellipsoid_point(abc, m):
-    """The point of the ellipsoid (semi-axes abc) whose outward unit normal is m."""
-    a2 = abc * abc
-    return a2 * m / math.sqrt(float((a2 * m * m).sum()))
+def on_sphere(angles, axes):
+    """Unit vectors s at spherical coordinates (θ, φ) (..., 2) with the pole on local axis
+    axes[0], and their derivatives: (s, s_θ, s_φ, s_θθ, s_θφ, s_φφ), each (..., 3)."""
+    t, f = angles[..., 0], angles[..., 1]
+    ct, st, cf, sf = np.cos(t), np.sin(t), np.cos(f), np.sin(f)
+    zero = np.zeros_like(t)
+
+    def put(u, v, w):
+        out = np.empty(t.shape + (3,))
+        out[..., axes[0]], out[..., axes[1]], out[..., axes[2]] = u, v, w
+        return out
+    s = put(ct, st * cf, st * sf)
+    return s, put(-st, ct * cf, ct * sf), put(zero, -st * sf, st * cf), -s, put(zero, -ct * sf, ct * cf), \
+        put(zero, -st * cf, -st * sf)
+
+
+def descend(abc, p, angles, axes, steps=80):
+    """Local minima of f = |A s - p|² over the unit vectors s(θ, φ) (pole on axes[0]), from
+    each row of `angles` (k × 2): Newton's step where f is convex in (θ, φ), else a step along
+    its most negative curvature; at most MAX_TURN, cut by halves until f decreases (a Newton
+    step under 1e-6 rad is taken whole: there f's quadratic model holds, and f's changes fall
+    below its rounding long before the step's do).
+    Returns (s, |A s - p|) at the ends."""
+    x = np.array(angles, dtype=float)
+    f = ((on_sphere(x, axes)[0] * abc - p) ** 2).sum(-1)
+    rows = np.arange(len(x))
+    for _ in range(steps):
+        s, st, sf, stt, stf, sff = on_sphere(x, axes)
+        r = s * abc - p
+        at, af = st * abc, sf * abc
+        g1, g2 = (r * at).sum(1), (r * af).sum(1)                      # ½ the gradient
+        h11 = (at * at).sum(1) + (r * stt * abc).sum(1)                 # ½ the Hessian
+        h12 = (at * af).sum(1) + (r * stf * abc).sum(1)
+        h22 = (af * af).sum(1) + (r * sff * abc).sum(1)
+        least = 0.5 * (h11 + h22) - np.hypot(0.5 * (h11 - h22), h12)
+        v1, v2 = h12, least - h11                                       # its eigenvector
+        norm = np.hypot(v1, v2)
+        flat = norm == 0.0
+        c1 = np.where(flat, (h11 <= h22) * 1.0, v1 / np.where(flat, 1.0, norm))
+        c2 = np.where(flat, (h11 > h22) * 1.0, v2 / np.where(flat, 1.0, norm))
+        convex = least > 0.0
+        det = np.where(convex, h11 * h22 - h12 * h12, 1.0)
+        down = np.where(c1 * g1 + c2 * g2 > 0.0, -MAX_TURN, MAX_TURN)
+        u = np.where(convex, -(h22 * g1 - h12 * g2) / det, down * c1)
+        v = np.where(convex, -(h11 * g2 - h12 * g1) / det, down * c2)
+        cap = np.minimum(1.0, MAX_TURN / np.maximum(np.hypot(u, v), 1e-300))
+        step = np.stack([u * cap, v * cap], 1)
+        if np.abs(step).max() < 1e-15:
+            break
+        trial = x[:, None, :] + CUTS[None, :, None] * step[:, None, :]
+        F = ((on_sphere(trial, axes)[0] * abc - p) ** 2).sum(-1)
+        lower = F < f[:, None]
+        lower[:, 0] |= convex & (np.hypot(*step.T) < 1e-6)   # Newton's own convergence, below f's rounding
+        first = np.argmax(lower, axis=1)
+        moved = lower.any(axis=1)
+        if not moved.any():
+            break   # no step lowers f: every start is at a minimum, to f's rounding
+        x = np.where(moved[:, None], trial[rows, first], x)
+        f = np.where(moved, F[rows, first], f)
+    return on_sphere(x, axes)[0], np.sqrt(f)
+
+
+def polish(abc, p, s, steps=4):
+    """Newton's steps on the sphere from s, in an orthonormal tangent basis (no chart's pole,
+    which `descend`'s may sit near), while ½ |A s - p|² is convex there: the minimum found to
+    f's rounding, pinned to its gradient's. Returns s and the least curvature of that Hessian
+    at the end (m² per rad²): how firmly the minimum pins s."""
+    least = 0.0
+    for _ in range(steps + 1):
+        e1 = np.cross(s, [1.0, 0.0, 0.0] if abs(s[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(s, e1)
+        ar = (s * abc - p) * abc
+        radial = float(s @ ar)
+        a1, a2 = e1 * abc, e2 * abc
+        h = np.array([[a1 @ a1 - radial, a1 @ a2], [a1 @ a2, a2 @ a2 - radial]])
+        least = float(np.linalg.eigvalsh(h)[0])
+        if least <= 0.0 or _ == steps:
+            break
+        u, v = np.linalg.solve(h, -np.array([e1 @ ar, e2 @ ar]))
+        if math.hypot(u, v) > 1e-6:   # not at a minimum yet: leave it to the descent
+            break
+        s = s + u * e1 + v * e2
+        s /= np.linalg.norm(s)
+    return s, least
 
 
 def ellipsoid_oracle(abc, p, starts=4, subgradient=False):
-    """(signed distance, outward normal or None when tied) at local p, by brute force: the
-    nearest of 4000 surface samples, then from the `starts` best well-separated samples a least
-    squares on the normal m (p - q(m) parallel to m: zero residual at every foot point)."""
+    """(signed distance, outward normal or None when tied or not pinned) at local p, by brute
+    force: the nearest of 4000 surface samples A s, then from the `starts` best well-separated
+    samples a descent on the sphere of s (`descend`) in two charts, the pole on the longest
+    then on the shortest semi-axis, the nearest end polished (`polish`). `subgradient`: a normal even where it is not unique (one
+    nearest point's)."""
     abc = np.asarray(abc[:3], dtype=float)
     p = np.asarray(p, dtype=float)
     far = np.linalg.norm(SAMPLES * abc - p, axis=1)
@@ -221,42 +309,24 @@ def ellipsoid_oracle(abc, p, starts=4, subgradient=False):
             chosen.append(i)
             if len(chosen) == starts:
                 break
-    roots = []
-    for i in chosen:
-        m0 = SAMPLES[i] / abc
-        m0 /= np.linalg.norm(m0)
-        e1 = np.cross(m0, [1.0, 0.0, 0.0] if abs(m0[0]) < 0.9 else [0.0, 1.0, 0.0])
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(m0, e1)
-
-        def normal(t, m0=m0, e1=e1, e2=e2):
-            v = m0 + t[0] * e1 + t[1] * e2
-            return v / np.linalg.norm(v)
-
-        def residual(t):
-            m = normal(t)
-            e = p - ellipsoid_point(abc, m)
-            return e - (e @ m) * m
-
-        sol = least_squares(residual, [0.0, 0.0], method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-        m = normal(sol.x)
-        roots.append(((p - ellipsoid_point(abc, m)) @ m, m))
-    roots.sort(key=lambda r: abs(r[0]))
-    d, m = roots[0]
-    assert abs(d) <= far.min() + 1e-12, "the oracle's refinement lost to its own samples"
+    s0 = SAMPLES[chosen]
+    ends = []
+    order = np.argsort(-abc, kind="stable")
+    for axes in (tuple(order), tuple(order[::-1])):
+        angles = np.stack([np.arccos(np.clip(s0[:, axes[0]], -1.0, 1.0)),
+                           np.arctan2(s0[:, axes[2]], s0[:, axes[1]])], 1)
+        s, dist = descend(abc, p, angles, axes)
+        ends += list(zip(dist.tolist(), s))
+    ends.sort(key=lambda e: e[0])
+    d, s = ends[0]
+    assert d <= far.min() + 1e-12, "the oracle's descent lost to its own samples"
+    s, least = polish(abc, p, s)
+    m = s / abc
+    m /= np.linalg.norm(m)
     inside = float(((p / abc) ** 2).sum()) < 1.0
-    assert (d < 0.0) == inside or abs(d) < 1e-12
-    tied = any(abs(abs(r[0]) - abs(d)) <= TIE and np.linalg.norm(r[1] - m) > 1e-6 for r in roots[1:])
-    return float(d), (None if tied and not subgradient else m)
-
-
-def near_the_mid_plane(size, p):
-    """Inside an ellipsoid (semi-axes size), within MID_PLANE of the set where the components
-    along its shortest semi-axes vanish, and not its very centre (answered exactly)."""
-    abc = np.asarray(size[:3], dtype=float)
-    shortest = abc == abc.min()
-    s = float(np.linalg.norm(np.asarray(p)[shortest]))
-    return float(((np.asarray(p) / abc) ** 2).sum()) < 1.0 and 0.0 < s < MID_PLANE and np.any(p)
+    tied = any(e[0] - d <= TIE and np.linalg.norm(e[1] - s) > 1e-6 for e in ends[1:])
+    loose = least < STIFF * float(abc.max()) ** 2
+    return (-d if inside else d), (None if (tied or loose) and not subgradient else m)
 
 
 def oracle(kind, size, p):
@@ -306,8 +376,6 @@ def check_distance(scene, shape, p):
     p = np.asarray(p, dtype=float)
     d, nx, ny, nz = shape.distance(*(float(v) for v in p))
     local = R.T @ (p - c)
-    if kind == GEOM_ELLIPSOID and near_the_mid_plane(size, local):
-        return None, None   # see test_ellipsoid_inside_on_the_mid_plane_of_its_shortest_axis
     want, normal = oracle(kind, size, local)
     tol = dist_tol(kind, local)
     where = (shape.name, tuple(p), tuple(local))
@@ -410,37 +478,72 @@ def test_random_points_inside_and_outside_every_shape(scene):
             assert counts[0] > 0 and counts[1] > 0, (shape.name, counts)
 
 
-EGGS = ('<mujoco><worldbody><geom name="egg" type="ellipsoid" size=".04 .025 .015"/>'
-        '<geom name="long_egg" type="ellipsoid" size=".03 .01 .01" pos="1 0 0"/></worldbody></mujoco>')
+EGGS = ("<mujoco><worldbody>"
+        + "".join(f'<geom name="{name}" type="ellipsoid" size="{size}"/>' for name, size in (
+            ("egg", ".04 .025 .015"), ("long_egg", ".03 .01 .01"), ("flat_egg", ".03 .03 .01"),
+            ("round_egg", ".02 .02 .02"), ("nearly_long_egg", ".03 .01 .0100001"), ("wafer", ".03 .02 1e-6")))
+        + "</worldbody></mujoco>")
+"""Ellipsoids at the origin, unrotated (a point given in the geom frame is exact, on a mid-plane
+or an axis too): distinct semi-axes, two equal shortest (a ring of nearest points about the
+long axis), two equal longest, all equal, two shortest a hair apart, and a 2 µm wafer."""
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "softproxy/compiled/shapes.py _ellipsoid_local: inside, on or near the mid-plane across the "
-    "shortest semi-axis c, the root t of sum((a_i p_i / (t + a_i^2))^2) = 1 lies at or within "
-    "~1e-12 c^2 of its pole -c^2, which the bracket lo * (1 - 1e-12) excludes (and q_c = "
-    "c^2 p_c / (t + c^2) is 0 when p_c = 0): e.g. egg (.04 .025 .015) at local (0, .003, 0): "
-    "-0.0016875 m instead of -0.0148303 m; (1e-4, 0, 0): -1.6e-5 m instead of -0.0149999 m; "
-    "long egg (.03 .01 .01) at (.005, 0, 0): -0.000625 m instead of -0.0098425 m. Near it the "
-    "error is ~1.5e-18 m^2 / p_c (1e-9 m at p_c = 1e-9 m), from the stopping rule "
-    "|dt| <= 1e-15 (|t| + a^2) and the cancellation in t + c^2"))
-def test_ellipsoid_inside_on_the_mid_plane_of_its_shortest_axis():
-    """Inside an ellipsoid on the mid-plane across its shortest semi-axis (or on the axis of two
-    equal shortest ones) the nearest surface point is off that plane: the distance is the
-    brute-force oracle's (unrotated geoms at the origin: the inputs are exact)."""
+@pytest.fixture(scope="module")
+def eggs():
     m = mujoco.MjModel.from_xml_string(EGGS)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    egg, long_egg = shapes_of(m, d)
-    wrong = []
-    for shape, abc, local in ((egg, (.04, .025, .015), (0.0, 0.003, 0.0)), (egg, (.04, .025, .015), (1e-4, 0.0, 0.0)),
-                              (egg, (.04, .025, .015), (0.02, 0.003, 1e-14)),
-                              (long_egg, (.03, .01, .01), (0.005, 0.0, 0.0))):
-        p = np.array(local) + d.geom_xpos[shape.geom]
-        got = shape.distance(*p)[0]
-        want = ellipsoid_oracle(np.array(abc), np.array(local))[0]
-        if abs(got - want) > DIST_TOL + ELLIPSOID_TOL_PER_M * float(np.linalg.norm(local)):
-            wrong.append((shape.name, local, got, want))
-    assert not wrong, wrong
+    return m, d, shapes_of(m, d)
+
+
+def test_ellipsoid_inside_on_the_mid_plane_of_its_shortest_axis(eggs):
+    """Inside an ellipsoid on the mid-plane across its shortest semi-axis (or on the axis of two
+    equal shortest ones), or a hair off it, the nearest surface point is off that plane: the
+    distance and normal are the brute-force oracle's (these points once gave millimetres)."""
+    by_name = {s.name: s for s in eggs[2]}
+    for name, local in (("egg", (0.0, 0.003, 0.0)), ("egg", (1e-4, 0.0, 0.0)), ("egg", (0.02, 0.003, 1e-14)),
+                        ("egg", (0.02, 0.003, 1e-9)), ("long_egg", (0.005, 0.0, 0.0)),
+                        ("long_egg", (0.005, 1e-12, -1e-13)), ("long_egg", (0.0212, 0.0, -1.1e-9)),
+                        ("flat_egg", (0.01, -0.02, 0.0)), ("nearly_long_egg", (0.004, 0.0, 0.0))):
+        want, _ = check_distance(eggs, by_name[name], np.array(local))
+        assert want < -1e-3, (name, local, want)   # deep inside: the nearest point is far off the plane
+
+
+def egg_points(rng, abc, n):
+    """n local points (m) in a box 1.3 semi-axes wide, each put on, or a hair (1e-15 to 1e-3 of
+    the semi-axis) off, the mid-plane of a shortest semi-axis, a coordinate plane, an axis or
+    the centre, or left where drawn."""
+    out = []
+    for _ in range(n):
+        u = rng.uniform(-1.3, 1.3, 3)
+        how = rng.integers(5)
+        shortest = np.flatnonzero(abc == abc.min())
+        if how == 0:      # on the mid-plane(s) of the shortest semi-axis (its axis, when two are equal)
+            u[shortest] = 0.0
+        elif how == 1:    # a hair off them
+            u[shortest] *= 10.0 ** rng.uniform(-15, -3, len(shortest))
+        elif how == 2:    # on (or a hair off) an axis
+            others = rng.permutation(3)[:2]
+            u[others] = 0.0 if rng.random() < 0.5 else u[others] * 10.0 ** rng.uniform(-15, -3, 2)
+        elif how == 3:    # on a coordinate plane
+            u[rng.integers(3)] = 0.0
+        out.append(u * abc)
+    return out
+
+
+def test_ellipsoid_mid_planes_and_axes_match_the_brute_force(eggs):
+    """Random points inside and outside each egg (asserted), on, or a hair off, the mid-planes of
+    the shortest semi-axes, the coordinate planes, the axes, and the centre: signed distance,
+    normal (where the nearest point is pinned) and the foot on the surface are the oracle's."""
+    m, _, shapes = eggs
+    rng = np.random.default_rng(29)
+    for shape in shapes:
+        abc = np.array(m.geom_size[shape.geom], dtype=float)
+        inside = outside = 0
+        for p in egg_points(rng, abc, 40) + [np.zeros(3)]:
+            want, _ = check_distance(eggs, shape, p)
+            inside, outside = inside + (want < 0.0), outside + (want > 0.0)
+        assert inside > 10 and outside > 10, (shape.name, inside, outside)
 
 
 def test_the_centre_of_a_sphere_and_of_an_ellipsoid(scene):
