@@ -20,13 +20,14 @@ read the same record.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 from softproxy.compiled import finger as kernel
 from softproxy.compiled.godobject import RESTICK_TIME, WORKSPACE_LIMIT
 from softproxy.finger_rows import Field, FingerRows, RecordView
 from softproxy.fingertip import MODELS, FingertipModel, _check_finite
+from softproxy.fingertip import model as fingertip_model
 from softproxy.geometry import Shape, ShapeSet
 from softproxy.proxy import GodObject
 from softproxy.torsion import TorsionalFriction
@@ -174,8 +175,21 @@ class SoftFingerProxy(RecordView):
     """Translational stick-to-slide transitions."""
     spikes_rejected = Field(kind=int)
 
-    def __init__(self, params: FingerParams, shapes: list[Shape], model: FingertipModel,
+    def __init__(self, params: FingerParams, shapes: list[Shape], model: FingertipModel | None = None,
                  start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+        """`model`: the fingertip law; None takes the one `params.model` names. A law given
+        with `params.model` left at its default (CH) decides, and `self.params.model` names it
+        (a copy: the caller's params are not changed); a law that contradicts a model named
+        explicitly in `params` is a ValueError, not a silent choice between the two."""
+        if model is None:
+            model = fingertip_model(params.model)
+        elif params.model != model.name:
+            if params.model != FingerParams.model:
+                raise ValueError(f"finger {params.name!r}: FingerParams.model is {params.model!r} but the fingertip law "
+                                 f"given is {model.name!r}; give one of them (SoftFingerProxy(params, shapes) uses "
+                                 "params.model)")
+            if model.name in MODELS:  # a law of the user's own keeps the params as given
+                params = replace(params, model=model.name)
         self.params = params
         self.model = model
         self.god = GodObject(ShapeSet.of(shapes), params.radius, params.mu_s, params.mu_d, start, params.restick_time)

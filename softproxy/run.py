@@ -8,6 +8,7 @@ another application can call from its own loop.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from importlib.metadata import entry_points
 
 import mujoco
@@ -15,7 +16,6 @@ import numpy as np
 
 from softproxy.device import Device
 from softproxy.finger import SoftFingerProxy
-from softproxy.fingertip import model as fingertip_model
 from softproxy.fingertip_sensors import attach as attach_sensors
 from softproxy.fingertip_sensors import summaries as sensor_summaries
 from softproxy.recording import RecordingDevice
@@ -79,8 +79,9 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     world = World(scene.load_model(), force_shading=scene.force_shading)
     fingers = []
     for params in scene.fingers:
-        name = finger_model or params.model
-        fingers.append(SoftFingerProxy(params, world.shapes, fingertip_model(name)))
+        if finger_model is not None:
+            params = replace(params, model=finger_model)  # the finger's params name the model it runs
+        fingers.append(SoftFingerProxy(params, world.shapes))
     try:
         loop = ServoLoop(world, fingers, device, scene.rate_hz if rate_hz is None else rate_hz,
                          audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False)

@@ -434,3 +434,24 @@ def test_a_finger_over_shapes_of_its_own_is_refused():
     stray = SoftFingerProxy(FingerParams(name="stray"), shapes_of(world.model, world.data), model("CH"))
     with pytest.raises(ValueError, match="'stray' touches shapes of its own.*world.shapes"):
         ServoLoop(world, [*box_fingers(world)[:1], stray], Pressing(), 1000.0)
+
+
+def test_a_finger_has_one_source_for_its_fingertip_model():
+    """FingerParams.model alone picks the law; a law given with the default params decides and
+    the finger's params name it (the caller's params unchanged); a law contradicting a model
+    named in the params is refused, naming both, instead of one being silently ignored."""
+    world = World(mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom type="plane" size="1 1 .1"/>'
+                                                 '</worldbody></mujoco>'))
+    assert SoftFingerProxy(FingerParams(model="MH"), world.shapes).model.name == "MH"
+    params = FingerParams()
+    f = SoftFingerProxy(params, world.shapes, model("LFM"))
+    assert f.model.name == f.params.model == "LFM" and params.model == "CH"
+    with pytest.raises(ValueError, match="FingerParams.model is 'MH' but the fingertip law given is 'LFM'"):
+        SoftFingerProxy(FingerParams(model="MH"), world.shapes, model("LFM"))
+    # the scene path: --finger-model overrides, and the params say so
+    from softproxy.run import build
+
+    scene = load_scene("two_finger_grasp")
+    loop = build(scene, open_device("sim", scene), finger_model="point")
+    assert [(f.model.name, f.params.model) for f in loop.fingers] == [("point", "point")] * 2
+    loop.close()
