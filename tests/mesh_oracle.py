@@ -173,9 +173,13 @@ class Oracle:
 
     def sweep_facts(self, a, dvec, r, first=True):
         """What a sphere of radius r (a point: POINT_RADIUS) from a moving by dvec meets:
-        dict(into=True when it starts within reach of a triangle and moves into it; ids: the
-        triangles it does not start touching; first: the first fraction at which it comes
-        within r of one of them, None if never)."""
+        dict(into=True when it starts within reach of a triangle and is pressed into it (moves
+        in by more than a graze, so far that the tangent line of its distance to the triangle
+        ends more than CONTACT_TOL deeper than a touch); ids: the triangles it does not start
+        touching; slid: those it touches and is not pressed into, with its distances to them
+        (`floor`) and the least each may come down to (in by a graze at most, or to a touch
+        less CONTACT_TOL: the distance along the segment is convex, above its tangent line);
+        first: the first fraction at which it comes within r of one of ids, None if never)."""
         a, dvec = np.asarray(a, float), np.asarray(dvec, float)
         r = max(r, POINT_RADIUS)
         ids = self._reachable(a, dvec, r)
@@ -185,10 +189,15 @@ class Oracle:
         # a centre on a triangle goes into it on whichever side it moves to
         on = d0 <= 1e-12
         out[on] = -np.sign(self.n[ids[on]] @ dvec)[:, None] * self.n[ids[on]]
-        into = touching & (out @ dvec < -GRAZE * math.sqrt(dvec @ dvec))
-        ids = ids[~touching]
+        graze = GRAZE * math.sqrt(dvec @ dvec)
+        rate = out @ dvec
+        pressed = touching & (rate < -graze) & (d0 + rate < r - CONTACT_TOL)
+        slid = touching & ~pressed
+        floor = np.where(rate >= -graze, d0 - graze, np.minimum(d0, r - CONTACT_TOL))[slid]
+        facts = {"into": bool(pressed.any()), "ids": ids[~touching], "slid": ids[slid], "floor": floor, "r": r}
+        ids = facts["ids"]
         if not first:
-            return {"into": bool(into.any()), "ids": ids, "first": None, "r": r}
+            return {**facts, "first": None}
         first = None
         if len(ids):
             least, at = self._least(ids, a, dvec, 1.0, r)
@@ -201,14 +210,16 @@ class Oracle:
                     hi = np.where(below, mid, hi)
                     lo = np.where(below, lo, mid)
                 first = float(hi.min())
-        return {"into": bool(into.any()), "ids": ids, "first": first, "r": r}
+        return {**facts, "first": first}
 
     def check_sweep(self, a, dvec, r, hit, normal_check=True, context=()):
         """Asserts a sweep's answer (None or (lam, nx, ny, nz)) against the brute force: pressed
         into a triangle it touches, it stops at once; else it stops where the sphere first
         comes within r of a triangle (touching, and never nearer than r before), or, when it
-        misses, the sphere never comes nearer than r. The normal is a unit vector against the
-        motion, from the surface to the sphere's centre (its foot lies on the surface).
+        misses, the sphere never comes nearer than r; and up to where it stops it never goes
+        further into a triangle it touched at the start than a graze, or a touch less
+        CONTACT_TOL. The normal is a unit vector against the motion, from the surface to the
+        sphere's centre (its foot lies on the surface).
         Touches agree to EXACT, or to 1e-14 L²/r when more (a 10 nm point proxy on a segment
         of length L: an edge's or a vertex's touch is the root of a quadratic whose terms are
         ~L², of which r² is a rounding's worth; ~2 nm on a 6 cm segment). Returns the facts."""
@@ -219,7 +230,12 @@ class Oracle:
         tol = EXACT + 1e-14 * length * length / r
         if facts["into"]:
             assert hit is not None and hit[0] == 0.0, ("pressed into a triangle it touches", context, hit)
-        elif hit is None:
+            return facts
+        end = 1.0 if hit is None else hit[0]
+        if len(facts["slid"]) and end > 0.0:
+            least = self._least(facts["slid"], a, dvec, end, r)[0]
+            assert (least >= facts["floor"] - tol).all(), ("went into a triangle it touched", context, hit)
+        if hit is None:
             if len(ids):
                 assert self._least(ids, a, dvec, 1.0, r)[0].min() >= r - tol, \
                     ("missed a touch", context, self.sweep_facts(a, dvec, r)["first"])

@@ -18,8 +18,8 @@ import trimesh
 from hypothesis import example, given, settings, strategies as st
 
 from mesh_oracle import (
-    EXACT, MESHES, Oracle, bowl, geodesic_sphere, mesh_model, mesh_of, oracle, peak_in_a_wall, prism, sheet,
-    small_tetra, sphere10k, tilted_ball, uv_sphere,
+    EXACT, MESHES, Oracle, bowl, geodesic_sphere, mesh_model, mesh_of, oracle, peak_in_a_wall, point_triangle, prism,
+    sheet, small_tetra, sphere10k, tilted_ball, uv_sphere,
 )
 from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
 from softproxy.compiled.layout import EDGE_WIDTH, T_COLUMNS, T_EDGES
@@ -333,6 +333,41 @@ def test_hint_and_kept_answers_change_nothing():
         if after[0] is not None:
             assert after[0][0] == pytest.approx(fresh[0][0], abs=1e-12)
         assert after[1][0] == pytest.approx(fresh[1][0], abs=1e-12)
+
+
+def test_sliding_on_one_of_two_nearly_parallel_edges_is_not_pressing_the_other():
+    """A sphere resting on the bowl's inner rim, on the two rim edges that meet at a vertex
+    (their touch normals 2e-4 rad apart), moved along the tangent plane of the one edge toward
+    a device below the rim, inward: the other edge's plane lies a rounding (~1e-10 m) above
+    the end of the move, and the sphere comes no nearer to it: no touch (not at once either),
+    as the brute force says. Tilted into that plane by 3 nm more than the rounding, it is
+    pressed, and stops at once."""
+    m, d, shapes = bowl()
+    o = oracle(m, d, shapes)
+    s = mesh_of(shapes)
+    r = 0.005
+    p = np.array([0.03497532562938234, 0.0, 0.04499993828562851])
+    device = np.array([0.03289387, 0.0, 0.0421364])
+    dist, feet = point_triangle(p[None], o.a, o.b, o.c)
+    normals = []
+    for q in feet[dist <= r + 1e-12]:   # the touches' normals: two edges' (each on two triangles)
+        n = (p - q) / np.linalg.norm(p - q)
+        if all(np.linalg.norm(n - k) > 1e-9 for k in normals):
+            normals.append(n)
+    assert dist.min() == pytest.approx(r, abs=1e-12) and len(normals) == 2
+    n1, n2 = normals
+    assert 1e-5 < np.linalg.norm(n1 - n2) < 1e-3   # nearly parallel
+    for a, b in ((n1, n2), (n2, n1)):
+        target = device + (a @ (p - device)) * a      # the device on the one edge's tangent plane
+        assert b @ (target - p) < -1e-12               # a hair below the other's
+        start_from(s, int(o.nearest(p)[2][0]))
+        hit = s.sweep(*p, *(target - p), r)
+        facts = o.check_sweep(p, target - p, r, hit)
+        assert hit is None and not facts["into"]
+        tilted = target - p - 3e-9 * b
+        hit = s.sweep(*p, *tilted, r)
+        facts = o.check_sweep(p, tilted, r, hit)
+        assert facts["into"] and hit[0] == 0.0
 
 
 def test_a_sweep_names_the_edge_it_touched():

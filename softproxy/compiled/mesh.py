@@ -19,7 +19,10 @@ certificates of `softproxy.compiled.certificate`).
   inflated by r, which is convex (a slab over the face, a cylinder per edge, a ball per
   vertex): so the first touch is exact on a non-convex mesh, a sphere touching a triangle and
   moving along or away from it never enters it, and no speed carries the sphere through a
-  triangle. A point proxy is swept as a 10 nm sphere (POINT_RADIUS).
+  triangle. A touching sphere is stopped only when pressed into a triangle beyond a touch
+  (CONTACT_TOL, `_pressed`), so sliding along a tangent plane that a nearly parallel
+  neighbour's dips below by a rounding goes on. A point proxy is swept as a 10 nm sphere
+  (POINT_RADIUS).
 
 Cost per query is bounded on large meshes:
 1. the hint, the triangle touched or nearest last, is read first: pressed into it, a sweep
@@ -200,6 +203,21 @@ def _closest(T, i, px, py, pz):
 
 
 @njit(cache=True, error_model="numpy")
+def _pressed(dist, into, r, graze):
+    """Whether a sphere of radius r touching a triangle, its centre `dist` (m) from it, is
+    pressed into it by a motion whose component along the outward direction (from the nearest
+    point to the centre) is `into` (m, negative inward): it moves in by more than a graze, and
+    so far that the end of the motion would be more than CONTACT_TOL deeper than a touch. The
+    distance along the motion is convex (the triangle inflated by r is), so it never falls
+    below its tangent line dist + λ·into: a motion that keeps that line within CONTACT_TOL of
+    r never takes the sphere further in than a touch. Without that allowance a sphere resting
+    on two nearly parallel features (the rim edges meeting at a vertex of a bowl) and sliding
+    on one's tangent plane is pressed into the other by that plane's rounding, and stopped at
+    once, sweep after sweep."""
+    return into < -graze and dist + into < r - CONTACT_TOL
+
+
+@njit(cache=True, error_model="numpy")
 def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     """First touch of a sphere (radius r) from a moving by d into triangle row i, geom frame:
     (lam, nx, ny, nz, feature), lam in [0, 1), n the unit normal of the inflated triangle at
@@ -217,7 +235,7 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     if d2 > far2:
         return (-1.0, 0.0, 0.0, 0.0, 0)  # farther than the sphere can reach on this segment
     if d2 <= reach * reach:
-        # touching now: a hit only if moving into it (the inflated triangle is convex)
+        # touching now: a hit only if pressed into it (`_pressed`)
         dist = math.sqrt(d2)
         if dist > 1e-12:
             mx, my, mz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
@@ -226,7 +244,7 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
             mx, my, mz = s * nx, s * ny, s * nz
         else:
             return (-1.0, 0.0, 0.0, 0.0, 0)
-        if mx * dx + my * dy + mz * dz < -graze:
+        if _pressed(dist, mx * dx + my * dy + mz * dz, r, graze):
             return (0.0, mx, my, mz, feature)
         return (-1.0, 0.0, 0.0, 0.0, 0)
     # 1. the face: the slab |h| <= r is entered at most once; if the sphere enters it over
@@ -650,8 +668,9 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graz
 def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
                graze, lam, mx, my, mz):
     """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
-    besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature
-    sf) or one of theirs, and its answer is kept for `mesh_distance`."""
+    besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When
+    sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature sf) or one of theirs,
+    and its answer is kept for `mesh_distance`."""
     best_lam, bi = (lam, hint) if lam >= 0.0 else (1.0, -1)
     si = hint
     slab = r + CONTACT_TOL + 1e-12
@@ -720,7 +739,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
             dist = math.sqrt(d2)
             nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
             into = nx * ux + ny * uy + nz * uz
-            if into < -graze:  # pressed into the triangle it touches: nothing comes earlier
+            if _pressed(dist, into, r, graze):  # pressed into the one it touches: nothing comes earlier
                 return _hit(S, T, k, xmat, g, hint, 0.0, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze)
             if dist >= r - CONTACT_TOL and dist + into >= r - CONTACT_TOL:
                 # moving along or away, r above the hint's tangent plane from start to end (a
