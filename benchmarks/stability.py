@@ -19,6 +19,9 @@
 3. **Extremes** — P → 0, P ≫ 1e3 N, μ = 0, μ_s = μ_d, k_τ huge, 10 kHz, a device jumping 1 m
    in one tick, garbage from the device: each must send only finite forces within the clamp.
 
+Every wall, grasp and extreme run is one cell of `softproxy.cells`: serial by default, a pool
+with `--workers N`, Ray with `--ray [ADDRESS]`; the result is the same whichever ran it. A cell
+that fails is listed with its parameters under "failed" (exit status 1); the rest complete.
 Writes stability.json and stability.png.
 """
 
@@ -31,6 +34,7 @@ import mujoco
 import numpy as np
 
 from benchmarks.report import Progress, figure, save
+from softproxy.cells import Backend, run_cells
 from softproxy.device import DeviceSample
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
@@ -152,88 +156,118 @@ def grasp_cell(K: float, k_tau: float, rate: float, duration: float) -> dict:
             "grip_ripple": round(ripple, 4), "height_m": round(height, 4)}
 
 
+def _depth(scene, d: float) -> None:
+    """Both fingers' device `d` m past the box faces from the squeeze on."""
+    for finger in scene.device["finger"]:
+        for key in finger["keyframes"][1:]:
+            key[1] = math.copysign(0.028 - d, key[1])
+
+
+def _fingers(scene, **settings) -> None:
+    for f in scene.fingers:
+        for k, v in settings.items():
+            setattr(f, k, v)
+
+
+def _jump(scene) -> None:
+    """The device leaves the grasp and jumps 1 m in one tick at 0.3 s."""
+    for finger in scene.device["finger"]:
+        k = finger["keyframes"]
+        finger["keyframes"] = [k[0], [0.3, k[0][1], k[0][2], k[0][3], 0.0], [0.3001, k[0][1] * -20, k[0][2], -1.0, 0.0]]
+
+
+def _huge_grip(scene) -> None:
+    _depth(scene, 1.0)
+    _fingers(scene, max_force=1e4)
+    scene.device.update(max_force_N=1e4)
+
+
+EXTREMES = {  # case: (edit of the grasp scene, servo rate (None: the scene's), duration s)
+    "P -> 0 (grip 1 µN)": (lambda s: _depth(s, 5e-10), None, 1.0),
+    "P >> 1e3 N (device 1 m deep, clamp 1e4 N)": (_huge_grip, None, 1.0),
+    "mu = 0 (translational and torsional)":
+        (lambda s: _fingers(s, mu_s=0.0, mu_d=0.0, torsion_mu_s=0.0, torsion_mu_d=0.0), None, 1.0),
+    "mu_s = mu_d": (lambda s: _fingers(s, mu_d=1.0, torsion_mu_s=0.0081489, torsion_mu_d=0.0081489), None, 1.0),
+    "k_tau huge (1e6 N·m/rad)": (lambda s: _fingers(s, torsion_stiffness=1e6), None, 1.0),
+    "10 kHz": (None, 10000.0, 0.5),
+    "device jumps 1 m in one tick": (_jump, None, 1.0),
+    "garbage from the device (position noise 1e300 m)": (lambda s: s.device.update(noise_m=1e300), None, 1.0),
+}
+"""The extremes, by name (a cell names its case; the edits stay here, so cells pickle)."""
+
+
+def extreme_cell(case: str) -> dict:
+    """One extreme on the grasp: every force sent finite and within the clamp, the proxy outside."""
+    edit, rate, duration = EXTREMES[case]
+    scene = load_scene("two_finger_grasp")
+    if edit:
+        edit(scene)
+    device = open_device("sim", scene)
+    sent = []
+    original = device.send
+
+    def send(finger, *w):
+        sent.append(w)
+        original(finger, *w)
+
+    device.send = send
+    loop = build(scene, device, rate_hz=rate, audit=True, realtime=False)
+    loop.run(int(duration * loop.rate_hz))
+    finite = all(all(math.isfinite(v) for v in w) for w in sent)
+    clamped = all(math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2) <= device.max_force * (1 + 1e-9) for w in sent)
+    pen = max(f.penetration_max for f in loop.fingers)
+    return {"case": case, "finite": finite, "clamped": clamped, "penetration_max_m": pen,
+            "faults": sum(loop.faults.values()), "ok": finite and clamped and pen <= 1e-6}
+
+
 def extremes() -> list[dict]:
     """Each named extreme: every force sent finite and within the clamp."""
-    cases = []
-
-    def grasp(name, edit=None, rate=None, duration=1.0):
-        scene = load_scene("two_finger_grasp")
-        if edit:
-            edit(scene)
-        device = open_device("sim", scene)
-        sent = []
-        original = device.send
-
-        def send(finger, *w):
-            sent.append(w)
-            original(finger, *w)
-
-        device.send = send
-        loop = build(scene, device, rate_hz=rate, audit=True, realtime=False)
-        loop.run(int(duration * loop.rate_hz))
-        finite = all(all(math.isfinite(v) for v in w) for w in sent)
-        clamped = all(math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2) <= device.max_force * (1 + 1e-9) for w in sent)
-        pen = max(f.penetration_max for f in loop.fingers)
-        cases.append({"case": name, "finite": finite, "clamped": clamped, "penetration_max_m": pen,
-                      "faults": sum(loop.faults.values()), "ok": finite and clamped and pen <= 1e-6})
-
-    def depth(d):
-        def edit(scene):
-            for finger in scene.device["finger"]:
-                for key in finger["keyframes"][1:]:
-                    key[1] = math.copysign(0.028 - d, key[1])
-        return edit
-
-    def fingers(**kw):
-        def edit(scene):
-            for f in scene.fingers:
-                for k, v in kw.items():
-                    setattr(f, k, v)
-        return edit
-
-    grasp("P -> 0 (grip 1 µN)", depth(5e-10))
-    grasp("P >> 1e3 N (device 1 m deep, clamp 1e4 N)",
-          lambda s: (depth(1.0)(s), fingers(max_force=1e4)(s), s.device.update(max_force_N=1e4)))
-    grasp("mu = 0 (translational and torsional)", fingers(mu_s=0.0, mu_d=0.0, torsion_mu_s=0.0, torsion_mu_d=0.0))
-    grasp("mu_s = mu_d", fingers(mu_d=1.0, torsion_mu_s=0.0081489, torsion_mu_d=0.0081489))
-    grasp("k_tau huge (1e6 N·m/rad)", fingers(torsion_stiffness=1e6))
-    grasp("10 kHz", rate=10000.0, duration=0.5)
-
-    def jump(scene):
-        for finger in scene.device["finger"]:
-            k = finger["keyframes"]
-            finger["keyframes"] = [k[0], [0.3, k[0][1], k[0][2], k[0][3], 0.0], [0.3001, k[0][1] * -20, k[0][2], -1.0, 0.0]]
-
-    grasp("device jumps 1 m in one tick", jump)
-    grasp("garbage from the device (position noise 1e300 m)", lambda s: s.device.update(noise_m=1e300))
-    return cases
+    return [extreme_cell(case) for case in EXTREMES]
 
 
-def measure(full: bool = False, progress=None) -> dict:
+CELLS = {"wall": wall_cell, "grasp": grasp_cell, "extreme": extreme_cell}
+
+
+def cell(kind: str, **params) -> dict:
+    """One cell of the benchmark by kind (wall, grasp, extreme): what `softproxy.cells` runs."""
+    return CELLS[kind](**params)
+
+
+def grid(full: bool = False) -> list[dict]:
+    """The benchmark's cells, in the order of its result: the wall grid (rate, B, K), the
+    grasp grid (rate, k_τ, K), then the extremes."""
     Ks = [300.0, 1e3, 3e3, 1e4, 3e4, 1e5] if full else [300.0, 1e3, 3e3, 1e4, 3e4]
     Bs = [0.0, 0.5, 2.0, 10.0] if full else [0.0, 2.0, 10.0]
     rates = [250.0, 1000.0, 4000.0, 10000.0] if full else [250.0, 1000.0, 4000.0]
-    wall = []
-    total = len(Ks) * len(Bs) * len(rates)
-    for rate in rates:
-        for B in Bs:
-            for K in Ks:
-                if progress:
-                    progress(f"wall {len(wall) + 1}/{total}")
-                wall.append(wall_cell(K, B, rate, 0.6))
-    grasp = []
+    cells = [{"kind": "wall", "K": K, "B": B, "rate": rate, "duration": 0.6}
+             for rate in rates for B in Bs for K in Ks]
     gK = [500.0, 2000.0, 1e4, 5e4] if full else [500.0, 2000.0, 1e4]
     gkt = [0.2, 2.0, 20.0, 200.0] if full else [0.2, 2.0, 50.0]
     grates = [1000.0, 4000.0] if full else [1000.0]
-    for rate in grates:
-        for kt in gkt:
-            for K in gK:
-                if progress:
-                    progress(f"grasp {len(grasp) + 1}/{len(gK) * len(gkt) * len(grates)}")
-                grasp.append(grasp_cell(K, kt, rate, 2.2))
-    if progress:
-        progress("extremes")
-    return {"wall": wall, "grasp": grasp, "extremes": extremes(),
+    cells += [{"kind": "grasp", "K": K, "k_tau": kt, "rate": rate, "duration": 2.2}
+              for rate in grates for kt in gkt for K in gK]
+    cells += [{"kind": "extreme", "case": case} for case in EXTREMES]
+    return cells
+
+
+def measure(full: bool = False, progress=None, backend: Backend = Backend()) -> dict:
+    """Run the grid's cells on `backend` (softproxy.cells: serial, a pool, or Ray; the result
+    is the same); a cell that fails is listed in "failed" with its parameters."""
+    cells = grid(full)
+
+    def report(done: int, total: int, outcome) -> None:
+        if progress:
+            progress(f"{done}/{total} cells ({outcome.params['kind']} done), {backend.describe()}")
+
+    outcomes = run_cells(cell, cells, backend, report)
+    found = {"wall": [], "grasp": [], "extreme": []}
+    failed = []
+    for o in outcomes:
+        if o.ok:
+            found[o.params["kind"]].append(o.value)
+        else:
+            failed.append({"cell": o.params, "error": o.error})
+    return {"wall": found["wall"], "grasp": found["grasp"], "extremes": found["extreme"], "failed": failed,
             "handle": {"mass_kg": HANDLE_MASS, "damping_Nspm": HANDLE_DAMPING, "hand_stiffness_Npm": HAND_STIFFNESS,
                        "colgate_b_Nspm": PHYSICAL_DAMPING,
                        "hand_damping_Nspm": HAND_DAMPING}}
@@ -272,7 +306,7 @@ def chart(result: dict):
 
 def main(args) -> int:
     progress = Progress("stability")
-    result = measure(getattr(args, "full", False), progress)
+    result = measure(getattr(args, "full", False), progress, getattr(args, "backend", None) or Backend())
     progress.done()
     json_path, png_path = save(args.out, "stability", result, chart(result))
     if args.json:
@@ -300,5 +334,7 @@ def main(args) -> int:
     print("  extremes (finite and clamped forces, proxy never > 1 µm inside):")
     for c in result["extremes"]:
         print(f"    {'ok  ' if c['ok'] else 'FAIL'} {c['case']}")
+    for f in result["failed"]:
+        print(f"  FAILED cell {f['cell']}: {f['error']}")
     print(f"  wrote {json_path} and {png_path}")
-    return 0 if all(c["ok"] for c in result["extremes"]) else 1
+    return 0 if all(c["ok"] for c in result["extremes"]) and not result["failed"] else 1

@@ -21,6 +21,11 @@ contact on are counted; each reports tick p50 / mean / p99 as a ratio to "off" i
 mean carries a decimated channel's cost, the p99 its working ticks), the cost of one frame
 (µs: the mean tick's excess over "off" spread over the frames) and what it measured (sensing location error, tactile force). The cost of "off" itself is
 one loop over an empty list, timed alone. Writes tradeoff.json and tradeoff.png.
+
+Each configuration of the grid is one cell of `softproxy.cells` (serial by default, a pool with
+`--workers N`, Ray with `--ray [ADDRESS]`), which also re-measures the bare mj_step where it
+ran; the errors are the same whichever backend ran them. The fingertip sensors are compared
+side by side, so they run in this process.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ import mujoco
 import numpy as np
 
 from benchmarks.report import Progress, figure, save
+from softproxy.cells import Backend, run_cells
 from softproxy.fingertip_sensors import SensingSpec, TactileSpec
 from softproxy.run import _rotation_about, build, open_device
 from softproxy.scene import load_scene
@@ -74,6 +80,7 @@ def run_config(scene_name: str, model: str, rate: float, duration: float) -> dic
         "forces": np.array(forces), "position": data.xpos[body].copy(), "quat": data.xquat[body].copy(),
         "turned_deg": _rotation_about(q_start if q0 is None else q0, data.xquat[body], measure.axis),
         "axis": measure.axis,
+        "mj_step_us": bare_step_us(500),  # the unit of cost, re-measured in the process that ran the config
     }
 
 
@@ -172,22 +179,32 @@ def measure_fidelity(duration: float, rounds: int = 2, progress=None) -> dict:
             "counted_from_s": CONTACT_S, "empty_sensor_list_ns": round(empty_ns, 1), "rows": rows}
 
 
-def measure(full: bool = False, progress=None, duration: float | None = None) -> dict:
+def measure(full: bool = False, progress=None, duration: float | None = None, backend: Backend = Backend()) -> dict:
+    """The scene × rate × model grid, each configuration one cell of `softproxy.cells` run on
+    `backend` (the errors are the same whichever ran them; the costs are timings), then the
+    fingertip sensors side by side in this process. A configuration that fails is listed in
+    "failed" with its parameters; a scene whose reference failed has no rows."""
     rates = [250.0, 500.0, 1000.0, 2000.0, 4000.0, 10000.0] if full else [250.0, 1000.0, 4000.0, 10000.0]
     models = ["point", "CH", "MH", "VS", "LFM"]
     duration = duration or (3.0 if full else 2.2)
     step_us = bare_step_us()
+    cells = [{"scene_name": scene_name, "model": m, "rate": rate, "duration": duration}
+             for scene_name in SCENES for rate in rates for m in models]
+
+    def report(done: int, total: int, outcome) -> None:
+        if progress:
+            p = outcome.params
+            progress(f"{p['scene_name']}: {p['model']} at {p['rate']:g} Hz done ({done}/{total}), {backend.describe()}")
+
+    outcomes = run_cells(run_config, cells, backend, report)
+    failed = [{"cell": o.params, "error": o.error} for o in outcomes if not o.ok]
     rows = []
-    total = len(SCENES) * len(rates) * len(models)
     for scene_name in SCENES:
-        runs = []
-        for rate in rates:
-            for m in models:
-                if progress:
-                    progress(f"{scene_name}: {m} at {rate:g} Hz ({len(rows) + len(runs) + 1}/{total})")
-                runs.append(run_config(scene_name, m, rate, duration))
-                step_us = min(step_us, bare_step_us(500))  # re-measured as we go: the least-disturbed value
-        ref = next(r for r in runs if r["model"] == "LFM" and r["rate_hz"] == max(rates))
+        runs = [o.value for o in outcomes if o.ok and o.params["scene_name"] == scene_name]
+        step_us = min([step_us] + [r["mj_step_us"] for r in runs])  # the least-disturbed value
+        ref = next((r for r in runs if r["model"] == "LFM" and r["rate_hz"] == max(rates)), None)
+        if ref is None:
+            continue
         scene_rows = []
         for r in runs:
             n = min(len(r["forces"]), len(ref["forces"]))
@@ -211,7 +228,7 @@ def measure(full: bool = False, progress=None, duration: float | None = None) ->
     fidelity = measure_fidelity(duration, 3 if full else 2, progress)
     return {"scenes": list(SCENES), "reference": {"model": "LFM", "rate_hz": max(rates)},
             "mj_step_us_p50": round(step_us, 2), "duration_s": duration, "rows": rows,
-            "fingertip_sensors": fidelity}
+            "fingertip_sensors": fidelity, "failed": failed}
 
 
 def chart(result: dict):
@@ -258,7 +275,8 @@ def chart(result: dict):
 
 def main(args) -> int:
     progress = Progress("tradeoff")
-    result = measure(getattr(args, "full", False), progress, min(args.duration, 2.2))
+    result = measure(getattr(args, "full", False), progress, min(args.duration, 2.2),
+                     getattr(args, "backend", None) or Backend())
     progress.done()
     json_path, png_path = save(args.out, "tradeoff", result, chart(result))
     if args.json:
@@ -288,5 +306,7 @@ def main(args) -> int:
         print(f"  {r['config']:26s}{r['tick_us_p50']:10.1f}{r['tick_us_mean']:11.1f}{r['tick_us_p99']:10.1f}"
               f"{r['p50_x_off']:10.3f}{r['mean_x_off']:11.3f}{r['p99_x_off']:10.3f}{r['frames']:8d}{pf:>10s}  "
               f"{'; '.join(got)}")
+    for f in result["failed"]:
+        print(f"  FAILED cell {f['cell']}: {f['error']}")
     print(f"  wrote {json_path} and {png_path}")
-    return 0
+    return 1 if result["failed"] else 0

@@ -355,13 +355,65 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if name not in benches:
             print(f"softproxy bench: no benchmark {name!r}; have: {', '.join(sorted(benches))}, all", file=sys.stderr)
             return 2
+    from softproxy.cells import Backend, BackendError
+
+    try:  # the grids of stability and tradeoff run their cells on this (softproxy.cells)
+        args.backend = Backend.from_flags(args.workers, args.ray, "softproxy bench")
+    except BackendError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     if not _check_out_folder("bench", args.out):
         return 2
     for name in names:
-        code = benches[name].load()(args)
+        try:
+            code = benches[name].load()(args)
+        except BackendError as exc:  # Ray that cannot start or be reached
+            print(f"softproxy bench: {exc}", file=sys.stderr)
+            return 2
         if code:
             return code
     return 0
+
+
+def cmd_replay_batch(args: argparse.Namespace) -> int:
+    """Replay recordings under variations of the engine; one table, a summary and a chart."""
+    from softproxy.cells import Backend, BackendError
+    from softproxy.replay_batch import BatchError, report, run_batch, write
+
+    try:
+        backend = Backend.from_flags(args.workers, args.ray, "softproxy replay-batch")
+    except BackendError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    if not _check_out_folder("replay-batch", args.out):
+        return 2
+    try:
+        result = run_batch(args.recordings, args.vary, args.scene, backend, _progress_bar("replay-batch"))
+    except (BatchError, BackendError) as exc:
+        print(f"softproxy replay-batch: {exc}", file=sys.stderr)
+        return 2
+    paths = write(result, args.out)
+    if args.json:
+        print(json.dumps(result["summary"], indent=2))
+    else:
+        report(result, paths)
+    return 1 if result["summary"]["failed"] else 0
+
+
+def _progress_bar(command: str):
+    """progress(done, total, outcome) for softproxy.cells: a tqdm bar on stderr, silent when
+    stderr is not a terminal, gone when the last cell is in."""
+    from tqdm import tqdm
+
+    bar = tqdm(desc=f"  {command}", unit="cell", file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
+
+    def progress(done: int, total: int, outcome) -> None:
+        bar.total = total
+        bar.update(1)
+        if done == total:
+            bar.close()
+
+    return progress
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -425,8 +477,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="bench-out", help="folder for JSON and charts (default bench-out)")
     p.add_argument("--full", action="store_true", help="the long versions (e.g. a 20 s grasp hold)")
     p.add_argument("--json", action="store_true", help="print the JSON result")
+    _add_backend_flags(p, "the grids of stability and tradeoff")
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("replay-batch", help="replay recordings under variations (model, rate, stiffness, friction): "
+                                            "one table, summary and chart")
+    p.add_argument("recordings", nargs="+", metavar="RECORDING", help="recording files, or folders of them (*.rec)")
+    p.add_argument("--vary", action="append", default=[], metavar="KEY=VALUE[,KEY=VALUE]",
+                   help="one variation per flag, e.g. model=point, rate=500, stiffness=4000,damping=2, "
+                        "mu_s=0.5,mu_d=0.4 (each recording is also replayed unvaried, the reference)")
+    p.add_argument("--scene", default=None, help="the scene to replay on (default: the one each recording names)")
+    p.add_argument("--out", default="batch-out", help="folder for the CSV table, JSON summary and chart "
+                                                      "(default batch-out)")
+    p.add_argument("--json", action="store_true", help="print the JSON summary")
+    _add_backend_flags(p, "the replays")
+    p.set_defaults(func=cmd_replay_batch)
     return parser
+
+
+def _add_backend_flags(p: argparse.ArgumentParser, what: str) -> None:
+    """--workers N and --ray [ADDRESS]: where `what` run (softproxy.cells; serial without either)."""
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help=f"run {what} in N worker processes (default: serially, in this process)")
+    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                   help=f"run {what} as Ray tasks: Ray started on this machine, or the cluster at ADDRESS "
+                        f"(auto, HOST:6379, ray://HOST:10001); needs pip install 'softproxy[cluster]'")
 
 
 def _version() -> str:

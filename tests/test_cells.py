@@ -1,0 +1,154 @@
+"""The execution seam (softproxy.cells): serial, a process pool and Ray give the same outcomes,
+in cell order; a failing cell is reported with its parameters while the rest complete; each
+worker loads the compiled kernels once; a bad backend flag is one line."""
+
+import os
+import sys
+import time
+
+import pytest
+
+from benchmarks import stability
+from softproxy import cli
+from softproxy.cells import Backend, BackendError, run_cells
+
+# A few real cells of `bench stability` (a hand-held handle against a wall) and one whose
+# stiffness FingerParams refuses.
+WALL = [{"kind": "wall", "K": K, "B": B, "rate": 250.0, "duration": 0.6} for K in (1e3, 3e4) for B in (0.0, 2.0)]
+BAD = {"kind": "wall", "K": -1.0, "B": 0.0, "rate": 250.0, "duration": 0.6}
+CELLS = WALL[:2] + [BAD] + WALL[2:]
+
+
+def loads_kernels(n: int) -> tuple[int, bool]:
+    """Build and run a small servo loop; (this process, whether its servo kernel was still to be
+    compiled or loaded here)."""
+    from softproxy.compiled import servo
+
+    first = len(servo.begin_tick.overloads) == 0  # resolved by every loop when it is built
+    stability.wall_cell(1e3, 2.0, 250.0, 0.1 + 0.01 * n)
+    return os.getpid(), first
+
+
+def waits(i: int, flag: str) -> int:
+    """Cell 0 waits (up to 30 s) for the last cell to raise `flag`, so it ends last."""
+    if i == 0:
+        deadline = time.monotonic() + 30.0
+        while not os.path.exists(flag) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    elif i == 4:
+        open(flag, "w").close()
+    return i
+
+
+def dies(i: int) -> int:
+    if i == 2:
+        os._exit(3)  # as a MuJoCo error inside the tick ends a process
+    return i * i
+
+
+def check_outcomes(outcomes):
+    """The bad cell failed with a one-line error naming the stiffness; the others match a direct run."""
+    assert [o.index for o in outcomes] == list(range(len(CELLS)))
+    assert [o.params for o in outcomes] == CELLS
+    bad = outcomes[2]
+    assert not bad.ok and "stiffness" in bad.error and "\n" not in bad.error
+    assert "K=-1.0" in bad.describe()
+    assert all(o.ok for i, o in enumerate(outcomes) if i != 2)
+    return [o.value for o in outcomes]
+
+
+@pytest.fixture(scope="module")
+def serial():
+    return check_outcomes(run_cells(stability.cell, CELLS))
+
+
+def test_serial_outcomes_are_the_cells_run_directly(serial):
+    """Serially, each outcome is what calling the cell gives, and a second sweep gives it again."""
+    assert serial[:2] + serial[3:] == [stability.cell(**c) for c in WALL]
+    assert check_outcomes(run_cells(stability.cell, CELLS)) == serial
+
+
+def test_pool_gives_the_serial_outcomes(serial):
+    """Two worker processes: the same values, in cell order, and the failing cell reported."""
+    done = []
+    outcomes = run_cells(stability.cell, CELLS, Backend(workers=2), lambda d, n, o: done.append((d, n)))
+    assert check_outcomes(outcomes) == serial
+    assert done == [(i, len(CELLS)) for i in range(1, len(CELLS) + 1)]
+    assert all(o.worker.split(":")[1] != str(os.getpid()) for o in outcomes)
+
+
+def test_ray_gives_the_serial_outcomes(serial):
+    """Ray started on this machine: the same values, in cell order, the failing cell reported."""
+    pytest.importorskip("ray")
+    outcomes = run_cells(stability.cell, CELLS, Backend(ray=""))
+    assert check_outcomes(outcomes) == serial
+
+
+@pytest.mark.parametrize("backend", [Backend(workers=2), Backend(ray="")], ids=["pool", "ray"])
+def test_kernels_load_once_per_worker(backend):
+    """Each worker process compiles or loads the servo kernel on its first cell only, and the
+    workers persist across cells (fewer processes than cells)."""
+    if backend.ray is not None:
+        pytest.importorskip("ray")
+    outcomes = run_cells(loads_kernels, [{"n": n} for n in range(8)], backend)
+    assert all(o.ok for o in outcomes), [o.error for o in outcomes]
+    by_worker = {}
+    for o in outcomes:
+        pid, first = o.value
+        by_worker.setdefault(pid, []).append(first)
+    assert len(by_worker) < len(outcomes)
+    if backend.ray is None:  # fresh workers: each loads on its first cell (Ray's may have loaded earlier)
+        assert all(firsts[0] and firsts.count(True) == 1 for firsts in by_worker.values()), by_worker
+    assert all(firsts.count(True) <= 1 for firsts in by_worker.values()), by_worker
+
+
+def test_outcomes_come_in_cell_order_not_completion_order(tmp_path):
+    """The first cell ends last in a pool, yet comes first; progress sees completion order."""
+    seen = []
+    cells = [{"i": i, "flag": str(tmp_path / "flag")} for i in range(5)]
+    outcomes = run_cells(waits, cells, Backend(workers=2), lambda d, n, o: seen.append(o.index))
+    assert [o.value for o in outcomes] == [0, 1, 2, 3, 4]
+    assert seen[-1] == 0 and sorted(seen) == [0, 1, 2, 3, 4]
+
+
+def test_a_cell_that_kills_its_worker_is_reported_and_the_rest_complete():
+    """os._exit in one cell breaks the pool; that cell is found (run alone, it dies again) and
+    reported with its exit status, and every other cell still gives its value."""
+    outcomes = run_cells(dies, [{"i": i} for i in range(6)], Backend(workers=2))
+    assert [o.value for i, o in enumerate(outcomes) if i != 2] == [0, 1, 9, 16, 25]
+    assert not outcomes[2].ok and "exit status 3" in outcomes[2].error and "i=2" in outcomes[2].describe()
+
+
+def test_backend_flags_are_checked_in_one_line(monkeypatch):
+    """--workers 0, both flags, and Ray missing: BackendError naming the flag (and the extra)."""
+    with pytest.raises(BackendError, match=r"--workers must be .* >= 1, got 0"):
+        Backend.from_flags(0, None, "softproxy bench")
+    with pytest.raises(BackendError, match="not both"):
+        Backend.from_flags(2, "", "softproxy bench")
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray now raises ImportError
+    with pytest.raises(BackendError, match=r"--ray needs Ray, which is not installed: pip install 'softproxy\[cluster\]'"):
+        Backend.from_flags(None, "", "softproxy bench")
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--workers", "0"], "--workers must be a number of worker processes >= 1"),
+    (["--workers", "2", "--ray"], "not both"),
+    (["--ray"], "pip install 'softproxy[cluster]'"),
+])
+def test_bench_backend_flag_errors(argv, says, capsys, monkeypatch, tmp_path):
+    """`softproxy bench stability` with a bad backend flag: exit 2, one line on stderr, nothing run."""
+    monkeypatch.setitem(sys.modules, "ray", None)
+    assert cli.main(["bench", "stability", "--out", str(tmp_path), *argv]) == 2
+    err = capsys.readouterr().err
+    assert says in err and err.count("\n") == 1
+    assert not list(tmp_path.iterdir())
+
+
+def test_an_unreachable_cluster_is_one_line_and_quick():
+    """--ray at an address where nothing listens: BackendError naming it within seconds (Ray
+    itself would retry for minutes)."""
+    pytest.importorskip("ray")
+    start = time.monotonic()
+    with pytest.raises(BackendError, match=r"--ray 127.0.0.1:1: cannot reach 127.0.0.1:1"):
+        run_cells(stability.cell, WALL[:1], Backend(ray="127.0.0.1:1"))
+    assert time.monotonic() - start < 10.0
