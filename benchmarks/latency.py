@@ -116,6 +116,7 @@ def chart(result: dict):
     a.set_title(f"tick p50 = {result['ratio_p50']} x mj_step")
     st = result["stages_us_p50"]
     b.barh(list(st), list(st.values()))
+    b.invert_yaxis()  # the stages top to bottom, in the tick's order
     b.set_xlabel("µs (median per tick)")
     b.set_title("where a tick goes")
     return fig
