@@ -16,11 +16,12 @@ ran them (timings aside).
   worker that dies takes no other cell with it: the cells it may have been running are run
   again alone, each in a process of its own, and a cell that kills its process there too is
   reported as failed (with the exit status); the rest of the sweep goes on in a new pool.
-- **Ray** (`Backend(ray="")`: `ray.init()` on this machine; `Backend(ray="ADDRESS")`: an
-  existing cluster, e.g. `auto` on a cluster node or `ray://HEAD:10001` from a laptop): one
-  task per cell, on Ray's long-lived worker processes (again: kernels loaded once per
-  worker). Ray is the optional extra `softproxy[cluster]`, imported only here and only when
-  asked for. A local Ray's workers get this process's import path, as a pool's do.
+- **Ray** (`Backend(ray="")`: a new Ray of its own on this machine, whatever RAY_ADDRESS
+  says; `Backend(ray="ADDRESS")`: an existing cluster, e.g. `auto` on a cluster node (or
+  with RAY_ADDRESS set) or `ray://HEAD:10001` from a laptop): one task per cell, on Ray's
+  long-lived worker processes (again: kernels loaded once per worker). Ray is the optional
+  extra `softproxy[cluster]`, imported only here and only when asked for. A local Ray's
+  workers get this process's import path, as a pool's do.
 
 A cell that raises is caught where it runs and comes back as an `Outcome` whose `error` is one
 line (exception, message, where) with its parameters; the other cells are not disturbed.
@@ -272,7 +273,7 @@ def _probe(address: str) -> None:
 _ray_address: str | None = None  # the address this module connected Ray to ("" = started here)
 
 
-def _start_ray(address: str):
+def start_ray(address: str = ""):
     """The ray module, connected: to `address`, or to a Ray started here (address ""), whose
     workers get this process's import path. Left connected for the next sweep; a Ray the
     application initialised itself is used as it is."""
@@ -293,7 +294,9 @@ def _start_ray(address: str):
             before = os.environ.get("PYTHONPATH")
             os.environ["PYTHONPATH"] = path  # inherited by the raylet this starts, and so by its workers
             try:
-                ray.init(include_dashboard=False, **quiet)
+                # "local": a new Ray of our own, never a cluster that RAY_ADDRESS or a
+                # `ray start` (even one long gone) left recorded in /tmp/ray
+                ray.init(address="local", include_dashboard=False, **quiet)
             finally:
                 if before is None:
                     os.environ.pop("PYTHONPATH", None)
@@ -311,8 +314,20 @@ def _start_ray(address: str):
     return ray
 
 
+def stop_ray() -> None:
+    """Shut down the Ray this module started or connected to (a no-op otherwise); the next
+    Ray sweep starts or connects again."""
+    global _ray_address
+    if _ray_address is None:
+        return
+    import ray
+
+    ray.shutdown()
+    _ray_address = None
+
+
 def _ray_outcomes(fn: Callable, cells: list[dict], address: str) -> Iterator[Outcome]:
-    ray = _start_ray(address)
+    ray = start_ray(address)
     task = ray.remote(num_cpus=1, max_retries=RAY_RETRIES)(run_cell)
     refs = {task.remote(fn, i, params): i for i, params in enumerate(cells)}
     pending = list(refs)

@@ -500,7 +500,7 @@ def _add_backend_flags(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help=f"run {what} in N worker processes (default: serially, in this process)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                   help=f"run {what} as Ray tasks: Ray started on this machine, or the cluster at ADDRESS "
+                   help=f"run {what} as Ray tasks: on a Ray started here, or on the cluster at ADDRESS "
                         f"(auto, HOST:6379, ray://HOST:10001); needs pip install 'softproxy[cluster]'")
 
 

@@ -548,8 +548,8 @@ def _versions() -> dict:
 # output
 
 def chart(result: dict):
-    """Per variation: force error and object position error over the recordings (one dot each),
-    the outcomes, and the cost per tick."""
+    """Per variation: force error and object orientation error over the recordings (one dot
+    each), the outcomes, and the cost per tick."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -559,7 +559,7 @@ def chart(result: dict):
     fig, axes = plt.subplots(2, 2, figsize=(12, 8.5))
     x = np.arange(len(labels))
     for ax, key, title in ((axes[0][0], "force_error_rms_N", "rendered force error, RMS (N)"),
-                           (axes[0][1], "position_error_max_m", "object position error, largest (m)")):
+                           (axes[0][1], "rotation_error_max_deg", "object orientation error, largest (deg)")):
         for i, label in enumerate(labels):
             values = [r[key] for r in rows if r["variation"] == label and r.get(key) is not None]
             ax.scatter(np.full(len(values), i) + np.linspace(-0.15, 0.15, len(values)),

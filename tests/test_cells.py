@@ -152,3 +152,18 @@ def test_an_unreachable_cluster_is_one_line_and_quick():
     with pytest.raises(BackendError, match=r"--ray 127.0.0.1:1: cannot reach 127.0.0.1:1"):
         run_cells(stability.cell, WALL[:1], Backend(ray="127.0.0.1:1"))
     assert time.monotonic() - start < 10.0
+
+
+def test_local_ray_is_its_own(tmp_path):
+    """`--ray` without an address starts a Ray of its own: a RAY_ADDRESS pointing where nothing
+    listens (as a `ray start` long gone leaves recorded) neither captures nor hangs it."""
+    pytest.importorskip("ray")
+    import subprocess
+
+    script = ("from softproxy.cells import Backend, run_cells; from benchmarks import stability; "
+              f"out = run_cells(stability.cell, {WALL[:2]!r}, Backend(ray='')); "
+              "print(all(o.ok for o in out))")
+    env = {**os.environ, "RAY_ADDRESS": "127.0.0.1:1"}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env,
+                          cwd=tmp_path)
+    assert done.returncode == 0 and done.stdout.strip() == "True", done.stderr[-2000:]
