@@ -30,7 +30,7 @@ import math
 import time
 
 import numpy as np
-from numba import cfunc, njit, types
+from numba import njit, types
 
 from softproxy import device_kernel as dk
 from softproxy.device import DeviceError, DeviceSample
@@ -221,7 +221,7 @@ def _read_c(state, t, samples, n):
     """`_read` on the arrays whose [address, size] pairs `state` holds (device_kernel.READ)."""
     if state == 0 or samples == 0:
         return dk.NULL
-    block = dk.i64_at(state, 8)
+    block = dk.state_at(state)
     ints = dk.i64_at(block[0], block[1])
     if n != ints[I_FINGERS]:
         return dk.ROWS
@@ -234,15 +234,14 @@ def _send_c(state, finger, fx, fy, fz, tx, ty, tz):
     """`_send` on the arrays whose [address, size] pairs `state` holds (device_kernel.SEND)."""
     if state == 0:
         return dk.NULL
-    block = dk.i64_at(state, 8)
+    block = dk.state_at(state)
     return _send(dk.i64_at(block[0], block[1]), dk.f64_at(block[4], block[5]), finger, fx, fy, fz, tx, ty, tz)
 
 
 @functools.cache
 def _cfuncs():
     """The read and send cfuncs, built (or loaded from numba's cache) on first use."""
-    return (cfunc(dk.READ, cache=True, error_model="numpy")(_read_c),
-            cfunc(dk.SEND, cache=True, error_model="numpy")(_send_c))
+    return dk.build_cfuncs(_read_c, _send_c)
 
 
 # --- the device -----------------------------------------------------------------------------------
@@ -427,11 +426,7 @@ class SimulatedDevice:
         under NUMBA_DISABLE_JIT=1."""
         if not dk.JIT:
             return None
-        read, send = _cfuncs()
-        state = self._arrays[:4]
-        block = dk.pack_state(*state)  # made here, so it always holds this object's addresses
-        return dk.CompiledIO(read, send, np.uintp(block.ctypes.data), self.fingers, (block, *state),
-                             self.read_error, STALL, STALL_S)
+        return dk.device_io(_cfuncs(), self._arrays, self.fingers, self.read_error, STALL, STALL_S)
 
     @classmethod
     def from_config(cls, cfg: dict, *, source: str = "<config>") -> "SimulatedDevice":

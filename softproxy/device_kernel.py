@@ -46,7 +46,7 @@ from typing import Callable, NamedTuple
 
 import numba
 import numpy as np
-from numba import carray, njit, types
+from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from softproxy.compiled.cache import renew
@@ -178,6 +178,17 @@ def sample_table_at(address, rows, fingers):
     return carray(_sample(address), (rows, fingers))
 
 
+STATE_ARRAYS = 4
+"""The arrays a device's state block holds, as [address, size] pairs (`pack_state`): read and
+send get the same block, each using the arrays it needs."""
+
+
+@njit(inline="always")
+def state_at(address):
+    """The [address, size] pairs of the state block at `address` (2 × STATE_ARRAYS int64)."""
+    return i64_at(address, 2 * STATE_ARRAYS)
+
+
 def pack_state(*arrays: np.ndarray) -> np.ndarray:
     """The state block a cfunc gets the address of: [address, size] of each array, int64.
     The arrays must be C-contiguous and outlive every call (keep them with the block)."""
@@ -271,6 +282,23 @@ class CompiledIO(NamedTuple):
     read_error: Callable[[int], str]
     stall_code: int = 0
     stall_s: float = 0.0
+
+
+def build_cfuncs(read_c, send_c) -> tuple:
+    """(read, send): a device's `read_c` and `send_c` compiled as cfuncs of signatures READ and
+    SEND (or loaded from numba's cache, beside the device's module)."""
+    return (cfunc(READ, cache=True, error_model="numpy")(read_c),
+            cfunc(SEND, cache=True, error_model="numpy")(send_c))
+
+
+def device_io(cfuncs: tuple, arrays, fingers: int, read_error, stall_code: int = 0,
+              stall_s: float = 0.0) -> CompiledIO:
+    """A device's CompiledIO: its (read, send) cfuncs over the state block of its first
+    STATE_ARRAYS `arrays`, made here so it always holds these arrays' addresses."""
+    state = tuple(arrays[:STATE_ARRAYS])
+    block = pack_state(*state)
+    return CompiledIO(cfuncs[0], cfuncs[1], np.uintp(block.ctypes.data), fingers, (block, *state), read_error,
+                      stall_code, stall_s)
 
 
 class SampleBuffer:
