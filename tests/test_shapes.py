@@ -92,12 +92,17 @@ SCENE = (
 )
 
 
-@pytest.fixture(scope="module")
-def scene():
-    m = mujoco.MjModel.from_xml_string(SCENE)
+def _world(xml):
+    """(model, data, shapes) of an MJCF string, after mj_forward."""
+    m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     return m, d, shapes_of(m, d)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return _world(SCENE)
 
 
 def pose(scene, seed):
@@ -490,10 +495,7 @@ long axis), two equal longest, all equal, two shortest a hair apart, and a 2 µm
 
 @pytest.fixture(scope="module")
 def eggs():
-    m = mujoco.MjModel.from_xml_string(EGGS)
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    return m, d, shapes_of(m, d)
+    return _world(EGGS)
 
 
 def test_ellipsoid_inside_on_the_mid_plane_of_its_shortest_axis(eggs):
