@@ -24,7 +24,7 @@ import json
 import mujoco
 import numpy as np
 
-from benchmarks.report import Progress, figure, save
+from .report import Progress, figure, save
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_TIME, RESTICK_TRAVEL
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model

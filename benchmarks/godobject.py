@@ -23,7 +23,7 @@ import time
 import mujoco
 import numpy as np
 
-from benchmarks.report import Progress, figure, save
+from .report import Progress, figure, save
 from softproxy.proxy import GodObject
 from softproxy.scene import load_scene
 from softproxy.world import World

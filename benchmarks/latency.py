@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 from numba import njit
 
-from benchmarks.report import Progress, figure, save
+from .report import Progress, figure, save
 from softproxy.compiled import native
 from softproxy.compiled.servo import STAGES
 from softproxy.run import build, open_device

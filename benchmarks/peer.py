@@ -24,7 +24,7 @@ import time
 import mujoco
 import numpy as np
 
-from benchmarks.report import Progress, figure, save
+from .report import Progress, figure, save
 from softproxy.device import DeviceSample
 from softproxy.run import _rotation_about, build, open_device
 from softproxy.scene import load_scene

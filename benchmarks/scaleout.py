@@ -1,6 +1,6 @@
 """Scale-out figures (docs/scale-out.md): what `--workers 2` and `--ray` buy over serial.
 
-    python -m benchmarks.scaleout [--out DIR] [--recordings 50] [--seconds 5] [--rounds 3]
+    python -m softproxy.benchmarks.scaleout [--out DIR] [--recordings 50] [--seconds 5] [--rounds 3]
 
 Measures, on this machine, each backend of `softproxy.cells` (serial, a pool of 2 workers,
 Ray started here) on
@@ -124,7 +124,7 @@ def _cpus() -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.scaleout", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m softproxy.benchmarks.scaleout", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench-out")
     parser.add_argument("--recordings", type=int, default=50)
     parser.add_argument("--seconds", type=float, default=5.0)

@@ -33,7 +33,7 @@ import math
 import mujoco
 import numpy as np
 
-from benchmarks.report import Progress, figure, save
+from .report import Progress, figure, save
 from softproxy.cells import Backend, run_cells
 from softproxy.device import DeviceSample
 from softproxy.finger import FingerParams, SoftFingerProxy

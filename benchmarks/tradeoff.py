@@ -37,7 +37,7 @@ import timeit
 import mujoco
 import numpy as np
 
-from benchmarks.report import Progress, figure, save
+from .report import Progress, figure, save
 from softproxy.cells import Backend, run_cells
 from softproxy.fingertip_sensors import SensingSpec, TactileSpec
 from softproxy.run import _rotation_about, build, open_device

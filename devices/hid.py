@@ -1,4 +1,4 @@
-"""HID haptic and 6-DOF input devices, driven by declarative profiles (`devices.hid_profile`).
+"""HID haptic and 6-DOF input devices, driven by declarative profiles (`softproxy.devices.hid_profile`).
 
 `HidDevice` implements `softproxy.device.Device` for one finger over a transport with the
 subset of cython-hidapi's `hid.device` API it uses: `set_nonblocking`, `read(n)`,
@@ -84,7 +84,7 @@ from pathlib import Path
 
 from softproxy.device import DeviceError, DeviceSample
 
-from devices.hid_profile import (
+from .hid_profile import (
     Profile,
     ProfileError,
     ReportError,

@@ -16,7 +16,7 @@ that is not a regular file (a FIFO, /dev/zero, a directory) before reading, refu
 over `MAX_FILE_BYTES` (2 GiB: about 3 hours of a two-finger device at 1 kHz; the writer
 stops there and counts the rest as dropped) and headers claiming more than `MAX_FINGERS`
 fingers, never sizes an array from a header's claim, and names the file and the first bad
-record of a malformed body. `devices.replay.ReplayDevice` plays a recording back, read for
+record of a malformed body. `softproxy.devices.replay.ReplayDevice` plays a recording back, read for
 read, so a lockstep run replayed from its recording reproduces the recorded run exactly.
 
 File format, version 2:

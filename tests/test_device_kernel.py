@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from numba import njit
 
-from devices.replay import ReplayDevice
-from devices.simulated import FAULT_KINDS, STALL_S, SimulatedDevice
+from softproxy.devices.replay import ReplayDevice
+from softproxy.devices.simulated import FAULT_KINDS, STALL_S, SimulatedDevice
 from softproxy import device_kernel as dk
 from softproxy.device import DeviceError, DeviceSample
 
@@ -292,7 +292,7 @@ def test_the_interpreted_kernels_give_the_compiled_numbers():
     compiled_io() says None."""
     script = textwrap.dedent(f"""
         import json
-        from devices.simulated import SimulatedDevice
+        from softproxy.devices.simulated import SimulatedDevice
         from softproxy.device import DeviceSample
         dev = SimulatedDevice({[KEYS, OTHER]!r}, noise_m=2e-4, noise_rad=3e-3, quantum_m=1e-5, seed=9,
                               faults={{"nan": 0.1, "drop": 0.1, "spike": 0.1}})

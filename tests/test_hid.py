@@ -14,8 +14,8 @@ import mujoco
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from devices.hid import HidDevice, devices_main, list_devices
-from devices.hid_profile import (
+from softproxy.devices.hid import HidDevice, devices_main, list_devices
+from softproxy.devices.hid_profile import (
     PROFILE_DIR,
     ProfileError,
     ReportError,

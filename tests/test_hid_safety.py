@@ -17,8 +17,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from devices.hid import CLOSE_ZERO_ATTEMPTS, NO_REOPEN_NOTICE_ERRORS, REOPEN_INTERVAL_S, HidDevice, devices_main
-from devices.hid_profile import (
+from softproxy.devices.hid import CLOSE_ZERO_ATTEMPTS, NO_REOPEN_NOTICE_ERRORS, REOPEN_INTERVAL_S, HidDevice, devices_main
+from softproxy.devices.hid_profile import (
     MAX_FORCE_N,
     MAX_TORQUE_NM,
     PROFILE_DIR,

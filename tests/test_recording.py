@@ -17,7 +17,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from devices.replay import ReplayDevice
+from softproxy.devices.replay import ReplayDevice
 from softproxy import cli
 from softproxy.device import DeviceError, DeviceSample
 from softproxy.recording import (MAX_FILE_BYTES, RecordingDevice, RecordingError, load_recording, record_bytes)

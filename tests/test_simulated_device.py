@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from devices.simulated import SimulatedDevice
+from softproxy.devices.simulated import SimulatedDevice
 from softproxy.device import Device, DeviceError, DeviceSample
 
 # (t, x, y, z, twist): a reach, a hold, a move back with a twist
