@@ -197,7 +197,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     in real time while it is open, and no frame of drawing ever delays a tick. --snapshot and
     --video render offscreen (EGL) after the run, from state copied during it.
     """
-    from softproxy.run import run_scene
+    from softproxy.run import replay_notes, run_scene
     from softproxy.scene import SceneError, load_scene
 
     try:
@@ -230,6 +230,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             views.close()
         print(f"softproxy run: {exc}", file=sys.stderr)
         return 2
+    for note in replay_notes(scene, device, args.rate or scene.rate_hz):
+        print(f"softproxy run: note: {note}", file=sys.stderr)
     realtime = args.realtime or window  # a window shows the run as it happens
     if views is not None and window and not args.realtime:
         views.note = "softproxy run: the viewer window is open; the run is paced in real time"
@@ -416,6 +418,28 @@ def _progress_bar(command: str):
     return progress
 
 
+def _scenes_epilog() -> str:
+    """The shipped and registered scenes, one line each with its description, for `run --help`."""
+    import tomllib
+
+    from softproxy.scene import list_scenes
+
+    lines = ["scenes:"]
+    for path in list_scenes():
+        try:
+            description = tomllib.loads(path.read_text()).get("scene", {}).get("description", "")
+        except (OSError, tomllib.TOMLDecodeError):
+            description = "(cannot be read)"
+        lines.append(f"  {path.stem:<18} {description}")
+    return "\n".join(lines)
+
+
+def _device_types() -> list[str]:
+    from softproxy.run import device_types
+
+    return device_types()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="softproxy", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -425,10 +449,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=cmd_models)
 
-    p = sub.add_parser("run", help="run a scene (e.g. two_finger_grasp) on a device")
-    p.add_argument("scene", help="scene name or path to its .toml")
+    p = sub.add_parser("run", help="run a scene (e.g. two_finger_grasp) on a device",
+                       epilog=_scenes_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scene", help="scene name (listed below) or path to its .toml")
     p.add_argument("--device", default="sim",
-                   help="device: sim (the scene's scripted device, default) or replay:FILE (a recording)")
+                   help="device: sim (the scene's scripted device, default), replay:FILE (a recording), "
+                        "hid or hid:PROFILE (a HID device; `softproxy devices` lists them and the profiles), "
+                        "or another installed type (installed: " + ", ".join(_device_types()) + ")")
     p.add_argument("--record", metavar="FILE", default=None, help="stream every device sample to FILE as the run goes (replay it with --device replay:FILE)")
     p.add_argument("--faults", metavar="SPEC", default=None,
                    help="inject device faults (sim): e.g. nan=0.01,drop=0.001,spike=0.001,stall=0.0005 (per read)")

@@ -53,6 +53,32 @@ def check_device_fingers(scene: Scene, device: Device, label: str) -> None:
             raise SceneError(f"{label} drives {device.fingers} finger(s), but scene {scene.name!r} ({scene.path}) has "
                              f"finger {params.name!r} on device finger {params.device_finger}: use a device (or a "
                              f"recording) with at least {params.device_finger + 1}, or a scene with fewer fingers")
+    header = getattr(device, "header", None)  # a recording: every recorded finger must drive one of the scene's
+    if isinstance(header, dict):
+        used = {params.device_finger for params in scene.fingers}
+        unused = [i for i in range(device.fingers) if i not in used]
+        if unused:
+            made = f" (recorded in scene {header['scene']!r})" if isinstance(header.get("scene"), str) else ""
+            raise SceneError(f"{label} holds {device.fingers} finger(s){made}, but scene {scene.name!r} "
+                             f"({scene.path}) drives none from recorded finger(s) {', '.join(map(str, unused))}: "
+                             f"replay it into a scene with a finger on each")
+
+
+def replay_notes(scene: Scene, device: Device, rate_hz: float) -> list[str]:
+    """What differs between a recording and the scene and rate it is replayed at (one line
+    each; empty for a device that is no recording): a replay into another scene or at another
+    rate is allowed, it only replays a different experiment."""
+    header = getattr(device, "header", None)
+    if not isinstance(header, dict):
+        return []
+    notes = []
+    made_in = header.get("scene")
+    if isinstance(made_in, str) and made_in != scene.name:
+        notes.append(f"the recording was made in scene {made_in!r}, replayed into {scene.name!r}")
+    made_at = header.get("rate_hz")
+    if isinstance(made_at, (int, float)) and made_at != rate_hz:
+        notes.append(f"the recording was made at {made_at:g} Hz, replayed at {rate_hz:g} Hz: one recorded read per tick")
+    return notes
 
 
 def check_run(duration_s: float, rate_hz: float) -> None:

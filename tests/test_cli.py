@@ -44,3 +44,17 @@ def test_tactile_and_calibrate_print_json(tmp_path):
 def test_devices_lists_profiles():
     text = run_cli("devices")
     assert "spacemouse" in text and "open_haptic" in text
+
+
+def test_run_help_lists_every_scene_with_its_description():
+    """`softproxy run --help` names each scene it can run, so a user need not look in the folder."""
+    from softproxy.scene import list_scenes
+
+    text = run_cli("run", "--help")
+    listed = text[text.index("scenes:"):]
+    scenes = list_scenes()
+    assert scenes
+    for path in scenes:
+        line = next((l for l in listed.splitlines() if l.split()[:1] == [path.stem]), None)
+        assert line is not None, path.stem
+        assert len(line.split(None, 1)) == 2  # a description follows the name

@@ -125,6 +125,36 @@ def test_a_recording_with_fewer_fingers_than_the_scene_is_refused(capsys, no_loo
                    [str(one_finger_recording), "drives 1 finger", "two_finger_grasp.toml", "'left'", "at least 2"])
 
 
+@pytest.fixture(scope="module")
+def two_finger_recording(tmp_path_factory):
+    """A recording of the two-finger grasp (a real, short run)."""
+    path = tmp_path_factory.mktemp("rec") / "grasp.rec"
+    assert cli.main(["run", "two_finger_grasp", "--headless", "--duration", "0.02", "--record", str(path)]) == 0
+    return path
+
+
+def test_a_recording_with_more_fingers_than_the_scene_drives_is_refused(capsys, no_loop, two_finger_recording):
+    """Replaying the two-finger grasp into the one-finger knob would drop a recorded finger
+    and render nothing from it: refused, naming the recording, the scene it was made in and
+    the finger left over."""
+    one_line_error(capsys, ["run", "knob", "--headless", "--device", f"replay:{two_finger_recording}"],
+                   [str(two_finger_recording), "holds 2 finger", "'two_finger_grasp'", "'knob'", "finger(s) 1"])
+
+
+def test_a_replay_at_another_rate_or_into_another_scene_is_noted(capsys, two_finger_recording, tmp_path):
+    """A replay that differs from how it was recorded runs, with one note per difference."""
+    other = grasp_variant(tmp_path)
+    assert cli.main(["run", other, "--headless", "--rate", "500", "--duration", "0.01",
+                     "--device", f"replay:{two_finger_recording}"]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "note:" in line]
+    assert len(notes) == 2, notes
+    assert "made in scene 'two_finger_grasp', replayed into 'grasp'" in notes[0]
+    assert "1000 Hz, replayed at 500 Hz" in notes[1]
+    assert cli.main(["run", "two_finger_grasp", "--headless", "--duration", "0.01",
+                     "--device", f"replay:{two_finger_recording}"]) == 0
+    assert "note:" not in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(
     "toml, xml, words",
     [
