@@ -144,7 +144,9 @@ def validate_mesh(vertices, faces, name: str, warn: bool = True) -> tuple[np.nda
 class MeshShape(Shape):
     """A mesh geom's triangles, repaired, and the tables the engine's mesh queries read.
 
-    `MeshShape(model, data, geom, static)` like the primitives; `shading=True` asks the
+    `MeshShape(model, data, geom, static)` like the primitives, on the triangles of the geom's
+    mesh asset; `triangles=(vertices (n, 3), faces (m, 3))` gives them instead (geom frame, m;
+    any geom: a height field's surface, a mesh's convex hull). `shading=True` asks the
     queries for the normal interpolated from the vertex normals over a face (force shading)
     instead of the faceted one; the sweep still stops on the true triangles. `World` uses it
     for every mesh geom; pass `mesh_shape=MeshShape` to `shapes_of` (`functools.partial(
@@ -162,16 +164,20 @@ class MeshShape(Shape):
     )
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
-                 shading: bool = False) -> None:
+                 shading: bool = False, triangles=None) -> None:
         super().__init__(model, data, geom, static)
-        mesh = int(model.geom_dataid[geom])
-        if int(model.geom_type[geom]) != int(mujoco.mjtGeom.mjGEOM_MESH) or mesh < 0:
-            raise ValueError(f"geom {self.name!r} is not a mesh geom")
-        va, vn = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
-        fa, fn = int(model.mesh_faceadr[mesh]), int(model.mesh_facenum[mesh])
-        vertices = np.array(model.mesh_vert[va:va + vn], dtype=np.float64)
-        faces = np.array(model.mesh_face[fa:fa + fn], dtype=np.int64)
-        label = _label(model, geom, mesh, self.name)
+        if triangles is None:
+            mesh = int(model.geom_dataid[geom])
+            if int(model.geom_type[geom]) != int(mujoco.mjtGeom.mjGEOM_MESH) or mesh < 0:
+                raise ValueError(f"geom {self.name!r} is not a mesh geom: give its triangles=(vertices, faces)")
+            va, vn = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
+            fa, fn = int(model.mesh_faceadr[mesh]), int(model.mesh_facenum[mesh])
+            vertices = np.array(model.mesh_vert[va:va + vn], dtype=np.float64)
+            faces = np.array(model.mesh_face[fa:fa + fn], dtype=np.int64)
+            label = _label(model, geom, mesh, self.name)
+        else:
+            vertices, faces = _explicit(triangles, self.name)
+            label = f"'triangles' (geom {self.name!r})"
         vertices, faces, self.defects, self.signed = _clean(vertices, faces, label, warn=True)
         self.shading = bool(shading)
         self.triangles = len(faces)
@@ -365,6 +371,21 @@ class MeshShape(Shape):
         head = np.arange(len(k)) - start[k] <= VERTEX_READ
         k, w, sines = k[head], w[head], sines[head]
         return (radius, np.searchsorted(k, np.arange(len(vertices) + 1)), sines, w)
+
+
+def _explicit(triangles, geom_name: str) -> tuple[np.ndarray, np.ndarray]:
+    """`MeshShape(..., triangles=(vertices, faces))` read as (n, 3) float and (m, 3) int arrays."""
+    try:
+        vertices, faces = triangles
+        vertices = np.array(vertices, dtype=np.float64).reshape(-1, 3)
+        faces = np.array(faces).reshape(-1, 3)
+    except (TypeError, ValueError):
+        raise ValueError(f"geom {geom_name!r}: triangles must be (vertices (n, 3) in m, faces (m, 3) "
+                         "vertex indices)") from None
+    if faces.size and not np.issubdtype(faces.dtype, np.integer):
+        if not np.array_equal(faces, np.round(faces)):
+            raise ValueError(f"geom {geom_name!r}: triangles' faces must be integer vertex indices")
+    return vertices, faces.astype(np.int64)
 
 
 def _label(model: mujoco.MjModel, geom: int, mesh: int, geom_name: str) -> str:
