@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks import stability
+from . import stability
 from softproxy.cells import Backend, run_cells, start_ray, stop_ray
 from softproxy.example_recordings import generate
 from softproxy.replay_batch import run_batch

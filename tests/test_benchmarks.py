@@ -70,7 +70,7 @@ def test_tradeoff_bench(tmp_path):
 def test_godobject_bench_times_every_situation_without_penetration():
     """`softproxy bench godobject` in miniature: every situation is timed, the proxy touches
     what it should (free space never, the pressed ones always) and never goes inside."""
-    from benchmarks import godobject
+    from softproxy.benchmarks import godobject
 
     result = godobject.measure(updates=40, warm=40)
     rows = {r["situation"]: r for r in result["rows"]}

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from benchmarks import stability
+from softproxy.benchmarks import stability
 from softproxy import cli
 from softproxy.cells import Backend, BackendError, run_cells
 
@@ -160,7 +160,7 @@ def test_local_ray_is_its_own(tmp_path):
     pytest.importorskip("ray")
     import subprocess
 
-    script = ("from softproxy.cells import Backend, run_cells; from benchmarks import stability; "
+    script = ("from softproxy.cells import Backend, run_cells; from softproxy.benchmarks import stability; "
               f"out = run_cells(stability.cell, {WALL[:2]!r}, Backend(ray='')); "
               "print(all(o.ok for o in out))")
     env = {**os.environ, "RAY_ADDRESS": "127.0.0.1:1"}
