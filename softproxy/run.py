@@ -102,7 +102,7 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     The fingers whose scene entry asks for `tactile` or `sensing` get their channels in
     `loop.sensors` (softproxy.fingertip_sensors); no other finger costs the tick anything.
     """
-    world = World(scene.load_model(), force_shading=scene.force_shading)
+    world = World(scene.load_model(), **scene.world_options())
     fingers = []
     for params in scene.fingers:
         if finger_model is not None:

@@ -20,12 +20,17 @@ A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked
                          "quantise"), seed (0), pad, distal, history
                        a finger's table is merged over [finger_defaults]'s; false turns it off
     [device]           handed as is to the device named by its `type` (e.g. "sim")
+    [haptics]          what the fingers touch (docs/models.md): exclude (geom or flex names) and
+                         exclude_groups (geom groups 0-5) kept out of haptic contact, still in
+                         MuJoCo's physics; mesh_surface ("true": a mesh's own triangles;
+                         "hull": the convex hull MuJoCo collides it with)
 
 Scenes are found by name in the folders registered under the `softproxy.scene_dirs` entry
 point (the shipped `scenes/` folder), or given as a path. Every error names the file, the
 field and what was expected. `Scene.load_model` also checks the MJCF against what the servo
 loop can run: no RK4 integrator (the loop steps MuJoCo in two halves), no touchable geom of a
-type the fingers cannot touch (height fields, SDFs), a `[measure]` object that is a body.
+type the fingers cannot touch (SDFs) unless [haptics] excludes it, [haptics] names that are
+geoms or flexes of the model, a `[measure]` object that is a body.
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ import mujoco
 from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
 from softproxy.fingertip_sensors import SensingSpec, TactileSpec
-from softproxy.geometry import SHAPES, touchable
+from softproxy.geometry import GEOM_GROUPS, MESH_SURFACES, exclusions, unsupported_geoms, unsupported_message
 from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ
 
 """Servo rates a run accepts, Hz (what `ServoLoop` can run)."""
@@ -52,6 +57,7 @@ taken for a mistake (a run's recording and video grow with its length)."""
 
 _SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit", "force_shading"}
 _MEASURE_KEYS = {"object", "axis", "start_s"}
+_HAPTICS_KEYS = {"exclude", "exclude_groups", "mesh_surface"}
 _FINGER_KEYS = {f.name for f in dataclasses.fields(FingerParams)}
 _OPTION_SPECS = {"tactile": TactileSpec, "sensing": SensingSpec}
 _OPTION_KEYS = {name: {f.name for f in dataclasses.fields(spec)} for name, spec in _OPTION_SPECS.items()}
@@ -88,6 +94,14 @@ class Scene:
     measure: MeasureSpec | None = None
     tactile: list[TactileSpec | None] = field(default_factory=list)  # per finger; None = off
     sensing: list[SensingSpec | None] = field(default_factory=list)  # per finger; None = off
+    exclude: tuple[str, ...] = ()         # geoms / flexes kept out of haptic contact, by name
+    exclude_groups: tuple[int, ...] = ()  # ... and by geom group
+    mesh_surface: str = "true"            # "true" | "hull": what a mesh feels like
+
+    def world_options(self) -> dict:
+        """The keyword arguments of `World` this scene asks for (force shading, exclusions, mesh surface)."""
+        return {"force_shading": self.force_shading, "exclude": self.exclude, "exclude_groups": self.exclude_groups,
+                "mesh_surface": self.mesh_surface}
 
     def load_model(self) -> mujoco.MjModel:
         """Compile the scene's MJCF and check that the servo loop can run it (see the module
@@ -105,17 +119,13 @@ class Scene:
             raise SceneError(f'{self.mjcf}: integrator "RK4" cannot run in the servo loop, which steps MuJoCo '
                              f'in two halves (RK4 has no split step): use <option integrator="implicitfast"/> '
                              f'(or "Euler")')
-        unsupported = []
-        for g in range(model.ngeom):
-            gtype = int(model.geom_type[g])
-            if touchable(model, g) and gtype not in SHAPES and gtype != int(mujoco.mjtGeom.mjGEOM_MESH):
-                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
-                kind = mujoco.mjtGeom(gtype).name.removeprefix("mjGEOM_").lower()
-                unsupported.append(f"{name!r} ({kind})" if name else f"#{g} ({kind})")
+        try:
+            excluded, _ = exclusions(model, self.exclude, self.exclude_groups)
+        except ValueError as exc:
+            raise SceneError(f"{self.path}: [haptics] {exc} ({self.mjcf.name})") from None
+        unsupported = unsupported_geoms(model, excluded)
         if unsupported:
-            raise SceneError(f"{self.mjcf}: the fingers cannot touch geom(s) {', '.join(unsupported)} yet; to keep "
-                             f'such geoms in the scene set contype="0" conaffinity="0" on each (then nothing '
-                             f"collides with them, in MuJoCo either)")
+            raise SceneError(f"{self.mjcf}: {unsupported_message(model, unsupported, scene=True)} ({self.path.name})")
         if self.measure is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, self.measure.object) < 0:
             bodies = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(1, model.nbody)]
             named = [b for b in bodies if b]
@@ -256,6 +266,23 @@ def _finger(where: str, defaults: dict, entry: dict, index: int) -> tuple[Finger
         raise SceneError(f"{where}: finger[{index}]: {exc}") from None
 
 
+def _haptics(where: str, table: dict, scene: Scene) -> None:
+    """The [haptics] table into `scene` (names are checked against the model by `load_model`)."""
+    names = table.get("exclude", [])
+    if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names):
+        raise SceneError(f'{where}: haptics.exclude must be a list of geom or flex names, e.g. ["ring"], got {names!r}')
+    groups = table.get("exclude_groups", [])
+    if not isinstance(groups, list) or not all(
+            isinstance(g, int) and not isinstance(g, bool) and 0 <= g < GEOM_GROUPS for g in groups):
+        raise SceneError(f"{where}: haptics.exclude_groups must be a list of geom groups "
+                         f"(integers 0 to {GEOM_GROUPS - 1}), got {groups!r}")
+    surface = table.get("mesh_surface", "true")
+    if surface not in MESH_SURFACES:
+        raise SceneError(f"{where}: haptics.mesh_surface must be one of {', '.join(map(repr, MESH_SURFACES))} "
+                         f"(a mesh's own triangles, or the convex hull MuJoCo collides with), got {surface!r}")
+    scene.exclude, scene.exclude_groups, scene.mesh_surface = tuple(names), tuple(groups), surface
+
+
 def load_scene(name_or_path: str) -> Scene:
     """Read and validate a scene (the MJCF is compiled later, by `Scene.load_model`)."""
     path = find_scene(name_or_path)
@@ -266,7 +293,7 @@ def load_scene(name_or_path: str) -> Scene:
         raise SceneError(f"{where}: not valid TOML: {exc}") from None
     except RecursionError:  # tomllib parses nested arrays and inline tables recursively
         raise SceneError(f"{where}: not valid TOML: arrays or tables nested too deeply") from None
-    unknown = set(doc) - {"scene", "measure", "finger_defaults", "finger", "device"}
+    unknown = set(doc) - {"scene", "measure", "finger_defaults", "finger", "device", "haptics"}
     if unknown:
         raise SceneError(f"{where}: unknown table(s) {sorted(unknown)}")
     s = _table(where, doc, "scene", _SCENE_KEYS)
@@ -293,6 +320,7 @@ def load_scene(name_or_path: str) -> Scene:
     scene.tactile = [p[1] for p in parsed]
     scene.sensing = [p[2] for p in parsed]
     scene.device = _table(where, doc, "device", None)
+    _haptics(where, _table(where, doc, "haptics", _HAPTICS_KEYS), scene)
     if "measure" in doc:
         g = _table(where, doc, "measure", _MEASURE_KEYS)
         axis = g.get("axis", [1.0, 0.0, 0.0])

@@ -23,19 +23,24 @@ class World:
     """A MuJoCo model and data plus the shapes the fingers touch. SI units, world frame."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData | None = None, mesh_shape=None,
-                 force_shading: bool = False) -> None:
+                 force_shading: bool = False, *, exclude=(), exclude_groups=(), mesh_surface: str = "true") -> None:
         """`force_shading`: mesh contacts report the normal interpolated from the vertex normals
-        (smooth feel of a faceted surface); the proxy still stops on the true triangles."""
+        (smooth feel of a faceted surface); the proxy still stops on the true triangles.
+        `exclude` (geom or flex names), `exclude_groups` (geom groups 0-5): kept out of haptic
+        contact, still in MuJoCo's physics. `mesh_surface`: "true" (a mesh's own triangles) or
+        "hull" (the convex hull MuJoCo collides with). See `softproxy.geometry.shapes_of`."""
         if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
             raise ValueError("the servo loop steps MuJoCo in two halves; RK4 cannot: use Euler or implicitfast")
         self.model = model
         self.data = data if data is not None else mujoco.MjData(model)
         mujoco.mj_forward(self.model, self.data)
-        if mesh_shape is None and any(int(t) == int(mujoco.mjtGeom.mjGEOM_MESH) for t in model.geom_type):
+        meshes = (int(mujoco.mjtGeom.mjGEOM_MESH), int(mujoco.mjtGeom.mjGEOM_HFIELD))
+        if mesh_shape is None and force_shading and any(int(t) in meshes for t in model.geom_type):
             from softproxy.mesh import MeshShape  # trimesh is imported only for scenes with meshes
 
-            mesh_shape = functools.partial(MeshShape, shading=True) if force_shading else MeshShape
-        self.shapes: ShapeSet = shapes_of(model, self.data, mesh_shape)
+            mesh_shape = functools.partial(MeshShape, shading=True)
+        self.shapes: ShapeSet = shapes_of(model, self.data, mesh_shape, exclude=exclude,
+                                          exclude_groups=exclude_groups, mesh_surface=mesh_surface)
         # this tick's wrench per body: force (N) and moment about the world origin (N·m), so a
         # push needs no body position; the bodies touched this tick and pushed last tick
         # (rows of `bodies`, lengths in `counts`), and those welded to the world (never pushed)

@@ -687,11 +687,13 @@ def test_bad_parameters():
 
 
 def test_unsupported_geom_is_named():
-    xml = ('<mujoco><asset><hfield name="h" nrow="3" ncol="3" size="1 1 .1 .1"/></asset>'
-           '<worldbody><geom name="terrain" type="hfield" hfield="h"/></worldbody></mujoco>')
+    xml = ('<mujoco><extension><plugin plugin="mujoco.sdf.torus"><instance name="torus">'
+           '<config key="radius1" value="0.1"/><config key="radius2" value="0.03"/></instance></plugin></extension>'
+           '<asset><mesh name="torus"><plugin instance="torus"/></mesh></asset><worldbody>'
+           '<geom name="terrain" type="sdf" mesh="torus"><plugin instance="torus"/></geom></worldbody></mujoco>')
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
-    with pytest.raises(ValueError, match="terrain.*hfield"):
+    with pytest.raises(ValueError, match="terrain.*sdf"):
         shapes_of(m, d)
 
 

@@ -78,11 +78,14 @@ def test_unknown_scene_lists_the_known_ones():
         load_scene("no_such_scene")
 
 
-HFIELDS = """<mujoco><asset><hfield name="hf" nrow="4" ncol="4" size="0.1 0.1 0.01 0.01"/></asset><worldbody>
+SDFS = """<mujoco><extension><plugin plugin="mujoco.sdf.torus"><instance name="torus"><config key="radius1" value="0.1
+  "/><config key="radius2" value="0.03"/></instance></plugin></extension>
+  <asset><mesh name="torus"><plugin instance="torus"/></mesh></asset><worldbody>
   <geom name="floor" type="plane" size="1 1 .1"/>
-  <geom name="hill" type="hfield" hfield="hf" pos="0.3 0 0"/>
-  <geom name="dune" type="hfield" hfield="hf" pos="-0.3 0 0"/>
-  <geom name="backdrop" type="hfield" hfield="hf" pos="0 0.3 0" contype="0" conaffinity="0"/>
+  <geom name="hill" type="sdf" mesh="torus" pos="0.3 0 0"><plugin instance="torus"/></geom>
+  <geom name="dune" type="sdf" mesh="torus" pos="-0.3 0 0"><plugin instance="torus"/></geom>
+  <geom name="backdrop" type="sdf" mesh="torus" pos="0 0.3 0" contype="0" conaffinity="0">
+    <plugin instance="torus"/></geom>
 </worldbody></mujoco>"""
 
 
@@ -91,15 +94,16 @@ HFIELDS = """<mujoco><asset><hfield name="hf" nrow="4" ncol="4" size="0.1 0.1 0.
     [
         (GOOD, GOOD_XML.replace("<worldbody>", '<option integrator="RK4"/><worldbody>'),
          ["w.xml", "RK4", "implicitfast"], []),
-        (GOOD, HFIELDS, ["w.xml", "'hill' (hfield)", "'dune' (hfield)", 'contype="0" conaffinity="0"'], ["backdrop"]),
+        (GOOD, SDFS, ["w.xml", "'hill' (sdf)", "'dune' (sdf)", 'exclude = ["hill", "dune"]', "[haptics]"],
+         ["backdrop"]),
         (GOOD + '\n[measure]\nobject = "box"\n', GOOD_XML.replace("</worldbody>", '<body name="lid"/></worldbody>'),
          ["s.toml", "measure.object", "'box'", "lid"], []),
     ],
-    ids=["rk4", "height-fields", "measured-body"],
+    ids=["rk4", "sdfs", "measured-body"],
 )
 def test_a_model_the_loop_cannot_run_is_refused_at_load(tmp_path, toml, xml, words, absent):
     """An MJCF the servo loop cannot run is a SceneError from load_model, naming the file, every
-    culprit and the fix (RK4 has no split step; a touchable height field; a measured body the
+    culprit and the fix (RK4 has no split step; a touchable SDF; a measured body the
     model lacks); geoms kept out of contact are not culprits."""
     scene = load_scene(write(tmp_path, toml, xml=xml))
     with pytest.raises(SceneError) as err:

@@ -1049,21 +1049,23 @@ def test_a_world_without_meshes_has_no_mesh_tables(scene):
 
 
 def test_unsupported_geoms_are_refused_naming_them():
-    """A touchable geom of a type fingers cannot touch (height field) is refused by `shapes_of`
-    with one line naming it (by name, or #index) and the fix; made untouchable it is skipped.
+    """A touchable geom of a type fingers cannot touch (SDF) is refused by `shapes_of` with one
+    line naming it (by name, or #index) and the fix (exclude it); made untouchable it is skipped.
     A ShapeSet refuses a Shape of no supported type, naming it."""
-    hfield = ('<mujoco><asset><hfield name="terrain" nrow="3" ncol="3" size="1 1 .1 .1"/></asset>'
-              '<worldbody><geom type="plane" size="1 1 .1"/>{}</worldbody></mujoco>')
-    for geom, name in (('<geom name="ground" type="hfield" hfield="terrain"/>', "'ground'"),
-                       ('<geom type="hfield" hfield="terrain"/>', "'#1'")):
-        m = mujoco.MjModel.from_xml_string(hfield.format(geom))
+    sdf = ('<mujoco><extension><plugin plugin="mujoco.sdf.torus"><instance name="torus">'
+           '<config key="radius1" value="0.1"/><config key="radius2" value="0.03"/></instance></plugin></extension>'
+           '<asset><mesh name="torus"><plugin instance="torus"/></mesh></asset>'
+           '<worldbody><geom type="plane" size="1 1 .1"/>{}</worldbody></mujoco>')
+    for geom, name in (('<geom name="ground" type="sdf" mesh="torus"><plugin instance="torus"/></geom>', "'ground'"),
+                       ('<geom type="sdf" mesh="torus"><plugin instance="torus"/></geom>', "#1")):
+        m = mujoco.MjModel.from_xml_string(sdf.format(geom))
         d = mujoco.MjData(m)
         with pytest.raises(ValueError) as err:
             shapes_of(m, d)
         message = str(err.value)
-        assert "\n" not in message and name in message and "hfield" in message and 'contype="0"' in message
-    m = mujoco.MjModel.from_xml_string(hfield.format(
-        '<geom name="ground" type="hfield" hfield="terrain" contype="0" conaffinity="0"/>'))
+        assert "\n" not in message and name in message and "sdf" in message and "exclude" in message
+    m = mujoco.MjModel.from_xml_string(sdf.format(
+        '<geom name="ground" type="sdf" mesh="torus" contype="0" conaffinity="0"><plugin instance="torus"/></geom>'))
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     shapes = shapes_of(m, d)

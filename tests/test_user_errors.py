@@ -160,10 +160,13 @@ def test_a_replay_at_another_rate_or_into_another_scene_is_noted(capsys, two_fin
     [
         ([('object = "box"', 'object = "lid"')], [], ["grasp.toml", "measure.object", "'lid'", "box"]),
         ([], [('integrator="implicitfast"', 'integrator="RK4"')], ["grasp.xml", "RK4", "implicitfast"]),
-        ([], [("<asset>", '<asset><hfield name="hf" nrow="4" ncol="4" size="0.1 0.1 0.01 0.01"/>'),
-              ('<geom name="floor"', '<geom name="hill" type="hfield" hfield="hf" pos="0.3 0.3 0"/>'
-                                     '<geom name="dune" type="hfield" hfield="hf" pos="-0.3 0.3 0"/><geom name="floor"')],
-         ["grasp.xml", "'hill' (hfield)", "'dune' (hfield)", 'contype="0" conaffinity="0"']),
+        ([], [("<asset>", '<extension><plugin plugin="mujoco.sdf.torus"><instance name="torus">'
+                          '<config key="radius1" value="0.1"/><config key="radius2" value="0.03"/></instance>'
+                          '</plugin></extension><asset><mesh name="torus"><plugin instance="torus"/></mesh>'),
+              ('<geom name="floor"', '<geom name="hill" type="sdf" mesh="torus" pos="0.3 0.3 0">'
+                                     '<plugin instance="torus"/></geom><geom name="dune" type="sdf" mesh="torus" '
+                                     'pos="-0.3 0.3 0"><plugin instance="torus"/></geom><geom name="floor"')],
+         ["grasp.xml", "'hill' (sdf)", "'dune' (sdf)", 'exclude = ["hill", "dune"]']),
         ([("[measure]", "deep = " + "[" * 5000 + "]" * 5000 + "\n[measure]")], [], ["grasp.toml", "nested too deeply"]),
         ([("device_finger = 0", "device_finger = 0\ntactile = { cells = 100000 }")], [],
          ["grasp.toml", "finger[0].tactile", "cells", "64"]),
@@ -177,7 +180,7 @@ def test_a_replay_at_another_rate_or_into_another_scene_is_noted(capsys, two_fin
         ([("max_torque_Nm = 1.0", "max_torque_Nm = 1.0\nfaults = { nan = 7 }")], [], ["grasp.toml", "device.faults.nan"]),
         ([("[[device.finger]]", "[[device.fingerz]]")], [], ["grasp.toml", "device"]),
     ],
-    ids=["measured-body", "rk4", "height-fields", "deep-toml", "tactile-cells", "sensing-rate", "tactile-history",
+    ids=["measured-body", "rk4", "sdfs", "deep-toml", "tactile-cells", "sensing-rate", "tactile-history",
          "duration", "rate", "device-field", "device-faults", "device-fingers"],
 )
 def test_a_scene_mistake_names_the_file_and_field(capsys, no_loop, tmp_path, toml, xml, words):
