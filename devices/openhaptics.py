@@ -1,0 +1,557 @@
+"""3D Systems Touch / Touch X (and other OpenHaptics HD devices) through the pyOpenHaptics binding.
+
+`OpenHapticsDevice` implements `softproxy.device.Device` for one finger over pyOpenHaptics
+(`pip install 'softproxy[openhaptics]'`, plus the OpenHaptics SDK's libHD and the device
+driver): `HapticDevice(callback=..., device_name=...)`, the `hd` module's `get_transform`,
+`get_gimbals`, `get_buttons`, `set_force`, and the `hd_callback` decorator. The binding is
+imported only when a device is opened; tests hand in a fake (`binding=`, tests/fake_openhaptics.py).
+
+Servo model: OpenHaptics runs its own scheduler thread at 1 kHz and calls the application
+back inside a haptic frame; forces may only be set there. The servo tick does NOT run inside
+that callback: the servo loop keeps its own clock and thread (real-time pacing, compiled
+blocks, the overrun watchdog, zero force on every way out), and a tick - MuJoCo included -
+can take longer than the scheduler's 1 ms budget, which would make the scheduler miss its
+frames. Instead the two exchange values without ever waiting for each other, through two
+latest-value slots, each one tuple replaced by a single reference assignment (atomic in
+Python; no lock, so neither side blocks on the other beyond the interpreter lock a Python
+callback needs anyway):
+* the callback reads the pose, gimbal angles and buttons and publishes them, stamped with
+  its clock, in `_latest`; `read` takes the newest one (stale after `stale_ms`: invalid);
+* `send` publishes the force, stamped, in `_command`; the callback renders it only while the
+  device is armed (a valid sample since the last failure) and the command is younger than
+  `command_timeout_ms` (50 ms): a servo loop that stops sending - stalled, crashed, killed
+  between ticks - leaves zero force, not its last force, on the device.
+The callback never raises (an exception inside it would end its scheduling): what goes wrong
+there is recorded, the force zeroed, and `read` reports it.
+
+The interpreter lock. pyOpenHaptics' callback is Python: it needs the lock, and the servo
+loop holds it while it ticks and while its compiled pacing spins. Left alone the callback gets
+in only when the loop's Python code notices a waiting thread (every 5 ms): measured with the
+fake scheduler at 1 kHz beside a paced 1 kHz loop on a 2-core machine, it ran about 100 times
+a second. So `read` hands the lock over once per tick (`yield_gil`, a `time.sleep(0)`): the
+callback then ran 1000 times a second (once per tick), for a tick median about 3x longer (the
+callback's own work now falls inside the tick) on that machine, loaded.
+
+Frames and units. OpenHaptics reports millimetres in its frame - x right, y up, z towards the
+operator - and a column-major 4x4 transform; the engine's workspace frame is z up with the
+operator looking along +y: x_engine = x_hd, y_engine = -z_hd, z_engine = y_hd
+(`DEVICE_TO_ENGINE`). Positions are converted to metres, scaled by `workspace_scale` and
+offset by `workspace_offset` (m), as HID profiles do; the stylus orientation is rotated into
+the engine frame (reference pose: identity); the twist is the stylus roll, the third gimbal
+angle (rad). Forces (N) go back through the transpose. The Touch renders force only (3 DOF):
+`max_torque` is 0, torques are dropped.
+
+Limits. `max_force` defaults to the device's nominal maximum continuous force as the SDK
+reports it (HD_NOMINAL_MAX_CONTINUOUS_FORCE, read through the binding's `_get_doublev`), and
+may be raised up to its nominal maximum force (HD_NOMINAL_MAX_FORCE) for short contacts;
+when the SDK gives neither, MODEL_LIMITS (3D Systems' specifications) by model name.
+
+Failure and recovery (as `devices/hid.py`): an exception from the binding, the callback's
+error, or no sample from the scheduler for FAIL_AFTER_S (an HD error ends the callback's
+scheduling) is a failure: `read` raises DeviceError naming the device, the command is zeroed
+and the device disarmed (the callback renders zero). While failed, every REOPEN_INTERVAL_S of
+its clock the device is closed (scheduler stopped, device disabled) and opened again; the
+failure ends when the callback runs again, and forces render again after a valid sample.
+`close()` disarms and zeroes the command, waits (at most CLOSE_WAIT_S) for the callback to
+render zero, then stops the scheduler and disables the device; it never raises.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import importlib
+import io
+import math
+import time
+import types
+
+from softproxy.device import DeviceError, DeviceSample
+
+NAME = "OpenHaptics"
+INSTALL_HINT = "pip install 'softproxy[openhaptics]'"
+SDK_HINT = ("install the OpenHaptics SDK for your platform and the Touch device driver from 3D Systems "
+            "(libHD.so must be on the library path, e.g. /usr/lib)")
+REOPEN_INTERVAL_S = 0.2
+"""While failed, the device is closed and opened again every this many seconds of its clock."""
+FAIL_AFTER_S = 0.1
+"""No sample from the scheduler for this long (s) is a failure: its callback is no longer scheduled."""
+CLOSE_WAIT_S = 0.05
+"""Longest `close()` waits for the callback to render zero force before stopping the scheduler."""
+DEVICE_TO_ENGINE = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
+"""Rows: the engine's x, y, z in OpenHaptics' frame (x right, y up, z towards the operator)."""
+HD_NOMINAL_MAX_FORCE, HD_NOMINAL_MAX_CONTINUOUS_FORCE = 0x2603, 0x2604
+"""hdGetDoublev parameters (hd_define), used when the binding does not export them."""
+
+# model name (lower case, as hdGetString(HD_DEVICE_MODEL_TYPE) says it) -> (peak N, continuous N);
+# 3D Systems' specifications: Touch 3.3 N peak, 0.88 N continuous; Touch X 7.9 N, 1.75 N; their
+# predecessors the PHANTOM Omni and Desktop alike.
+MODEL_LIMITS = {
+    "touch x": (7.9, 1.75),
+    "phantom desktop": (7.9, 1.75),
+    "touch": (3.3, 0.88),
+    "phantom omni": (3.3, 0.88),
+}
+UNKNOWN_LIMITS = (3.3, 0.88)
+"""A model not in MODEL_LIMITS and no limit from the SDK: the Touch's, the smallest device."""
+
+_CONFIG_KEYS = {"type", "device_name", "workspace_scale", "workspace_offset", "max_force_N", "stale_ms",
+                "command_timeout_ms"}
+
+
+def load_binding():
+    """The binding as a namespace (`hd`, `HapticDevice`, `hd_callback`), or DeviceError (one line)
+    naming what to install. pyOpenHaptics loads libHD when imported (an OSError without it)."""
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            hd = importlib.import_module("pyOpenHaptics.hd")
+            device = importlib.import_module("pyOpenHaptics.hd_device")
+            callback = importlib.import_module("pyOpenHaptics.hd_callback")
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.split(".")[0] == "pyOpenHaptics":
+            raise DeviceError(f"the OpenHaptics binding is not installed: {INSTALL_HINT}") from None
+        raise DeviceError(f"the OpenHaptics binding cannot load ({exc}): {INSTALL_HINT}") from None
+    except (ImportError, OSError, NameError) as exc:  # NameError: the binding knows no libHD for this platform
+        raise DeviceError(f"the OpenHaptics SDK library was not found ({type(exc).__name__}: {exc}): "
+                          f"{SDK_HINT}") from None
+    return types.SimpleNamespace(hd=hd, HapticDevice=device.HapticDevice, hd_callback=callback.hd_callback)
+
+
+def availability(binding=None) -> dict:
+    """What `softproxy devices` reports: binding installed, SDK found (never raises). OpenHaptics
+    cannot enumerate devices without opening one: its devices are the names set in Touch Setup."""
+    row = {"backend": "openhaptics", "binding": False, "sdk": False, "devices": None, "message": ""}
+    if binding is None:
+        try:
+            binding = load_binding()
+        except DeviceError as exc:
+            row["binding"] = "not installed" not in str(exc)
+            row["message"] = str(exc)
+            return row
+    row["binding"] = row["sdk"] = True
+    row["message"] = ("devices are not listed (OpenHaptics opens them by the name set in Touch Setup, "
+                      "\"Default Device\" unless renamed)")
+    return row
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _model_limits(model: str) -> tuple[float, float]:
+    m = model.strip().lower()
+    for name, limits in MODEL_LIMITS.items():  # "touch x" before "touch"
+        if m.startswith(name) or name in m:
+            return limits
+    return UNKNOWN_LIMITS
+
+
+def _quaternion(r) -> tuple | None:
+    """(w, x, y, z) of a rotation matrix (rows), None when it is no rotation (within 1e-3)."""
+    for i in range(3):
+        for j in range(3):
+            d = sum(r[k][i] * r[k][j] for k in range(3)) - (1.0 if i == j else 0.0)
+            if not abs(d) < 1e-3:
+                return None
+    det = (r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+           + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]))
+    if not det > 0.0:
+        return None
+    w = math.sqrt(max(0.0, 1.0 + r[0][0] + r[1][1] + r[2][2])) / 2.0
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + r[0][0] - r[1][1] - r[2][2])) / 2.0, r[2][1] - r[1][2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0][0] + r[1][1] - r[2][2])) / 2.0, r[0][2] - r[2][0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0][0] - r[1][1] + r[2][2])) / 2.0, r[1][0] - r[0][1])
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    return (w / n, x / n, y / n, z / n)
+
+
+class OpenHapticsDevice:
+    """One OpenHaptics device (Touch, Touch X): one finger, 3-DOF force (see the module docstring)."""
+
+    fingers = 1
+    max_torque = 0.0
+
+    def __init__(self, binding=None, *, device_name: str = "Default Device", workspace_scale: float = 1.0,
+                 workspace_offset=(0.0, 0.0, 0.0), max_force: float | None = None, stale_ms: float = 20.0,
+                 command_timeout_ms: float = 50.0, yield_gil: bool = True, clock=time.monotonic,
+                 sleep=time.sleep, label: str | None = None) -> None:
+        """Open the device configured as `device_name` in Touch Setup. `binding`: a namespace with
+        the binding's `hd`, `HapticDevice` and `hd_callback` (a fake in tests); None loads it.
+        `sleep` is how `close()` waits for the scheduler (tests step a fake scheduler in it)."""
+        if not isinstance(device_name, str) or not device_name.strip():
+            raise ValueError(f"device_name must be the name of a device in Touch Setup, got {device_name!r}")
+        if not (_finite(workspace_scale) and workspace_scale > 0):
+            raise ValueError(f"workspace_scale must be a finite number > 0, got {workspace_scale!r}")
+        offset = tuple(workspace_offset)
+        if len(offset) != 3 or not all(_finite(v) for v in offset):
+            raise ValueError(f"workspace_offset must be 3 finite numbers (m), got {workspace_offset!r}")
+        for name, v in (("stale_ms", stale_ms), ("command_timeout_ms", command_timeout_ms)):
+            if not (_finite(v) and 0 < v <= 1000):
+                raise ValueError(f"{name} must be a number of milliseconds in (0, 1000], got {v!r}")
+        self._binding = load_binding() if binding is None else binding
+        self._hd = self._binding.hd
+        self.device_name = device_name
+        self.workspace_scale = float(workspace_scale)
+        self.workspace_offset = tuple(float(v) for v in offset)
+        self.stale_s = stale_ms / 1000.0
+        self.yield_gil = bool(yield_gil)
+        self.command_timeout_s = command_timeout_ms / 1000.0
+        self._clock, self._sleep = clock, sleep
+        self.label = label or f"{NAME} {device_name!r}"
+        self.closed = False
+        self.sends = self.nan_sends = self.invalid_samples = self.stale_samples = 0
+        self.failures = self.reopens = self.recoveries = 0
+        self.callback_ticks = 0      # callbacks run (scheduler thread)
+        self.callback_zeroed = 0     # callbacks that rendered zero because the command was too old
+        self.last_reopen_error = ""
+        self.last_force: tuple | None = None  # the last force the callback set (device frame, N)
+        # the two slots (see the module docstring): replaced whole, never mutated
+        self._latest: tuple | None = None     # (time, x, y, z mm, r00..r22, g0, g1, g2, buttons)
+        self._command: tuple | None = None    # (fx, fy, fz N device frame, time)
+        self._armed = False                   # the callback renders commands only while armed
+        self._callback_error: str | None = None
+        self._fault: str | None = None
+        self._failed = False                  # from a failure to the next valid sample
+        self._ticks_at_fail = 0
+        self._next_reopen = 0.0
+        # the callback as the scheduler calls it; this reference keeps the C function pointer alive
+        self._callback = self._binding.hd_callback(self._servo_callback)
+        self._device = self._open()
+        self._opened_at = self._clock()
+        self.model = self._read_model()
+        peak, continuous = self._read_limits()
+        if max_force is not None and not (_finite(max_force) and 0.0 <= max_force <= peak):
+            self._shutdown()
+            raise ValueError(f"max_force must be a finite number in [0, {peak:g}] ({self.model}'s peak force), "
+                             f"got {max_force!r}")
+        self.peak_force = peak
+        self.max_force = float(continuous if max_force is None else max_force)
+
+    # -- opening and closing -----------------------------------------------------------------
+
+    def _open(self):
+        """A started HapticDevice with our callback scheduled, or DeviceError."""
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # the binding prints as it opens
+                device = self._binding.HapticDevice(callback=self._callback, device_name=self.device_name)
+        except Exception as exc:
+            raise DeviceError(f"cannot open {NAME} device {self.device_name!r}: {type(exc).__name__}: {exc}") from None
+        if getattr(device, "id", None) is None:  # the binding reports a failed hdInitDevice by an id of None
+            self._stop(device)
+            raise DeviceError(f"cannot open {NAME} device {self.device_name!r}: hdInitDevice failed (is it "
+                              "connected, set up in Touch Setup under that name, and readable by you? see docs/devices.md)")
+        return device
+
+    def _stop(self, device) -> None:
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                device.close()  # hdStopScheduler, hdDisableDevice
+        except Exception:
+            pass
+
+    def _read_model(self) -> str:
+        try:
+            model = self._hd.get_model()
+            return model if isinstance(model, str) and model else "unknown model"
+        except Exception:
+            return "unknown model"
+
+    def _read_limits(self) -> tuple[float, float]:
+        """(peak, continuous) force (N): the SDK's nominal figures, else the model table."""
+        table = _model_limits(self.model)
+        get = getattr(self._hd, "_get_doublev", None)
+        found = []
+        for code, name in ((HD_NOMINAL_MAX_FORCE, "HD_NOMINAL_MAX_FORCE"),
+                           (HD_NOMINAL_MAX_CONTINUOUS_FORCE, "HD_NOMINAL_MAX_CONTINUOUS_FORCE")):
+            try:
+                v = float(get(getattr(self._hd, name, code), ctypes.c_double).value)
+            except Exception:
+                v = math.nan
+            found.append(v if math.isfinite(v) and 0.0 < v <= 100.0 else None)
+        peak = found[0] if found[0] is not None else table[0]
+        continuous = found[1] if found[1] is not None else table[1]
+        return peak, min(continuous, peak)
+
+    def _shutdown(self) -> None:
+        self._armed = False
+        self._command = None
+        self._stop(self._device)
+
+    # -- the scheduler's side ----------------------------------------------------------------
+
+    def _servo_callback(self) -> None:
+        """Runs in the OpenHaptics scheduler thread, inside a frame, at 1 kHz. Never raises."""
+        hd = self._hd
+        try:
+            m = hd.get_transform()
+            g = hd.get_gimbals()
+            b = hd.get_buttons()
+            now = self._clock()
+            # column-major: m[3] is the translation, m[c][r] the rotation's row r, column c
+            self._latest = (now, m[3][0], m[3][1], m[3][2], m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1],
+                            m[0][2], m[1][2], m[2][2], g[0], g[1], g[2], b)
+            cmd = self._command
+            if cmd is not None and self._armed and now - cmd[3] <= self.command_timeout_s:
+                force = [cmd[0], cmd[1], cmd[2]]
+            else:
+                if cmd is not None and self._armed:
+                    self.callback_zeroed += 1
+                force = [0.0, 0.0, 0.0]
+            hd.set_force(force)
+            self.last_force = tuple(force)
+            self.callback_ticks += 1
+        except BaseException as exc:  # nothing may escape into the scheduler
+            self._callback_error = f"{type(exc).__name__}: {exc}"
+            try:
+                hd.set_force([0.0, 0.0, 0.0])
+                self.last_force = (0.0, 0.0, 0.0)
+            except BaseException:
+                pass
+
+    # -- failure and recovery ----------------------------------------------------------------
+
+    def _fail(self, why: str) -> DeviceError:
+        """Enter (or stay in) the failed state: disarmed, no command; the DeviceError to raise."""
+        self._armed = False
+        self._command = None
+        if not self._failed:  # working until now (or never a valid sample yet): a new failure
+            self._failed = True
+            self.failures += 1
+            self._next_reopen = self._clock() + REOPEN_INTERVAL_S
+        self._ticks_at_fail = self.callback_ticks
+        plan = f"rendering zero force; reopening every {REOPEN_INTERVAL_S:g} s"
+        if self.last_reopen_error:
+            plan += f" (last reopen: {self.last_reopen_error})"
+        self._fault = f"{self.label}: {why}; {plan}"
+        return DeviceError(self._fault)
+
+    def _try_reopen(self) -> None:
+        self._stop(self._device)
+        self._latest = None
+        self._callback_error = None
+        try:
+            self._device = self._open()
+        except DeviceError as exc:
+            self.last_reopen_error = str(exc)
+            return
+        self._ticks_at_fail = self.callback_ticks
+        self._opened_at = self._clock()
+        self.last_reopen_error = ""
+        self.reopens += 1
+
+    def _recover(self) -> bool:
+        """While failed: reopen when due; True once the callback has run again since (rendering zero)."""
+        now = self._clock()
+        if now >= self._next_reopen:
+            self._next_reopen = now + REOPEN_INTERVAL_S
+            self._try_reopen()
+        if self._callback_error is not None or self.callback_ticks <= self._ticks_at_fail:
+            return False
+        self._fault = None
+        return True
+
+    # -- the Device protocol -----------------------------------------------------------------
+
+    def read(self, t: float, samples: list[DeviceSample]) -> None:
+        if self.closed:
+            raise DeviceError(f"{self.label}: device is closed")
+        if self.yield_gil:
+            time.sleep(0)  # the interpreter lock to the scheduler's callback, once per tick
+        if self._fault is not None and not self._recover():
+            raise DeviceError(self._fault)
+        if self._callback_error is not None:
+            why, self._callback_error = self._callback_error, None
+            raise self._fail(f"failed in the scheduler callback ({why})")
+        now = self._clock()
+        latest = self._latest
+        since = now - (latest[0] if latest is not None else self._opened_at)
+        if since > FAIL_AFTER_S:
+            raise self._fail(f"no sample from the OpenHaptics scheduler for {since * 1000:.0f} ms "
+                             "(an HD error ends its callback)")
+        s = samples[0]
+        s.t = t
+        ok = latest is not None and since <= self.stale_s
+        if latest is not None and not ok:
+            self.stale_samples += 1
+        if ok:
+            ok = self._fill(s, latest)
+        s.valid = ok
+        if not ok:
+            self.invalid_samples += 1
+        elif not self._armed:  # a valid sample arms the device: the first one, and after a failure
+            if self._failed:
+                self._failed = False
+                self.recoveries += 1
+            self._armed = True
+
+    def _fill(self, s: DeviceSample, latest: tuple) -> bool:
+        """The sample from the callback's reading; False when a value is no finite number or the
+        stylus frame no rotation."""
+        try:
+            v = [float(x) for x in latest[1:16]]
+            buttons = latest[16]
+        except (TypeError, ValueError, OverflowError):
+            return False
+        if not all(math.isfinite(x) for x in v):
+            return False
+        m = DEVICE_TO_ENGINE
+        p = [v[0] / 1000.0, v[1] / 1000.0, v[2] / 1000.0]  # mm -> m
+        r = [v[3:6], v[6:9], v[9:12]]
+        mr = [[sum(m[a][k] * r[k][b] for k in range(3)) for b in range(3)] for a in range(3)]
+        q = _quaternion([[sum(mr[a][k] * m[b][k] for k in range(3)) for b in range(3)] for a in range(3)])
+        if q is None:
+            return False
+        k, o = self.workspace_scale, self.workspace_offset
+        s.x, s.y, s.z = (k * (m[j][0] * p[0] + m[j][1] * p[1] + m[j][2] * p[2]) + o[j] for j in range(3))
+        s.qw, s.qx, s.qy, s.qz = q
+        s.twist = v[14]
+        s.buttons = buttons if isinstance(buttons, int) and not isinstance(buttons, bool) and buttons >= 0 else 0
+        return True
+
+    def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
+        if finger != 0:
+            raise DeviceError(f"{self.label} drives one finger (0), not finger {finger!r}")
+        if self.closed:
+            raise DeviceError(f"{self.label}: device is closed")
+        self.sends += 1
+        try:
+            finite = all(math.isfinite(v) for v in (fx, fy, fz))
+        except TypeError:
+            finite = False
+        if not finite:
+            self.nan_sends += 1  # the engine promises never to send this; the motors get zero
+            fx = fy = fz = 0.0
+        if self._fault is not None:
+            raise DeviceError(self._fault)
+        m = DEVICE_TO_ENGINE  # engine -> device: the transpose
+        f = [m[0][j] * fx + m[1][j] * fy + m[2][j] * fz for j in range(3)]
+        n = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+        lim = self.max_force
+        if n > lim:
+            f = [c * (lim / n) for c in f]
+        self._command = (float(f[0]), float(f[1]), float(f[2]), self._clock())  # one assignment: the slot
+
+    def close(self) -> None:
+        """Disarm and zero the command, wait (at most CLOSE_WAIT_S) for the callback to render
+        zero, then stop the scheduler and disable the device. Never raises."""
+        if self.closed:
+            return
+        self.closed = True
+        self._armed = False
+        self._command = None
+        try:
+            ticks, deadline = self.callback_ticks, time.monotonic() + CLOSE_WAIT_S
+            while self.callback_ticks == ticks and time.monotonic() < deadline:
+                self._sleep(0.001)
+        except Exception:
+            pass
+        self._stop(self._device)
+
+    def __enter__(self) -> "OpenHapticsDevice":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def stats(self) -> dict:
+        """Counters of what the device did."""
+        return {name: getattr(self, name) for name in (
+            "sends", "nan_sends", "invalid_samples", "stale_samples", "failures", "reopens", "recoveries",
+            "callback_ticks", "callback_zeroed")}
+
+    def __repr__(self) -> str:
+        return f"OpenHapticsDevice({self.label!r}, model={self.model!r}, max_force={self.max_force:g})"
+
+    # -- configuration -----------------------------------------------------------------------
+
+    @classmethod
+    def from_config(cls, cfg: dict, *, source: str = "<config>", binding=None, clock=None,
+                    sleep=None) -> "OpenHapticsDevice":
+        """Build from a scene's [device] table; errors name the field.
+
+            type = "openhaptics"
+            device_name = "Default Device"  # the name in Touch Setup
+            workspace_scale = 1.0           # positions x this
+            workspace_offset = [0, 0, 0]    # m, added to positions
+            max_force_N = 0.88              # default: the continuous force; at most the peak force
+            stale_ms = 20                   # a sample older than this is invalid
+            command_timeout_ms = 50         # a force older than this is not rendered
+        """
+        def fail(field, expected, got):
+            return ValueError(f"{source}: {field} must be {expected}, got {got!r}")
+
+        if not isinstance(cfg, dict):
+            raise fail("device", "a table", cfg)
+        if cfg.get("type", "openhaptics") != "openhaptics":
+            raise fail("device.type", "\"openhaptics\" (this scene's [device] is for another device type)",
+                       cfg.get("type"))
+        unknown = set(cfg) - _CONFIG_KEYS
+        if unknown:
+            raise ValueError(f"{source}: device has unknown field(s) {sorted(unknown)}; "
+                             f"expected some of {sorted(_CONFIG_KEYS)}")
+        kwargs = {}
+        if "device_name" in cfg:
+            v = cfg["device_name"]
+            if not isinstance(v, str) or not v.strip():
+                raise fail("device.device_name", "the device's name in Touch Setup (e.g. \"Default Device\")", v)
+            kwargs["device_name"] = v.strip()
+        if "workspace_scale" in cfg:
+            v = cfg["workspace_scale"]
+            if not (_finite(v) and v > 0):
+                raise fail("device.workspace_scale", "a finite number > 0", v)
+            kwargs["workspace_scale"] = float(v)
+        if "workspace_offset" in cfg:
+            v = cfg["workspace_offset"]
+            if not (isinstance(v, (list, tuple)) and len(v) == 3 and all(_finite(c) for c in v)):
+                raise fail("device.workspace_offset", "3 finite numbers [x, y, z] (m)", v)
+            kwargs["workspace_offset"] = tuple(float(c) for c in v)
+        if "max_force_N" in cfg:
+            v = cfg["max_force_N"]
+            if not (_finite(v) and v >= 0):
+                raise fail("device.max_force_N", "a finite number >= 0", v)
+            kwargs["max_force"] = float(v)
+        for key in ("stale_ms", "command_timeout_ms"):
+            if key in cfg:
+                v = cfg[key]
+                if not (_finite(v) and 0 < v <= 1000):
+                    raise fail(f"device.{key}", "a number of milliseconds in (0, 1000]", v)
+                kwargs[key] = float(v)
+        if clock is not None:
+            kwargs["clock"] = clock
+        if sleep is not None:
+            kwargs["sleep"] = sleep
+        try:
+            return cls(binding, **kwargs)
+        except ValueError as exc:
+            raise ValueError(f"{source}: {exc}") from None
+
+    @classmethod
+    def from_argument(cls, argument: str, scene=None, *, binding=None, clock=None, sleep=None) -> "OpenHapticsDevice":
+        """`--device openhaptics:NAME[,key=value...]` (NAME: the device's name in Touch Setup, or
+        `default`), keys those of `from_config`, vectors separated by ':'. When the scene's own
+        [device] is an OpenHaptics one, the argument overrides its fields."""
+        source = f"--device openhaptics:{argument}"
+        device_cfg = getattr(scene, "device", None)
+        cfg = dict(device_cfg) if isinstance(device_cfg, dict) and device_cfg.get("type") == "openhaptics" else {}
+        cfg["type"] = "openhaptics"
+        parts = [p.strip() for p in str(argument).split(",") if p.strip()]
+        if parts and "=" not in parts[0]:
+            name = parts.pop(0)
+            cfg["device_name"] = "Default Device" if name.lower() in ("default", "first", "auto") else name
+        for item in parts:
+            key, eq, value = (s.strip() for s in item.partition("="))
+            if not eq or not key:
+                raise ValueError(f"{source}: expected NAME[,key=value...], got {item!r}")
+            if key == "workspace_offset":
+                try:
+                    cfg[key] = [float(v) for v in value.split(":")]
+                except ValueError:
+                    raise ValueError(f"{source}: {key} must be 3 numbers separated by ':', got {value!r}") from None
+            elif key in ("device_name", "type"):
+                cfg[key] = value
+            else:
+                try:
+                    cfg[key] = float(value)
+                except ValueError:
+                    raise ValueError(f"{source}: {key} must be a number, got {value!r}") from None
+        return cls.from_config(cfg, source=source, binding=binding, clock=clock, sleep=sleep)
