@@ -782,11 +782,14 @@ def list_devices(enumerate_fn=None, profiles: list[Profile] | None = None) -> li
     return rows
 
 
-def devices_main(as_json: bool = False, *, enumerate_fn=None, out=None, err=None) -> int:
+def devices_main(as_json: bool = False, *, enumerate_fn=None, out=None, err=None, backends=None) -> int:
     """`softproxy devices [--json]`: print the connected HID devices and their profiles; 0, or 1
     when HID devices cannot be enumerated. Broken profiles and profiles that shadow another
-    of the same name get one line each on `err` (and, shadowing, a "shadowing" list in the JSON)."""
+    of the same name get one line each on `err` (and, shadowing, a "shadowing" list in the JSON).
+    `backends`: rows of the other device backends' availability (a vendor SDK's devices: backend,
+    binding, sdk, devices, message), printed after the HID devices and as "backends" in the JSON."""
     out = sys.stdout if out is None else out
+    backends = list(backends or [])
     err = sys.stderr if err is None else err
     profiles, errors, shadowing = load_profiles()
     for e in errors:
@@ -803,7 +806,8 @@ def devices_main(as_json: bool = False, *, enumerate_fn=None, out=None, err=None
                                              "renders_force": p.renders_force, "modes": list(p.modes),
                                              "source": p.source} for p in profiles],
                "shadowing": [{"name": sh.name, "source": sh.source, "shadowed": sh.shadowed,
-                              "warning": sh.warning()} for sh in shadowing]}
+                              "warning": sh.warning()} for sh in shadowing],
+               "backends": backends}
         print(json.dumps(doc, indent=2), file=out)
         return 0
     if not rows:
@@ -821,4 +825,7 @@ def devices_main(as_json: bool = False, *, enumerate_fn=None, out=None, err=None
             print("  ".join(v.ljust(w) for v, w in zip(c, widths)).rstrip(), file=out)
     print(f"profiles: {', '.join(p.name for p in profiles) or 'none'} "
           f"(a device without one needs a profile: see devices/profiles/README.md)", file=out)
+    for b in backends:  # vendor SDKs: whether `--device NAME:...` can work here, and why not
+        state = ("ready" if b.get("sdk") else "SDK missing" if b.get("binding") else "binding missing")
+        print(f"{b.get('backend')}: {state}; {b.get('message', '')}", file=out)
     return 0

@@ -327,14 +327,34 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
-    """Connected HID devices and the profile that matches each (the HID adapter is a plugin)."""
+    """Connected HID devices and the profile that matches each, and whether each vendor-SDK
+    backend (a device plugin whose module has `availability()`) can run here (adapters are plugins)."""
+    import importlib
     from importlib.metadata import entry_points
 
-    for ep in entry_points(group="softproxy.devices"):
+    backends, hid = [], None
+    for ep in sorted(entry_points(group="softproxy.devices"), key=lambda e: e.name):
         if ep.name == "hid":
-            module = __import__(ep.module, fromlist=["devices_main"])
-            return module.devices_main(args.json)
+            hid = ep
+            continue
+        if ep.name in ("sim", "replay"):  # built in, no SDK to look for (and no numba import for a listing)
+            continue
+        try:
+            availability = getattr(importlib.import_module(ep.module), "availability", None)
+            if availability is not None:
+                backends.append(availability())
+        except Exception as exc:  # a broken plugin is reported, not fatal to the listing
+            backends.append({"backend": ep.name, "binding": False, "sdk": False, "devices": None,
+                             "message": f"cannot load {ep.module}: {type(exc).__name__}: {exc}"})
+    if hid is not None:
+        module = __import__(hid.module, fromlist=["devices_main"])
+        return module.devices_main(args.json, backends=backends)
     print("softproxy devices: no HID device support installed", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"backends": backends}, indent=2))
+    else:
+        for b in backends:
+            print(f"{b['backend']}: {b['message']}")
     return 1
 
 
@@ -493,7 +513,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="bench-out", help="folder for the PNG (default bench-out)")
     p.set_defaults(func=cmd_calibrate)
 
-    p = sub.add_parser("devices", help="list connected HID devices and their matching profiles")
+    p = sub.add_parser("devices", help="list connected HID devices and their profiles, and the vendor SDK backends")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_devices)
 

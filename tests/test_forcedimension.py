@@ -416,3 +416,28 @@ def test_random_failure_schedules_end_at_zero_force(seed):
     assert_finite_and_clamped(dev, hw.wire)
     print(f"\nseed {seed}: {len(hw.wire)} commands, {dev.failures} failures, {dev.reopens} reopens, "
           f"{dev.recoveries} recoveries, {dev.nan_sends} non-finite sends zeroed")
+
+
+def test_softproxy_devices_lists_the_backends(capsys):
+    """`softproxy devices`: one line per vendor backend saying whether it can run here and why
+    not; `--json` gives them under "backends" (with the device count the SDK sees)."""
+    import io
+    import json
+
+    from softproxy.cli import main
+    from softproxy.devices.hid import devices_main
+
+    out = io.StringIO()
+    rows = [fdmod.availability(FakeDHD(Hardware()))]
+    assert devices_main(True, enumerate_fn=lambda: [], out=out, backends=rows) == 0
+    doc = json.loads(out.getvalue())
+    assert doc["backends"][0]["backend"] == "forcedimension" and doc["backends"][0]["devices"] == 1
+    out = io.StringIO()
+    devices_main(False, enumerate_fn=lambda: [], out=out, backends=rows)
+    assert "forcedimension: ready; 1 device(s) connected" in out.getvalue()
+
+    main(["devices", "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    names = {b["backend"]: b for b in doc["backends"]}
+    assert set(names) >= {"forcedimension", "openhaptics"}
+    assert all(b["message"] for b in names.values())
