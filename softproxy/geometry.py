@@ -336,13 +336,22 @@ def hull_triangles(model: mujoco.MjModel, geom: int) -> tuple[np.ndarray, np.nda
         first = adr + 2 + 3 * nv + 3 * nf
         faces = np.array(graph[first:first + 3 * nf], dtype=np.int64).reshape(nf, 3)
     else:
-        from scipy.spatial import ConvexHull
+        return convex_hull(vertices)
+    used, faces = np.unique(faces, return_inverse=True)
+    return vertices[used], faces.reshape(-1, 3)
 
-        hull = ConvexHull(vertices)
-        faces = np.array(hull.simplices, dtype=np.int64)
-        p = vertices[faces]
-        outward = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), hull.equations[:, :3]) > 0.0
-        faces[~outward] = faces[~outward][:, ::-1]
+
+def convex_hull(vertices) -> tuple[np.ndarray, np.ndarray]:
+    """The convex hull (scipy's Qhull) of points (n, 3): (its vertices, its faces counter-clockwise
+    seen from outside); a mesh's hull when the model has no compiled one."""
+    from scipy.spatial import ConvexHull
+
+    vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    hull = ConvexHull(vertices)
+    faces = np.array(hull.simplices, dtype=np.int64)
+    p = vertices[faces]
+    outward = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), hull.equations[:, :3]) > 0.0
+    faces[~outward] = faces[~outward][:, ::-1]
     used, faces = np.unique(faces, return_inverse=True)
     return vertices[used], faces.reshape(-1, 3)
 
@@ -368,7 +377,8 @@ def exclusions(model: mujoco.MjModel, exclude=(), exclude_groups=()) -> tuple[se
         g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
         f = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, name)
         if g < 0 and f < 0:
-            named = [n for n in (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, k) for k in range(model.ngeom)) if n]
+            geom_names = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, k) for k in range(model.ngeom))
+            named = [n for n in geom_names if n]
             listed = ", ".join(named[:12]) + (", ..." if len(named) > 12 else "") if named else "none named"
             raise ValueError(f"exclude names {name!r}, which is no geom or flex of the model; its geoms: {listed}")
         if g >= 0:
