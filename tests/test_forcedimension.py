@@ -441,3 +441,30 @@ def test_softproxy_devices_lists_the_backends(capsys):
     names = {b["backend"]: b for b in doc["backends"]}
     assert set(names) >= {"forcedimension", "openhaptics"}
     assert all(b["message"] for b in names.values())
+
+
+def test_a_scene_runs_on_a_sigma7_through_the_entry_point(monkeypatch):
+    """`[device] type = "forcedimension"` and `--device forcedimension:...` reach the adapter
+    through the `softproxy.devices` entry point; the two-finger grasp scene runs 0.3 s on a
+    (fake) sigma.7's gripper: every command finite and clamped, zero force at the end."""
+    from softproxy.run import check_device_fingers, open_device, run_scene
+    from softproxy.scene import load_scene
+
+    hw = Hardware(SIGMA7_RIGHT)
+    hw.position, hw.gap = [0.0, 0.0, 0.08], 0.05
+    monkeypatch.setattr(fdmod, "load_binding", lambda: FakeDHD(hw))
+    scene = load_scene("two_finger_grasp")
+    scene.device = {"type": "forcedimension", "max_force_N": 4.0}
+    dev = open_device("forcedimension", scene)
+    assert isinstance(dev, ForceDimensionDevice) and dev.fingers == 2 and dev.max_force == 4.0
+    check_device_fingers(scene, dev, "test")
+    try:
+        result = run_scene(scene, dev, duration_s=0.3)
+    finally:
+        dev.close()
+    assert result["ticks"] == 300 and result["faults"]["device_error"] == 0
+    assert_zero(hw.wire[-1])
+    assert_finite_and_clamped(dev, hw.wire)
+    dev = open_device("forcedimension:gripper=off,max_force_N=2", scene)
+    assert dev.fingers == 1 and dev.max_force == 2.0
+    dev.close()

@@ -338,3 +338,29 @@ def test_a_threaded_scheduler_keeps_its_rate_beside_a_paced_loop():
         assert fake.force == (0.0, 0.0, 0.0)
     finally:
         fake.stop_thread()
+
+
+def test_a_scene_runs_on_a_touch_through_the_entry_point(monkeypatch):
+    """`--device openhaptics:default` reaches the adapter through the `softproxy.devices` entry
+    point; the knob scene runs 0.2 s with the scheduler in its own thread: forces finite and
+    clamped, zero force and the scheduler stopped at the end."""
+    from softproxy.run import open_device, run_scene
+    from softproxy.scene import load_scene
+
+    fake = FakeOpenHaptics()
+    fake.pose_mm = [0.0, 70.0, 0.0]
+    monkeypatch.setattr(ohmod, "load_binding", lambda: fake)
+    fake.start_thread()
+    try:
+        scene = load_scene("knob")
+        dev = open_device("openhaptics:default,max_force_N=0.5", scene)
+        assert isinstance(dev, OpenHapticsDevice) and dev.max_force == 0.5
+        try:
+            result = run_scene(scene, dev, duration_s=0.2, realtime=True)
+        finally:
+            dev.close()
+    finally:
+        fake.stop_thread()
+    assert result["ticks"] == 200 and result["faults"]["device_error"] == 0
+    assert fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running
+    assert_finite_and_clamped(fake.forces, 0.5)
