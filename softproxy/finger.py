@@ -51,7 +51,8 @@ class FingerParams:
     mu_d: float = 0.8               # translational dynamic friction
     torsion_mu_s: float | None = None  # static torsional coefficient, N·m/N^γ (default: Table 1)
     torsion_mu_d: float | None = None  # dynamic torsional coefficient (default: 0.8 static)
-    saturate: bool = False          # torsion limit follows eq 26 above P*
+    saturate: bool = True           # torsion limit follows eq 26 (linear above P*); False: μ'|P|^γ at every P.
+                                    # eq 26 is the default: closer to the measured fingertip (docs/peer.md)
     restick_time: float = RESTICK_TIME  # a slipping contact (cone, torsion) stopped this long re-sticks, s;
                                         # 0: static limits re-tested every tick (seed 002 eq 39 as printed)
     max_force: float = 40.0         # clamp on |F|, N

@@ -5,8 +5,11 @@ soft finger proxy model and algorithm"), §4–6 and Table 1. Every law here tak
 returns SI units (N, m, N·m); the paper's mm and N·mm constants are converted once, in
 the block of seed constants below, through `softproxy.units`.
 
-The engine uses a model through `FingertipModel.torque_limit(P)`, the torsional
-friction limit μ'|P|^γ of eq 39 (or the saturating piecewise law of eq 26 if asked).
+The engine's torsional friction limit is, by default, the saturating piecewise law of
+eq 26 (`FingertipModel.piecewise_torque(P)`: μ'|P|^γ up to P*, then linear with slope r0);
+a finger with `saturate=False` uses the pure power law μ'|P|^γ of eq 39
+(`FingertipModel.torque_limit(P)`). Eq 26 is the default because it is the closer of the
+two to the measured fingertip (E3) over 0.1–3 N (`softproxy bench peer`, docs/peer.md).
 The other functions are the laws the paper derives those exponents from; they are
 here so the models can be checked, plotted and calibrated, not because the tick needs
 them.

@@ -298,7 +298,7 @@ def test_the_finger_renders_the_seed_law_about_the_contact_normal():
     f = SoftFingerProxy(params, shapes_of(m, d), CH, (0.0, 0.0, 0.02))
     f.place(0.0, 0.0, 0.02)
     dt = 1e-3
-    law = SeedLaw(0.5, lambda P: seed_limit("CH", P, False), 0.8)
+    law = SeedLaw(0.5, lambda P: seed_limit("CH", P, params.saturate), 0.8)  # the default limit: eq 26
     f.update(0.0, 0.0, 0.003, 0.1, dt)  # contact made at twist 0.1 with P = 2 N
     assert f.torsion.in_contact and f.torsion.alpha_0 == 0.1 and f.torque == 0.0
     law.touch(0.1)

@@ -1,0 +1,110 @@
+"""`softproxy bench peer` in miniature: its measurements on short runs, its fits on analytic
+curves, and its report without PyBullet."""
+
+import sys
+
+import numpy as np
+import pytest
+
+from softproxy import fingertip
+from softproxy.benchmarks import peer
+from softproxy.finger import FingerParams
+
+CH = fingertip.model("CH")
+
+
+def test_mujoco_noslip_holds_where_plain_mujoco_creeps():
+    """The no-slip post-solver is MuJoCo at its best: the same grasp, 3 s, turns orders of
+    magnitude less with noslip_iterations 3 than with the same elliptic cone without it."""
+    best = peer.summarise(peer.hold("mujoco best condim 4", 3.0)["trace"])
+    plain = peer.summarise(peer.hold("mujoco elliptic, no noslip", 3.0)["trace"])
+    assert abs(plain["rotation_end_deg"]) > 0.5 and plain["creep_deg_per_s"] > 0.1
+    assert abs(best["rotation_end_deg"]) < 1e-3 * abs(plain["rotation_end_deg"])
+    assert abs(best["creep_deg_per_s"]) < 1e-6
+    assert best["height_end_m"] > 0.07  # lifted 5 cm and still held
+
+
+def test_exponent_of_analytic_laws():
+    """The exponent fit returns 1 for a linear law and γ for μ'P^γ, over any grip range."""
+    grips = peer.LIMIT_GRIPS
+    assert peer.exponent(grips, [0.01 * g for g in grips], 0.1, 2.0) == pytest.approx(1.0, abs=1e-9)
+    power = [CH.torque_limit(g) for g in grips]
+    assert peer.exponent(grips, power, 0.5, 8.0) == pytest.approx(CH.gamma, abs=1e-9)
+    assert peer.exponent(grips, power, 5.0, 6.0) is None  # fewer than two grips in range
+
+
+def test_measured_limits_are_linear_for_mujoco_and_power_law_for_softproxy():
+    """In zero gravity under a rising torque, MuJoCo's torsional limit grows linearly with the
+    grip (its coefficient × P) and softproxy's power-law finger as μ'P^γ (γ = 4/3 for CH)."""
+    grips = (0.5, 1.0, 2.0)
+    c = peer.peer_coefficient()
+    mj = [peer.limit("mujoco best condim 4", g) / 2 for g in grips]
+    assert peer.exponent(grips, mj, 0.5, 2.0) == pytest.approx(1.0, abs=0.1)
+    assert mj[-1] == pytest.approx(c * grips[-1], rel=0.1)
+    sp = [peer.limit("softproxy power law", g) / 2 for g in grips]
+    assert peer.exponent(grips, sp, 0.5, 2.0) == pytest.approx(CH.gamma, abs=0.02)
+    assert sp == pytest.approx([CH.torque_limit(g) for g in grips], rel=0.02)
+
+
+def test_pybullet_spinning_friction_is_linear():
+    """PyBullet's spinning friction: a limit of spinningFriction × P, exponent 1."""
+    pytest.importorskip("pybullet")
+    grips = (0.5, 2.0)
+    pb = [peer.limit("pybullet best", g) / 2 for g in grips]
+    assert pb == pytest.approx([peer.peer_coefficient() * g for g in grips], rel=0.05)
+
+
+def test_static_and_dynamic_friction():
+    """Slip, then unload: softproxy slides at μ_d/μ_s = 0.8 of its break-away torque and
+    re-sticks; MuJoCo has one coefficient, so it slides at its break-away torque."""
+    sp = peer.hysteresis("softproxy eq 26")
+    mj = peer.hysteresis("mujoco best condim 4")
+    assert sp["slipped"] and sp["resticks"] and mj["slipped"] and mj["resticks"]
+    assert sp["sliding_over_breakaway"] == pytest.approx(0.8, abs=0.02)
+    assert mj["sliding_over_breakaway"] == pytest.approx(1.0, abs=0.03)
+    assert sp["restick_over_breakaway"] < 0.8  # it holds again only below the dynamic torque
+    assert sp["breakaway_Nm"] == pytest.approx(2 * CH.piecewise_torque(peer.GRIP_N), rel=0.02)
+
+
+def test_fidelity_error_and_best_coefficient_on_analytic_curves():
+    """Relative error against a reference: 0 for the reference itself, ε for (1+ε)× it; the
+    best single coefficient of a curve k× the reference is 1/k, with zero error after it."""
+    grips = np.linspace(0.1, 3.0, 30)
+    ref = [fingertip.e3_torque(g) for g in grips]
+    assert peer.relative_errors(ref, grips) == {"rms": pytest.approx(0.0, abs=1e-12), "max": pytest.approx(0.0, abs=1e-12)}
+    e = peer.relative_errors([1.1 * r for r in ref], grips)
+    assert e["rms"] == pytest.approx(0.1) and e["max"] == pytest.approx(0.1)
+    mixed = peer.relative_errors([(1.1 if i % 2 else 0.8) * r for i, r in enumerate(ref)], grips)
+    assert mixed["max"] == pytest.approx(0.2) and mixed["rms"] == pytest.approx(np.sqrt((0.01 + 0.04) / 2))
+    assert peer.best_scale([3.0 * r for r in ref], grips) == pytest.approx(1 / 3)
+    line = [g for g in grips]  # a linear law cannot follow E3: its best fit still errs
+    s = peer.best_scale(line, grips)
+    assert peer.relative_errors([s * g for g in grips], grips)["rms"] > 0.1
+
+
+def test_eq_26_is_closer_to_the_measured_fingertip_and_is_the_default():
+    """The default torsional law was chosen on this figure: over 0.1–3 N eq 26 is closer to
+    E3 (RMS relative error) than the pure power law, for every model of Table 1."""
+    grips = np.linspace(0.1, 3.0, 59)
+    for name in ("CH", "MH", "VS", "LFM"):
+        m = fingertip.model(name)
+        power = peer.relative_errors([m.torque_limit(g) for g in grips], grips)["rms"]
+        eq26 = peer.relative_errors([m.piecewise_torque(g) for g in grips], grips)["rms"]
+        assert eq26 < power, name
+    assert FingerParams().saturate
+    assert peer.peer_coefficient() == pytest.approx(CH.piecewise_torque(peer.GRIP_N) / peer.GRIP_N)
+
+
+def test_without_pybullet_the_bench_skips_its_rows_and_says_so(monkeypatch, capsys):
+    """PyBullet missing: no PyBullet row anywhere, one line naming the extra to install."""
+    monkeypatch.setitem(sys.modules, "pybullet", None)  # `import pybullet` now raises ImportError
+    assert not peer.pybullet_available()
+    names = ["mujoco newcomer", "mujoco best condim 4", "pybullet best"]
+    result = peer.measure(1.0, grips=(0.5, 1.0, 2.0), names=names)
+    assert list(result["hold"]) == ["mujoco newcomer", "mujoco best condim 4"]
+    assert not any("pybullet" in k for k in result["limit_per_contact_Nm"])
+    assert not any("pybullet" in k for k in result["fidelity"]["rows"])
+    peer.print_report(result)
+    out = capsys.readouterr().out
+    lines = [line for line in out.splitlines() if "pybullet" in line.lower()]
+    assert len(lines) == 1 and "softproxy[peers]" in lines[0]
