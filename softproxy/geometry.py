@@ -20,6 +20,8 @@ implementation of each, and a subclass cannot answer differently from the engine
 from __future__ import annotations
 
 import math
+import os
+import sys
 import warnings
 
 import mujoco
@@ -429,6 +431,16 @@ def flex_message(model: mujoco.MjModel, flexes: list[int]) -> str:
             f"through a deformable body); exclude them by name or group to silence this")
 
 
+def _outside_softproxy() -> int:
+    """The `stacklevel` that points a warning at the first caller outside softproxy (the user's
+    `World(...)` or `shapes_of(...)` line, not softproxy's own)."""
+    package = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 def shapes_of(model: mujoco.MjModel, data: mujoco.MjData, mesh_shape=None, *, exclude=(), exclude_groups=(),
               mesh_surface: str = "true") -> ShapeSet:
     """The ShapeSet of every touchable geom not excluded (see `exclusions`).
@@ -449,7 +461,7 @@ def shapes_of(model: mujoco.MjModel, data: mujoco.MjData, mesh_shape=None, *, ex
         raise ValueError(unsupported_message(model, refused))
     unfelt = unfelt_flexes(model, flexes)
     if unfelt:
-        warnings.warn(flex_message(model, unfelt), FlexWarning, stacklevel=2)
+        warnings.warn(flex_message(model, unfelt), FlexWarning, stacklevel=_outside_softproxy())
     out = []
     for g in range(model.ngeom):
         if not touchable(model, g) or g in geoms:
