@@ -1,10 +1,14 @@
 """Each benchmark runs briefly and writes well-formed JSON and a PNG (no timing assertions)."""
 
+import pytest
 import json
 import subprocess
 import sys
 
 from softproxy.compiled.servo import STAGES
+
+
+pytestmark = pytest.mark.slow  # benchmarks
 
 
 def bench(tmp_path, name, *extra):

@@ -68,6 +68,7 @@ def test_serial_outcomes_are_the_cells_run_directly(serial):
     assert check_outcomes(run_cells(stability.cell, CELLS)) == serial
 
 
+@pytest.mark.slow
 def test_pool_gives_the_serial_outcomes(serial):
     """Two worker processes: the same values, in cell order, and the failing cell reported."""
     done = []
@@ -77,6 +78,7 @@ def test_pool_gives_the_serial_outcomes(serial):
     assert all(o.worker.split(":")[1] != str(os.getpid()) for o in outcomes)
 
 
+@pytest.mark.slow
 def test_ray_gives_the_serial_outcomes(serial):
     """Ray started on this machine: the same values, in cell order, the failing cell reported."""
     pytest.importorskip("ray")
@@ -84,6 +86,7 @@ def test_ray_gives_the_serial_outcomes(serial):
     assert check_outcomes(outcomes) == serial
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", [Backend(workers=2), Backend(ray="")], ids=["pool", "ray"])
 def test_kernels_load_once_per_worker(backend):
     """Each worker process compiles or loads the servo kernel on its first cell only, and the
@@ -102,6 +105,7 @@ def test_kernels_load_once_per_worker(backend):
     assert all(firsts.count(True) <= 1 for firsts in by_worker.values()), by_worker
 
 
+@pytest.mark.slow
 def test_outcomes_come_in_cell_order_not_completion_order(tmp_path):
     """The first cell ends last in a pool, yet comes first; progress sees completion order."""
     seen = []
@@ -111,6 +115,7 @@ def test_outcomes_come_in_cell_order_not_completion_order(tmp_path):
     assert seen[-1] == 0 and sorted(seen) == [0, 1, 2, 3, 4]
 
 
+@pytest.mark.slow
 def test_a_cell_that_kills_its_worker_is_reported_and_the_rest_complete():
     """os._exit in one cell breaks the pool; that cell is found (run alone, it dies again) and
     reported with its exit status, and every other cell still gives its value."""
@@ -154,6 +159,7 @@ def test_an_unreachable_cluster_is_one_line_and_quick():
     assert time.monotonic() - start < 10.0
 
 
+@pytest.mark.slow
 def test_local_ray_is_its_own(tmp_path):
     """`--ray` without an address starts a Ray of its own: a RAY_ADDRESS pointing where nothing
     listens (as a `ray start` long gone leaves recorded) neither captures nor hangs it."""

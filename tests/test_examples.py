@@ -8,6 +8,9 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # each example is a program run in its own process
+
+
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 

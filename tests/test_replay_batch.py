@@ -80,6 +80,7 @@ def test_variations_change_what_they_vary(serial):
     assert list(summary) == ["recorded", *VARY] and summary["recorded"]["replays"] == 3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", [Backend(workers=2), Backend(ray="")], ids=["pool", "ray"])
 def test_table_is_the_same_on_every_backend(serial, recordings, backend):
     """A pool and Ray give the serial table bit for bit (every column but the timings)."""

@@ -71,6 +71,7 @@ def _close_in_colour(rgb, target, min_bright=0.25):
 
 
 # --- the picture -------------------------------------------------------------------------
+@pytest.mark.slow
 def test_offscreen_grasp_shows_the_box_and_both_fingers(egl, tmp_path):
     from softproxy.viewer.offscreen import OffscreenRenderer, save_png
     from softproxy.viewer.render import finger_color
@@ -229,6 +230,7 @@ def test_switching_both_fingers_to_point_contact_live_lets_the_box_spin():
 
 
 # --- a stalled viewer --------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_stalled_viewer_never_delays_a_tick(egl, tmp_path):
     """Paced 1 kHz loop, 2 s, with no viewer and with a viewer process that sleeps 200 ms
     after every frame (a frozen window), interleaved twice: deadline misses do not rise
@@ -283,6 +285,7 @@ def _cli(*args, env=None, timeout=120):
                           env=env, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_no_display_says_use_headless_without_a_traceback():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     out = _cli("run", "two_finger_grasp", "--duration", "0.2", env=env)
@@ -295,6 +298,7 @@ def test_no_display_says_use_headless_without_a_traceback():
     assert "--headless" in out.stderr and "Traceback" not in out.stderr, out.stderr
 
 
+@pytest.mark.slow
 def test_snapshot_writes_a_picture_and_leaves_the_json_alone(egl, tmp_path):
     png = tmp_path / "end.png"
     plain = _cli("run", "two_finger_grasp", "--headless", "--json", "--duration", "1.2")
@@ -307,6 +311,7 @@ def test_snapshot_writes_a_picture_and_leaves_the_json_alone(egl, tmp_path):
     assert img.shape[0] >= 480 and img.shape[1] >= 640 and img.std() > 20
 
 
+@pytest.mark.slow
 def test_video(egl, tmp_path):
     pytest.importorskip("imageio_ffmpeg", reason="--video needs the imageio-ffmpeg wheel")
     import imageio_ffmpeg
@@ -390,6 +395,7 @@ def xvfb_display():
         xvfb.wait()
 
 
+@pytest.mark.slow
 def test_window_draws_and_keys_work(xvfb_display):
     """In its own process (an X error ends a process; EGL and GLX do not mix in one)."""
     env = dict(os.environ, DISPLAY=xvfb_display, PYTHONPATH=os.path.dirname(__file__))
@@ -465,6 +471,7 @@ print(code, frames)
 """
 
 
+@pytest.mark.slow
 def test_the_viewer_runs_none_of_the_files_in_the_working_directory(egl, tmp_path):
     """A servo process started in a folder holding argparse.py, numpy.py, softproxy.py,
     select.py ... that each leave a mark when imported starts its viewer (and the resource
@@ -488,6 +495,7 @@ def test_the_viewer_runs_none_of_the_files_in_the_working_directory(egl, tmp_pat
     assert np.asarray(Image.open(shot)).std() > 10, "the last frame is a picture"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("freeze", ["stall", "sigstop"])
 def test_a_frozen_viewer_does_not_hold_the_cli(egl, freeze):
     """A viewer that stops turning its loop (sleeps for ever, or SIGSTOP) makes `wait_closed`
@@ -522,6 +530,7 @@ def test_a_frozen_viewer_does_not_hold_the_cli(egl, freeze):
         session.close(timeout=0.1, stop_s=0.1)
 
 
+@pytest.mark.slow
 def test_closing_a_stopped_offscreen_viewer_is_bounded(egl):
     """`close` without `wait_closed`: a SIGSTOPped offscreen viewer gets `timeout` s for its
     last frame, is killed, and one line says it did not finish."""
@@ -543,6 +552,7 @@ def test_closing_a_stopped_offscreen_viewer_is_bounded(egl):
         _end(pid)
 
 
+@pytest.mark.slow
 def test_wait_closed_waits_for_a_viewer_that_keeps_responding(egl):
     """A live viewer (heartbeat moving, run not finished) is waited for past `stale_s`, up to
     the `timeout`, and nothing is said; a heartbeat counted per loop turn moves ~fps times a second."""
@@ -608,12 +618,14 @@ def _viewer_outlives_no_servo(mode, env, tmp_path):
         log.close()
 
 
+@pytest.mark.slow
 def test_an_orphaned_offscreen_viewer_closes_itself(egl, tmp_path):
     """SIGKILL the servo process: its offscreen viewer notices (pidfd / parent pid) and exits."""
     gone_after = _viewer_outlives_no_servo("offscreen", None, tmp_path)
     assert gone_after < 3.0, gone_after
 
 
+@pytest.mark.slow
 def test_an_orphaned_viewer_window_closes_itself(xvfb_display, tmp_path):
     """SIGKILL the servo process: the viewer's window closes by itself."""
     gone_after = _viewer_outlives_no_servo("window", dict(os.environ, DISPLAY=xvfb_display), tmp_path)
