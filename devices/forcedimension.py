@@ -322,11 +322,10 @@ class ForceDimensionDevice:
         except Exception as exc:
             raise DeviceError(f"cannot open a {NAME} device: {type(exc).__name__}: {exc}") from None
         if not isinstance(device_id, int) or device_id < 0:
-            which = (f"at index {self.index}" if self.index is not None else
-                     f"with serial {self.serial_wanted}" if self.serial_wanted is not None else "")
-            raise DeviceError(f"cannot open a {NAME} device {which}: {_last_error(dhd)} (`softproxy devices` "
-                              "lists what the SDK sees; on Linux the USB device needs a udev rule, docs/devices.md)"
-                              .replace("device  ", "device "))
+            which = (f" at index {self.index}" if self.index is not None else
+                     f" with serial {self.serial_wanted}" if self.serial_wanted is not None else "")
+            raise DeviceError(f"cannot open a {NAME} device{which}: {_last_error(dhd)} (`softproxy devices` "
+                              "lists what the SDK sees; on Linux the USB device needs a udev rule, docs/devices.md)")
         return device_id
 
     def _start(self) -> None:

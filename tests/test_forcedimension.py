@@ -468,3 +468,24 @@ def test_a_scene_runs_on_a_sigma7_through_the_entry_point(monkeypatch):
     dev = open_device("forcedimension:gripper=off,max_force_N=2", scene)
     assert dev.fingers == 1 and dev.max_force == 2.0
     dev.close()
+
+
+def test_an_exception_in_a_with_block_leaves_zero_force_and_a_closed_device():
+    """Leaving `with ServoLoop(...)` by an exception while the gripper fingers press: the last
+    command is zero force and zero gripper force, forces disabled, the device closed."""
+    from softproxy.finger import FingerParams, SoftFingerProxy
+    from softproxy.fingertip import model
+    from softproxy.servo import ServoLoop
+    from softproxy.world import World
+
+    dev, dhd, hw, clock = make(SIGMA7_RIGHT)
+    hw.position, hw.gap = [0.0, 0.0, 0.065], 0.02  # both fingers 3 mm into the box's top
+    world = World(mujoco.MjModel.from_xml_string(XML))
+    fingers = [SoftFingerProxy(FingerParams(name=f"f{i}", radius=0.008, stiffness=1000.0, device_finger=i,
+                                            soft_start=0.0), world.shapes, model("CH")) for i in range(2)]
+    with pytest.raises(ZeroDivisionError):
+        with ServoLoop(world, fingers, dev, 1000.0, overrun_watchdog=False) as loop:
+            loop.run(50)
+            assert max(np.linalg.norm(c[0]) for c in hw.wire) > 1.0
+            1 / 0
+    assert_zero(hw.wire[-1]) and not hw.force_enabled and dev.closed and not dhd.handles

@@ -129,7 +129,7 @@ def test_garbage_readings_are_invalid_samples_never_a_force(garbage):
     tick(dev, fake, clock, s)
     fake.garbage = garbage
     tick(dev, fake, clock, s)
-    assert not s[0].valid and dev.invalid_samples == 1 or (garbage == "none" and s[0].buttons == 0)
+    assert not s[0].valid and dev.invalid_samples == 1
     fake.garbage = None
     fake.rotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]  # a reflection
     tick(dev, fake, clock, s)
@@ -364,3 +364,22 @@ def test_a_scene_runs_on_a_touch_through_the_entry_point(monkeypatch):
     assert result["ticks"] == 200 and result["faults"]["device_error"] == 0
     assert fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running
     assert_finite_and_clamped(fake.forces, 0.5)
+
+
+def test_an_exception_in_a_with_block_leaves_zero_force_and_a_stopped_scheduler():
+    """Leaving `with ServoLoop(...)` by an exception while pressing: the callback's last force is
+    zero, the scheduler stopped and the device disabled."""
+    dev, fake, clock = make()
+    fake.pose_mm = [0.0, 66.0, 0.0]
+
+    def step(_):
+        clock.now += 0.001
+        fake.step(1)
+
+    fake.step(1)
+    with pytest.raises(ZeroDivisionError):
+        with _loop(dev) as loop:
+            loop.run(200, on_tick=step)
+            assert max(np.linalg.norm(f) for f in fake.forces) > 0.5
+            1 / 0
+    assert fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running and fake.disabled and dev.closed
