@@ -34,7 +34,7 @@ CHAI3D's gripper tool, which hands that value to `dhdSetForceAndTorqueAndGripper
 `gripper = "off"` drives one finger at the end-effector.
 
 Limits. `max_force` / `max_torque` / `max_gripper_force` default to the model's rated
-force (MODEL_LIMITS, from Force Dimension's and Novint's product specifications), lowered to
+force (MODEL_LIMITS, the figures CHAI3D's Force Dimension driver gives each model), lowered to
 the SDK's own limit when one is set (`getMaxForce() >= 0`), and may only be lowered further.
 They are handed to the SDK too (`setMaxForce`, `setMaxTorque`, `setMaxGripperForce`), so the
 library clamps again whatever this adapter does. Every send is finite and within the limits:
@@ -84,10 +84,11 @@ DEVICE_TO_ENGINE = ((0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
 """Rows: the engine's x, y, z in DHD's frame (x towards the operator, y right, z up)."""
 
 # DHD device type ids (forcedimension_core.constants.DeviceType) -> (model, force N, torque N·m, gripper N).
-# Rated (continuous) figures from the vendors' product specification sheets: omega.x 12 N and
-# gripper ±8 N; sigma.7 20 N, 0.4 N·m, gripper ±8 N; delta.3/.6 20 N (delta.6 0.15 N·m);
-# lambda.7 20 N, 0.3 N·m, gripper ±8 N; Novint Falcon "over 2 lb" (8.9 N). A limit of 0 on a
-# DOF the device cannot drive (passive wrist) renders nothing there.
+# The figures of CHAI3D 3.x's Force Dimension driver (src/devices/CDeltaDevices.cpp, its per-model
+# specifications): delta.3 20 N; delta.6 20 N, 0.2 N·m; omega.3/.6 12 N; omega.7 12 N, gripper 8 N;
+# sigma.7 12 N, 0.2 N·m, gripper 8 N; Falcon 8 N. Models that table lacks take a sibling's: sigma.3
+# and lambda.3 the omega.3's, lambda.7 the sigma.7's. A limit of 0 on a DOF the device cannot drive
+# (a passive wrist) renders nothing there.
 MODEL_LIMITS = {
     63: ("delta.3", 20.0, 0.0, 0.0),
     33: ("omega.3", 12.0, 0.0, 0.0),
@@ -95,13 +96,13 @@ MODEL_LIMITS = {
     36: ("omega.6 (left)", 12.0, 0.0, 0.0),
     35: ("omega.7", 12.0, 0.0, 8.0),
     37: ("omega.7 (left)", 12.0, 0.0, 8.0),
-    206: ("sigma.3", 20.0, 0.0, 0.0),
-    104: ("sigma.7", 20.0, 0.4, 8.0),
-    105: ("sigma.7 (left)", 20.0, 0.4, 8.0),
-    203: ("lambda.3", 20.0, 0.0, 0.0),
-    108: ("lambda.7", 20.0, 0.3, 8.0),
-    109: ("lambda.7 (left)", 20.0, 0.3, 8.0),
-    60: ("Novint Falcon", 8.9, 0.0, 0.0),
+    206: ("sigma.3", 12.0, 0.0, 0.0),
+    104: ("sigma.7", 12.0, 0.2, 8.0),
+    105: ("sigma.7 (left)", 12.0, 0.2, 8.0),
+    203: ("lambda.3", 12.0, 0.0, 0.0),
+    108: ("lambda.7", 12.0, 0.2, 8.0),
+    109: ("lambda.7 (left)", 12.0, 0.2, 8.0),
+    60: ("Novint Falcon", 8.0, 0.0, 0.0),
 }
 UNKNOWN_LIMITS = ("unknown model", 5.0, 0.0, 0.0)
 """A type id not in MODEL_LIMITS (a newer model, a custom controller): a conservative force, no torque."""

@@ -82,7 +82,7 @@ def test_gripper_is_two_fingers_and_their_squeeze_the_gripper_force():
     a common push is the end-effector's force, and the torque of an off-axis pair reaches an
     active wrist (sigma.7) only."""
     dev, dhd, hw, clock = make(SIGMA7_RIGHT)
-    assert dev.fingers == 2 and (dev.max_force, dev.max_torque, dev.max_gripper_force) == (20.0, 0.4, 8.0)
+    assert dev.fingers == 2 and (dev.max_force, dev.max_torque, dev.max_gripper_force) == (12.0, 0.2, 8.0)
     hw.position, hw.gap = [0.0, 0.0, 0.05], 0.04
     s = samples(dev)
     dev.read(0.0, s)
