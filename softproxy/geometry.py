@@ -19,6 +19,7 @@ implementation of each, and a subclass cannot answer differently from the engine
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
@@ -366,9 +367,9 @@ def exclusions(model: mujoco.MjModel, exclude=(), exclude_groups=()) -> tuple[se
     """The geoms and flexes (ids) kept out of haptic contact: those named in `exclude` and those
     in a geom group of `exclude_groups` (0 to 5). MuJoCo still collides with them. ValueError,
     one line, for a name that is no geom or flex of the model, or a group out of range."""
-    if isinstance(exclude, str) or not all(isinstance(n, str) for n in exclude):
+    if not isinstance(exclude, (list, tuple, set, frozenset)) or not all(isinstance(n, str) for n in exclude):
         raise ValueError(f"exclude must be a list of geom or flex names, got {exclude!r}")
-    if isinstance(exclude_groups, (str, bytes)) or not all(
+    if not isinstance(exclude_groups, (list, tuple, set, frozenset)) or not all(
             isinstance(g, int) and not isinstance(g, bool) and 0 <= g < GEOM_GROUPS for g in exclude_groups):
         raise ValueError(f"exclude_groups must be a list of geom groups (integers 0 to {GEOM_GROUPS - 1}), "
                          f"got {exclude_groups!r}")
@@ -403,8 +404,7 @@ def unsupported_message(model: mujoco.MjModel, geoms: list[int], scene: bool = F
     groups = sorted({int(model.geom_group[g]) for g, n in zip(geoms, names) if not n})
     named = [n for n in names if n]
     if scene:
-        fixes = ([f"exclude = [{', '.join(chr(34) + n + chr(34) for n in named)}]"] if named else []) + \
-                ([f"exclude_groups = {groups}"] if groups else [])
+        fixes = ([f"exclude = {json.dumps(named)}"] if named else []) + ([f"exclude_groups = {groups}"] if groups else [])
         fix = "set " + " and ".join(fixes) + " in the scene's [haptics] table"
     else:
         fixes = ([f"exclude={named}"] if named else []) + ([f"exclude_groups={groups}"] if groups else [])
