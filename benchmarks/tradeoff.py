@@ -96,11 +96,12 @@ def bare_step_us(n: int = 3000) -> float:
     return float(np.median(times)) * 1e6
 
 
-def pareto(points: list[tuple[float, float]]) -> list[int]:
-    """Indices of the points no other point beats on both cost and error."""
+def pareto(points: list[tuple[float, ...]]) -> list[int]:
+    """Indices of the points no other point beats: at least as good on every criterion (cost
+    first, then errors, each in its own unit) and better on one; sorted by cost."""
     front = []
-    for i, (c, e) in enumerate(points):
-        if not any((c2 <= c and e2 <= e) and (c2 < c or e2 < e) for c2, e2 in points):
+    for i, p in enumerate(points):
+        if not any(all(a <= b for a, b in zip(q, p)) and q != p for q in points):
             front.append(i)
     return sorted(front, key=lambda i: points[i][0])
 
@@ -218,7 +219,7 @@ def measure(full: bool = False, progress=None, duration: float | None = None, ba
                 "turned_deg": round(r["turned_deg"], 4),
                 "outcome_error_deg": round(abs(r["turned_deg"] - ref["turned_deg"]), 4),
             })
-        front = pareto([(row["tick_us_p50"], row["force_rms_error_N"] + row["torque_rms_error_Nmm"] * 1e-3)
+        front = pareto([(row["tick_us_p50"], row["force_rms_error_N"], row["torque_rms_error_Nmm"])
                         for row in scene_rows])
         for i, row in enumerate(scene_rows):
             row["pareto"] = i in front
@@ -234,10 +235,10 @@ def measure(full: bool = False, progress=None, duration: float | None = None, ba
 def chart(result: dict):
     """Per scene: cost against error with the Pareto front, and outcome error against rate."""
     scenes = result["scenes"]
-    fig, axes = figure(3, len(scenes), (6 * len(scenes), 12.5), squeeze=False)
+    fig, axes = figure(4, len(scenes), (6 * len(scenes), 16.5), squeeze=False)
     fid = result.get("fingertip_sensors")
     for col, key in enumerate(("mean_x_off", "p99_x_off")[:len(scenes)]):
-        c = axes[2][col]
+        c = axes[3][col]
         if not fid:
             c.set_axis_off()
             continue
@@ -248,24 +249,26 @@ def chart(result: dict):
         c.set_title(f"fingertip sensors on the grasp at {fid['rate_hz']:g} Hz", fontsize=9)
         c.tick_params(labelsize=7)
     for col in range(2, len(scenes)):
-        axes[2][col].set_axis_off()
+        axes[3][col].set_axis_off()
     for col, scene in enumerate(scenes):
-        a, b = axes[0][col], axes[1][col]
+        a, t, b = axes[0][col], axes[1][col], axes[2][col]
         rows = [r for r in result["rows"] if r["scene"] == scene]
+        front = [r for r in rows if r["pareto"]]
+        for ax, key, unit in ((a, "force_rms_error_N", "force RMS error (N)"),
+                              (t, "torque_rms_error_Nmm", "torque RMS error (N·mm)")):
+            for model in dict.fromkeys(r["model"] for r in rows):
+                pts = [r for r in rows if r["model"] == model]
+                ax.plot([r["cost_x_mj_step"] for r in pts], [max(r[key], 1e-7) for r in pts], "o-", label=model)
+            ax.plot([r["cost_x_mj_step"] for r in front], [max(r[key], 1e-7) for r in front], "ks", mfc="none",
+                    ms=9, label="Pareto front (cost, force, torque)")
+            ax.set_xlabel("cost per tick (× bare mj_step)")
+            ax.set_ylabel(unit)
+            ax.set_yscale("log")
+            ax.legend(fontsize=7)
+        a.set_title(f"{scene}: speed vs accuracy (ref. LFM, highest rate)", fontsize=9)
         for model in dict.fromkeys(r["model"] for r in rows):
             pts = [r for r in rows if r["model"] == model]
-            err = [max(r["force_rms_error_N"] + r["torque_rms_error_Nmm"] * 1e-3, 1e-7) for r in pts]
-            a.plot([r["cost_x_mj_step"] for r in pts], err, "o-", label=model)
             b.plot([r["rate_hz"] for r in pts], [r["outcome_error_deg"] for r in pts], "o-", label=model)
-        front = sorted((r for r in rows if r["pareto"]), key=lambda r: r["cost_x_mj_step"])
-        a.plot([r["cost_x_mj_step"] for r in front],
-               [max(r["force_rms_error_N"] + r["torque_rms_error_Nmm"] * 1e-3, 1e-7) for r in front], "k--", lw=1,
-               label="Pareto front")
-        a.set_xlabel("cost per tick (× bare mj_step)")
-        a.set_ylabel("RMS force (N) + torque (N·m) error")
-        a.set_yscale("log")
-        a.set_title(f"{scene}: speed vs accuracy (ref. LFM, highest rate)", fontsize=9)
-        a.legend(fontsize=7)
         b.set_xscale("log")
         b.set_xlabel("servo rate (Hz)")
         b.set_ylabel("outcome error: object turn (deg)")
