@@ -339,7 +339,13 @@ def hull_triangles(model: mujoco.MjModel, geom: int) -> tuple[np.ndarray, np.nda
         first = adr + 2 + 3 * nv + 3 * nf
         faces = np.array(graph[first:first + 3 * nf], dtype=np.int64).reshape(nf, 3)
     else:
-        return convex_hull(vertices)
+        from scipy.spatial import QhullError
+
+        try:
+            return convex_hull(vertices)
+        except QhullError:
+            raise ValueError(f"geom {geom_label(model, geom)}: its mesh has no convex hull (flat, or fewer than "
+                             "4 vertices); feel its own triangles (mesh_surface \"true\") or exclude it") from None
     used, faces = np.unique(faces, return_inverse=True)
     return vertices[used], faces.reshape(-1, 3)
 

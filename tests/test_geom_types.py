@@ -83,8 +83,9 @@ def test_a_height_field_is_the_solid_mujoco_collides_with():
 
 def test_a_mesh_hull_is_the_one_mujoco_collides_with():
     """The hull of an L-shaped prism, from MuJoCo's compiled hull and from scipy (used when the
-    model has none), gives MuJoCo's own distance at 200 points outside it; the true surface
-    does not: in the notch a point outside the L is inside the hull."""
+    model has none: the same vertices), gives MuJoCo's own distance at 200 points outside it;
+    the true surface does not: in the notch a point outside the L is inside the hull. A mesh
+    with no hull (flat) is refused in one line naming the geom."""
     m = mujoco.MjModel.from_xml_string(L_MESH)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
@@ -110,6 +111,14 @@ def test_a_mesh_hull_is_the_one_mujoco_collides_with():
         compared += 1
     probe = _notch_point()
     assert own.distance(*probe)[0] > 0.001 and hull.distance(*probe)[0] < -0.001
+    # a model without a compiled hull: scipy's, the same triangles' vertices; a flat one has none
+    m.mesh_graphadr[mesh] = -1
+    fallback, _ = hull_triangles(m, 0)
+    assert sorted(map(tuple, fallback)) == sorted(map(tuple, v))
+    m.mesh_vert[m.mesh_vertadr[mesh]:m.mesh_vertadr[mesh] + m.mesh_vertnum[mesh], 2] = 0.0
+    with pytest.raises(ValueError) as err:
+        shapes_of(m, d, mesh_surface="hull")
+    assert "\n" not in str(err.value) and "'ell' (mesh)" in str(err.value) and "no convex hull" in str(err.value)
 
 
 def _notch_point() -> np.ndarray:
