@@ -157,7 +157,8 @@ def _open_run_device(args: argparse.Namespace, scene, faults: dict | None):
         device = open_device(args.device, scene)  # errors from the scene's [device] name the scene
     except (ValueError, RuntimeError) as exc:
         if argument:
-            raise SceneError(f"--device {args.device}: {exc}") from None
+            said = str(exc)  # a device's own message may already name the flag
+            raise SceneError(said if said.startswith(f"--device {args.device}") else f"--device {args.device}: {said}") from None
         raise
     if faults:
         # the scene's own [device] opened above; the faults merged in can only fail on
