@@ -20,8 +20,14 @@ cone), as CHAI3D's finger proxy keeps its slip state and re-sticks below a fract
 dynamic cone's angle. Without it (the
 literature's per-tick test, `slide_restick` = 0) a steady slide sticks and slips every few
 ticks: the lag saw-tooths between the two cones. Details and figures: docs/friction.md.
-The proxy is kept in the frame of the geom it touches, so a moving object carries it; an
-object that moves into it pushes it out.
+The touched geom (its body gets the reaction -F and carries the proxy) is chosen where the
+proxy ends the tick, among the shapes within TOUCH_TOL of it: the one whose surface normal
+there is most aligned with the force, the nearer of two alike (a seam of coplanar faces);
+never a neighbour the frictionless solve reached across a seam while friction held the proxy
+back. A slipping proxy whose dynamic-cone point lies in free space (the chord across an edge)
+is dropped from there toward the device onto the surface below. The proxy is kept in the
+frame of the geom it touches, so a moving object carries it; an object that moves into it
+pushes it out.
 
 These kernels are the only god-object: `softproxy.proxy.GodObject` is a view of a finger
 record that calls the `*_row` entries at the end, and `softproxy.compiled.finger` calls
@@ -75,6 +81,14 @@ moving: Karnopp's zero-velocity band, |v| < 0.1 × offset / restick_time (1.6 mm
 μ_d·depth = 0.8 mm; 6.5 mrad/s for a CH torsion at P = 1 N, k_τ = 2), averaged over the
 re-stick time so that a device's counts, a force's noise (which moves a slipping proxy a
 bounded amount, on new extremes only) and rounding do not keep a stopped contact slipping."""
+
+TOUCH_TOL = 1e-6
+"""A proxy sphere within this distance (m) of a shape's surface touches it, for choosing the
+touched shape: ten times LIFT_TOL (the farthest a resting proxy sits off what it rests on),
+far below the gap to a neighbour across a seam (a tenth of a millimetre and more)."""
+SAME_NORMAL = 1e-9
+"""Two shapes' normals at the proxy whose cosines with the force's direction differ by no
+more than this carry the force alike (coplanar faces at a seam): the nearer shape is touched."""
 
 PLANE_ROOM = 8
 """Rows of a scratch plane list: three planes, plus the ones `_keep_resting` adds before it
@@ -244,13 +258,61 @@ def _add_plane(pl, n, nx, ny, nz, c, s):
 
 @njit(cache=True, error_model="numpy")
 def _touched(pl, n, nx, ny, nz):
-    """The touched shape: the row whose plane in pl[:n] is most aligned with the force's n."""
+    """The touched shape of a proxy resting on all the planes pl[:n] (a corner): the row whose
+    plane is most aligned with the force's n, `_touched_at`'s rule."""
     best, best_dot = int(pl[0, 4]), -2.0
     for i in range(n):
         dot = pl[i, 0] * nx + pl[i, 1] * ny + pl[i, 2] * nz
         if dot > best_dot:
             best, best_dot = int(pl[i, 4]), dot
     return best
+
+
+@njit(cache=True, error_model="numpy")
+def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz):
+    """The shape the proxy at (x, y, z) touches, where it ends the tick (the pushed body is
+    its body, the proxy is carried in its frame): among the near shapes whose surface is
+    within TOUCH_TOL of the sphere, the one whose outward normal there is most aligned with
+    the force's direction n, i.e. the constraint that carries the force; on a tie within
+    SAME_NORMAL (two flat faces side by side at a seam) the nearer, then the lower row. None
+    within TOUCH_TOL (not expected: the proxy ends on a surface): the nearest shape.
+
+    The planes of the frictionless solve do not tell: friction may hold the proxy back on
+    one geom while the frictionless proxy went on across a seam onto its neighbour."""
+    r = g.radius
+    best, best_dot, best_gap = -1, -2.0, math.inf
+    nearest, nearest_gap = -1, math.inf
+    for j in range(int(g.nnear)):
+        s = near[j]
+        d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
+        gap = d - r
+        if gap < nearest_gap:
+            nearest, nearest_gap = s, gap
+        if gap > TOUCH_TOL:
+            continue
+        dot = mx * nx + my * ny + mz * nz
+        if dot > best_dot + SAME_NORMAL or (dot >= best_dot - SAME_NORMAL and gap < best_gap):
+            best, best_dot, best_gap = s, dot, gap
+    return best if best >= 0 else nearest
+
+
+@njit(cache=True, error_model="numpy")
+def _land(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, pl):
+    """The slipping proxy's point (x, y, z) on the dynamic cone's edge, brought onto a surface:
+    that point lies on the chord from where the proxy was held to the frictionless proxy, and
+    across a convex edge or a step down the chord runs in free space (up to the step's height
+    off every surface). Off every near shape by more than TOUCH_TOL, the proxy is swept from
+    there toward the device, which lies inside the constraint, onto the first surface it meets:
+    it ends touching the shape it pushes. pl: a scratch plane list. Returns the position."""
+    r = g.radius
+    for j in range(int(g.nnear)):
+        if shape_distance(S, T, C, xpos, xmat, near[j], x, y, z)[0] - r <= TOUCH_TOL:
+            return x, y, z
+    dx, dy, dz = xd - x, yd - y, zd - z
+    hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
+    if hit:
+        return x + lam * dx, y + lam * dy, z + lam * dz
+    return x, y, z
 
 
 @njit(cache=True, error_model="numpy")
@@ -730,7 +792,6 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
         nx, ny, nz = ex / depth, ey / depth, ez / depth
     else:
         nx, ny, nz = pl[n - 1, 0], pl[n - 1, 1], pl[n - 1, 2]
-    best = int(pl[0, 4]) if n == 1 else _touched(pl, n, nx, ny, nz)
 
     # friction cone, tested from the first surface point the proxy reached this tick
     sx, sy, sz = hx - fx, hy - fy, hz - fz
@@ -767,11 +828,13 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
                     saved[j, k] = pl[j, k]
             fx, fy, fz, _, _, _, _, m = _move(S, T, C, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept)
             _keep_resting(S, T, C, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
+        fx, fy, fz = _land(S, T, C, xpos, xmat, g, near, fx, fy, fz, xd, yd, zd, saved)
     g.x, g.y, g.z = fx, fy, fz
     g.contact = True
     g.nx, g.ny, g.nz = nx, ny, nz
     g.depth = depth
     g.sticking = not slipping
+    best = _touched_at(S, T, C, xpos, xmat, g, near, fx, fy, fz, nx, ny, nz)
     g.touched = best
     if not S[best].static:  # remember the proxy in the touched geom's frame: it carries it
         g.lx, g.ly, g.lz = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
