@@ -2,9 +2,13 @@
 
 Each finger is a 4-DOF soft-finger proxy (seed 002 §7): the god-object position
 (`softproxy.compiled.godobject`) plus the twist α_p about the contact normal n, coupled to
-the device by a virtual spring-damper, F = k(x_p - x_d) + b d/dt(x_p - x_d) and
-M = k_τ(α_p - α_g) + b_τ d/dt(α_p - α_g). F and M are what the finger feels; the touched
-body gets -F at the contact point and -M·n. The device's twist α_s is taken about the
+the device by a virtual spring-damper, F = k(x_p - x_d) + b(v_s - v_d) and
+M = k_τ(α_p - α_g) + b_τ d/dt(α_p - α_g). The damper acts on the device's velocity v_d
+relative to the touched surface's v_s under the proxy, never on the proxy's own motion,
+which jumps (breaking free of friction, dropping off an edge): |b(v_s - v_d)| is bounded by
+b times the device's speed relative to the surface, a proxy jump renders only its spring
+force, and the damper dissipates (docs/coupling.md). F and M are what the finger feels; the
+touched body gets -F at the contact point and -M·n. The device's twist α_s is taken about the
 finger's own axis, from the fingertip back toward the hand: +n when it presses straight on.
 `tick` runs every finger of a servo tick in one call: each finger's update (or hold, without
 a usable sample), its wrench on the touched body (`push`; `write_wrenches` puts them in
@@ -24,7 +28,7 @@ from numba import njit
 from softproxy import device_guard
 from softproxy.compiled import godobject
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_TRAVEL
-from softproxy.compiled.shapes import shape_distance
+from softproxy.compiled.shapes import shape_distance, shape_to_world
 from softproxy.fingertip import P_MAX
 
 SPIKE_PATIENCE = 3
@@ -254,6 +258,15 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
         godobject.follow(S, T, C, xpos, xmat, f, near)
         clear_output(f)
         return False
+    # for the damper, before the god-object moves the proxy: how far the touched surface
+    # under the proxy moved relative to the device over the tick (the proxy is kept in the
+    # touched geom's frame: the way that frame carried it; a shape that never moves, none)
+    was_contact = f.contact
+    wx, wy, wz = f.xd - xd, f.yd - yd, f.zd - zd
+    shape = int(f.touched)
+    if was_contact and shape >= 0 and not S[shape].static:
+        cx, cy, cz = shape_to_world(S, xpos, xmat, shape, f.lx, f.ly, f.lz)
+        wx, wy, wz = wx + cx - f.x, wy + cy - f.y, wz + cz - f.z
     if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
         clear_output(f)
         return False
@@ -274,13 +287,23 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     if f.was_sticking and not f.sticking:
         f.slide_events += 1
     f.was_sticking = f.sticking
-    # translational virtual coupling
+    # translational virtual coupling: the spring to the proxy, the damper on the device's
+    # velocity relative to the touched surface (docs/coupling.md: never on the proxy's own
+    # motion, which jumps when it breaks free or drops off an edge)
     sx, sy, sz = f.x - xd, f.y - yd, f.z - zd
+    nx, ny, nz = f.nx, f.ny, f.nz
+    if not was_contact:
+        # contact made this tick: the proxy stopped on the surface part-way along the device's
+        # move, so |s| is at most the device's move, counted from the touch on
+        wx, wy, wz = sx, sy, sz
+    elif not f.sticking:  # slipping: along the surface friction acts, not the damper
+        wn = wx * nx + wy * ny + wz * nz
+        wx, wy, wz = wn * nx, wn * ny, wn * nz
     k = f.k
-    c = f.b / dt
-    fx = k * sx + c * (sx - f.sx)
-    fy = k * sy + c * (sy - f.sy)
-    fz = k * sz + c * (sz - f.sz)
+    c = f.b / dt  # (an unvalidated b of 1e308 makes c Inf and the force NaN: a counted fault)
+    fx = k * sx + c * wx
+    fy = k * sy + c * wy
+    fz = k * sz + c * wz
     f.sx, f.sy, f.sz = sx, sy, sz
     ramp = f.ramp
     if ramp < 1.0:  # soft start: no kick when a finger starts inside an object
@@ -292,7 +315,6 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     if f2 > fmax * fmax:
         s = fmax / math.sqrt(f2) if f2 > 0.0 else 0.0
         fx, fy, fz = fx * s, fy * s, fz * s
-    nx, ny, nz = f.nx, f.ny, f.nz
     P = fx * nx + fy * ny + fz * nz
     if P < 0.0:  # damping pulling the finger into the surface: contact carries no pull
         fx, fy, fz = fx - P * nx, fy - P * ny, fz - P * nz
