@@ -103,7 +103,7 @@ def test_a_hand_of_capsules_and_boxes_on_jointed_fingers():
             clearance.record(f.god.x, f.god.y, f.god.z)
         pressed.append([math.sqrt(f.fx ** 2 + f.fy ** 2 + f.fz ** 2) for f in fingers])
 
-    _, _, largest = drive(world, params, keys, 450, check)
+    drive(world, params, keys, 450, check)
     assert min(clearance.worst.values()) >= -TOL, sorted(clearance.worst.items(), key=lambda kv: kv[1])[:3]
     felt = np.max(pressed, axis=0)
     assert (felt > 1.0).all(), felt
@@ -208,7 +208,7 @@ def test_a_height_field_terrain_with_a_stone():
             [(0.0, sx - 0.04, sy, stone_start[2] + 0.003, 0.0), (0.4, sx - 0.005, sy, stone_start[2] + 0.003, 0.0)]]
     params = [FingerParams(name="stroke", radius=r, stiffness=800.0, damping=2.0, device_finger=0, soft_start=0.0),
               FingerParams(name="push", radius=r, stiffness=800.0, damping=2.0, device_finger=1, soft_start=0.0)]
-    fingers, _, largest = drive(world, params, keys, 400, check)
+    _, _, largest = drive(world, params, keys, 400, check)
     assert min(clearance.worst.values()) >= -TOL, clearance.worst
     assert below[0] > 0.0, below
     assert largest > 1.0
