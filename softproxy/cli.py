@@ -219,7 +219,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     views = None
     try:
         scene = load_scene(args.scene)
-        scene.load_model()  # the MJCF's own mistakes (RK4, a height field, a missing body) before a device opens
+        scene.load_model()  # the MJCF's own mistakes (RK4, an SDF geom, a missing body) before a device opens
         if window or args.snapshot or args.video:
             from softproxy.viewer.attach import RunViews, parse_size
 
