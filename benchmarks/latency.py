@@ -6,12 +6,14 @@ torsion + coupling + sends + MuJoCo), with the simulated device run compiled, as
 its stages too: `softproxy.compiled.servo.STAGES`), and after each tick a bare `mj_step` is
 timed the same way, from compiled code, on a copy of the very same MuJoCo state, so the
 ratio compares like with like on a shared, noisy machine. Paced runs at the scene's rate and
-at 10 kHz give the deadline-miss rates. Prints a table, writes latency.json and latency.png.
+at 10 kHz, each with ordinary and with real-time scheduling (SCHED_FIFO on a CPU of its own,
+where the OS grants it), give the deadline-miss rates. Prints a table, writes latency.json and latency.png.
 """
 
 from __future__ import annotations
 
 import json
+import os
 
 import mujoco
 import numpy as np
@@ -21,6 +23,7 @@ from .report import Progress, figure, save
 from softproxy.compiled import native
 from softproxy.compiled.servo import STAGES
 from softproxy.run import build, open_device
+from softproxy.scheduling import DEFAULT_PRIORITY, realtime_thread
 from softproxy.scene import load_scene
 
 
@@ -37,11 +40,15 @@ def _percentiles(us: np.ndarray) -> dict:
             "max": round(float(us.max()), 2)}
 
 
-def _paced(scene, seconds: float, rate_hz: float) -> dict:
-    """Deadline misses of a loop paced in real time at `rate_hz`."""
+def _paced(scene, seconds: float, rate_hz: float, fifo: bool = False) -> dict:
+    """Deadline misses of a loop paced in real time at `rate_hz`; with `fifo`, the loop's
+    thread under SCHED_FIFO pinned to the last CPU (`softproxy.scheduling`) where the OS grants it."""
     paced = build(scene, open_device("sim", scene), rate_hz=rate_hz, audit=False)
-    paced.run(int(seconds * paced.rate_hz), realtime=True)
-    return {"rate_hz": rate_hz, "ticks": paced.ticks, "misses": paced.stats.misses,
+    cpu = max(os.sched_getaffinity(0)) if fifo and hasattr(os, "sched_getaffinity") else None
+    with realtime_thread(DEFAULT_PRIORITY if fifo else None, cpu) as granted:
+        paced.run(int(seconds * paced.rate_hz), realtime=True)
+    paced.close()
+    return {"rate_hz": rate_hz, "scheduling": str(granted), "ticks": paced.ticks, "misses": paced.stats.misses,
             "miss_rate": paced.stats.misses / max(paced.ticks, 1), "tick_us": paced.stats.summary_us()}
 
 
@@ -94,7 +101,8 @@ def measure(duration_s: float = 5.0, paced_s: float = 5.0, scene_name: str = "tw
         "mj_step_us": step,
         "ratio_p50": round(tick["p50"] / step["p50"], 2),
         "stages_us_p50": {name: round(float(np.median(stage_us[:, k])), 2) for k, name in enumerate(STAGES)},
-        "paced": [_paced(scene, paced_s, loop.rate_hz), _paced(scene, paced_s, 10_000.0)],
+        # ordinary and real-time scheduling interleaved, so both see the same machine
+        "paced": [_paced(scene, paced_s, rate, fifo) for rate in (loop.rate_hz, 10_000.0) for fifo in (False, True)],
         "targets": {"ratio_p50": 2.0, "tick_p99_us": 25.0, "deadline_miss_rate": 1e-4},
         "_samples": {"tick_us": tick_us, "mj_step_us": step_us},
     }
@@ -145,8 +153,8 @@ def main(args) -> int:
     print(f"  targets: ratio p50 <= {tg['ratio_p50']:g}, tick p99 <= {tg['tick_p99_us']:g} µs, "
           f"deadline misses < {tg['deadline_miss_rate']:g}")
     for paced in result["paced"]:
-        print(f"  deadline misses paced at {paced['rate_hz']:g} Hz: {paced['misses']} of {paced['ticks']} "
-              f"({paced['miss_rate']:.2e}), tick p99 {paced['tick_us']['p99']} µs")
+        print(f"  deadline misses paced at {paced['rate_hz']:g} Hz, {paced['scheduling']}: {paced['misses']} of "
+              f"{paced['ticks']} ({paced['miss_rate']:.2e}), tick p99 {paced['tick_us']['p99']} µs")
     print("  stages (µs, median): " + ", ".join(f"{k} {v}" for k, v in result["stages_us_p50"].items()))
     print(f"  wrote {json_path} and {png_path}")
     return 0

@@ -45,6 +45,7 @@ from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
 from softproxy.finger_rows import FingerRows
+from softproxy.scheduling import realtime_thread
 from softproxy.world import World
 
 MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
@@ -429,17 +430,27 @@ class ServoLoop:
         thread-safe. The run then sends zero force, as every run does when it ends."""
         self.state[0].stop = True
 
-    def run_in_thread(self, ticks: int, realtime: bool = True, on_tick=None, every: int = 1) -> threading.Thread:
+    def run_in_thread(self, ticks: int, realtime: bool = True, on_tick=None, every: int = 1,
+                      priority: int | None = None, cpu: int | None = None) -> threading.Thread:
         """`run(...)` in a new thread, started, returned. With a compiled device the ticks run
         without the GIL, so this thread can draw or log meanwhile; it must not touch
         `world.data` (MuJoCo steps it) until the thread has ended: read state in `on_tick`,
         which runs on the servo thread between blocks. A failure in the run is kept in
-        `error` and the safe state is sent as always."""
+        `error` and the safe state is sent as always. `priority` (SCHED_FIFO, 1–99) and `cpu`
+        ask for real-time scheduling of the servo thread (`softproxy.scheduling`); what the OS
+        granted is kept in `scheduling`."""
         self.error = None
+        self.scheduling = None
+        if priority is not None and not (isinstance(priority, int) and 1 <= priority <= 99):
+            raise ValueError(f"real-time priority must be an integer from 1 to 99, got {priority!r}")
 
         def servo() -> None:
             try:
-                self.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
+                if priority is None and cpu is None:
+                    self.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
+                    return
+                with realtime_thread(priority, cpu) as self.scheduling:
+                    self.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
             except BaseException as exc:
                 self.error = exc
 

@@ -26,7 +26,8 @@ def test_latency_bench(tmp_path):
     for key in ("tick_us", "mj_step_us"):
         assert set(data[key]) == {"p50", "p99", "max"} and data[key]["p50"] > 0
     assert data["ratio_p50"] > 0
-    assert [p["rate_hz"] for p in data["paced"]] == [1000.0, 10000.0]
+    assert [p["rate_hz"] for p in data["paced"]] == [1000.0, 1000.0, 10000.0, 10000.0]
+    assert "SCHED_FIFO" not in data["paced"][0]["scheduling"] and "SCHED_FIFO" in data["paced"][1]["scheduling"]
     assert all(0 <= p["miss_rate"] <= 1 and p["ticks"] > 0 for p in data["paced"])
     stages = data["stages_us_p50"]
     assert list(STAGES) == list(stages)

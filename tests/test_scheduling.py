@@ -1,0 +1,60 @@
+"""Real-time scheduling of a servo thread (softproxy.scheduling): granted or reported, always restored."""
+
+import os
+import threading
+
+import pytest
+
+from softproxy.scheduling import realtime_thread
+
+linux = pytest.mark.skipif(not hasattr(os, "sched_setscheduler"), reason="SCHED_FIFO is Linux's")
+
+
+@linux
+def test_the_thread_gets_what_it_asked_for_or_says_why_and_is_restored():
+    """Inside the block the thread runs SCHED_FIFO on one CPU (or the refusal is reported and
+    nothing changed); after it, the policy and the affinity are what they were."""
+    policy, affinity = os.sched_getscheduler(0), os.sched_getaffinity(0)
+    cpu = max(affinity)
+    with realtime_thread(10, cpu) as granted:
+        if granted.priority is not None:
+            assert os.sched_getscheduler(0) == os.SCHED_FIFO and os.sched_getparam(0).sched_priority == 10
+            assert "SCHED_FIFO priority 10" in str(granted)
+        else:
+            assert os.sched_getscheduler(0) == policy and "SCHED_FIFO refused" in str(granted)
+        assert granted.cpus == {cpu} and os.sched_getaffinity(0) == {cpu}
+    assert os.sched_getscheduler(0) == policy and os.sched_getaffinity(0) == affinity
+
+
+@linux
+def test_it_changes_only_the_calling_thread():
+    """Another thread keeps its own scheduling while one thread is real-time."""
+    seen = {}
+    inside, done = threading.Event(), threading.Event()
+
+    def other():
+        inside.wait(5)
+        seen["policy"], seen["cpus"] = os.sched_getscheduler(0), os.sched_getaffinity(0)
+        done.set()
+
+    before = os.sched_getaffinity(0)
+    t = threading.Thread(target=other)
+    t.start()
+    with realtime_thread(10, max(before)):
+        inside.set()
+        done.wait(5)
+    t.join()
+    assert seen["policy"] == os.SCHED_OTHER and seen["cpus"] == before
+
+
+@pytest.mark.parametrize("priority", [0, 100, 1.5, "80"])
+def test_a_priority_out_of_range_is_named(priority):
+    with pytest.raises(ValueError, match="priority must be an integer from 1 to 99"):
+        with realtime_thread(priority):
+            pass
+
+
+def test_a_cpu_the_machine_lacks_is_reported_not_raised():
+    with realtime_thread(None, 10_000) as granted:
+        pass
+    assert granted.cpus is None and "CPU 10000 refused" in str(granted)
