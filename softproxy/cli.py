@@ -125,6 +125,11 @@ def _check_run_flags(args: argparse.Namespace) -> dict | None:
                          f"got {args.duration!r}")
     if args.rate is not None and not (math.isfinite(args.rate) and MIN_RATE_HZ <= args.rate <= MAX_RATE_HZ):
         raise ValueError(f"--rate must be a servo rate between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got {args.rate!r}")
+    if args.rt_priority is not None:
+        if not 1 <= args.rt_priority <= 99:
+            raise ValueError(f"--rt-priority must be a SCHED_FIFO priority from 1 to 99, got {args.rt_priority}")
+        if args.headless and not args.realtime:
+            raise ValueError("--rt-priority schedules a real-time run: add --realtime (a lockstep run is not paced)")
     name, colon, argument = args.device.partition(":")
     if colon and not argument:
         raise ValueError(f"--device {args.device!r}: give the argument after ':' (e.g. replay:run.rec)")
@@ -241,7 +246,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
                                finger_model=args.finger_model, realtime=realtime, record=args.record,
                                on_built=views.on_built if views else None, on_tick=views.on_tick if views else None,
-                               every=1 if views is not None and views.video is not None else 10)  # video frames on time
+                               every=1 if views is not None and views.video is not None else 10,  # video frames on time
+                               priority=args.rt_priority)
         finally:
             device.close()
         if views is not None:
@@ -267,7 +273,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 print(f"  the device failed ({result['faults']['device_error']} ticks, zero force each): "
                       f"{result['device_error']}")
             if result.get("deadline_misses") is not None:
-                print(f"  deadline misses {result['deadline_misses']}")
+                print(f"  deadline misses {result['deadline_misses']} ({result['scheduling']})")
             if "device" in result:
                 d = result["device"]
                 print(f"  device: injected {d['faults_injected']}; largest force sent {d['max_force_sent_N']} N "
@@ -492,6 +498,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")
     p.add_argument("--finger-model", choices=list(MODELS), default=None, help="override every finger's model")
     p.add_argument("--realtime", action="store_true", help="pace ticks in real time (default: lockstep)")
+    p.add_argument("--rt-priority", type=int, default=None, metavar="N",
+                   help="run a real-time run's servo thread under SCHED_FIFO at priority N (1-99; needs root, "
+                        "CAP_SYS_NICE or an rtprio limit; the result says what was granted)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_run)
 

@@ -19,6 +19,7 @@ from softproxy.finger import SoftFingerProxy
 from softproxy.fingertip_sensors import attach as attach_sensors
 from softproxy.fingertip_sensors import summaries as sensor_summaries
 from softproxy.recording import RecordingDevice
+from softproxy.scheduling import realtime_thread
 from softproxy.scene import Scene, SceneError
 from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ, ServoLoop
 from softproxy.world import World
@@ -133,8 +134,11 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
-              record: str | None = None, every: int = 10) -> dict:
+              record: str | None = None, every: int = 10, priority: int | None = None) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
+
+    `priority` (1–99) runs a real-time run's ticks under SCHED_FIFO at that priority
+    (`softproxy.scheduling`; what the OS granted is in the result's "scheduling").
 
     `on_built(loop)` is called once the loop exists (e.g. to attach a viewer publisher);
     `on_tick(loop)` after every `every` ticks (and the last), outside the timed region; the
@@ -174,7 +178,8 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
                     user_on_tick(lp)
         else:
             on_tick = user_on_tick
-        loop.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
+        with realtime_thread(priority if realtime else None) as granted:
+            loop.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
     finally:
         if recorder is not None:
             recorder.finish()  # drain and close the file however the run ends (the caller closes the device)
@@ -187,6 +192,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         "ticks": loop.ticks,
         "duration_s": loop.ticks * loop.period,
         "realtime": realtime,
+        "scheduling": str(granted),
     }
     if measure is not None:
         mujoco_data = loop.world.data

@@ -88,6 +88,8 @@ RUN_FLAG_MISTAKES = [
     (["--device", "replay:"], ["--device 'replay:'", "replay:run.rec"]),
     (["--device", "replay:MISSING.rec"], ["--device replay:MISSING.rec", "MISSING.rec"]),
     (["--finger-model", "thumb"], ["--finger-model", "thumb"]),
+    (["--realtime", "--rt-priority", "0"], ["--rt-priority", "1 to 99", "got 0"]),
+    (["--rt-priority", "80"], ["--rt-priority", "--realtime"]),
 ]
 
 
