@@ -25,14 +25,22 @@ two-sided sheet (unsigned distance, both sides solid).
 
 from __future__ import annotations
 
+import copy
+import hashlib
+import os
+import sys
+import threading
 import warnings
+import weakref
+from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor, as_completed
 
 import mujoco
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
+from tqdm import tqdm
 
-from softproxy.compiled.certificate import ABOVE_TOL, STATIC_ABOVE, VERTEX_READ
+from softproxy.compiled.certificate import STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, vertex_tables
 from softproxy.compiled.layout import GEOM_MESH
 from softproxy.compiled.tolerances import CONTACT_TOL
 from softproxy.geometry import Shape
@@ -42,13 +50,6 @@ KEPT_RADIUS = 0.005
 once; `prepare` builds them for a larger proxy (a query beyond their reach scans the grid)."""
 KEPT_STEP = 0.002
 """How far (m) a sweep may move and still be covered by the certificates built for its radius."""
-RISING_VERTICES = 4 * STATIC_ABOVE
-"""A face with more vertices than this rising above its plane near it is taken as concave at
-once (its rising triangles are not gathered)."""
-PAIR_CHUNK = 2048
-"""Points per numpy pass when gathering the vertices near every face or vertex (bounds memory)."""
-SINE_GRID = 2.0 ** 40
-"""Steps per unit a kept vertex table's sin β is rounded down to (≈1e-12) for one sort."""
 DEGENERATE = 1e-6
 """A triangle whose area is below this fraction of its longest edge squared is degenerate
 (zero-area: coincident or collinear vertices, within float32 rounding)."""
@@ -138,6 +139,250 @@ def validate_mesh(vertices, faces, name: str, warn: bool = True) -> tuple[np.nda
 
 
 # ---------------------------------------------------------------------------------------
+# One mesh asset's tables, built once and shared
+# ---------------------------------------------------------------------------------------
+
+class MeshTables:
+    """The load-time tables of one set of triangles (geom frame, m), shared by every geom
+    that uses it (`tables_of`): the per-triangle and per-vertex tables and the kept
+    certificates (`reaching` a larger proxy's reach makes new ones). Arrays only (CSR runs for the
+    per-vertex lists), so that a million triangles build in numpy and compiled loops."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, defects: list[str], signed: bool, key: bytes) -> None:
+        self.defects, self.signed, self.key = defects, signed, key
+        self.triangles = len(faces)
+        used = vertices[np.unique(faces)]
+        self.rbound = float(np.sqrt((used * used).sum(1)).max()) * (1.0 + 1e-12) + 1e-12
+        self._build(vertices, faces)
+        self.kept = 0.0        # the reach (m) every face's and vertex's certificate holds over
+        self.clear = None      # per face and side: how many triangles rise above it (-1: concave)
+        self.listed = None     # ... and which (faces × 2 sides × STATIC_ABOVE)
+        self.vtable = None     # per vertex: (reach, start, sin β, vertex id), the last two flat
+        self._certify(reach(KEPT_RADIUS))
+
+    def _build(self, v: np.ndarray, f: np.ndarray) -> None:
+        """The per-triangle and per-vertex tables of vertices v and faces f (validated)."""
+        a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        ab, ac = b - a, c - a
+        cross = np.cross(ab, ac)
+        n = cross / np.linalg.norm(cross, axis=1)[:, None]
+        aa, abac, cc = (ab * ab).sum(1), (ab * ac).sum(1), (ac * ac).sum(1)
+        inv = 1.0 / (aa * cc - abac * abac)
+        # A, B, C, AB, AC, unit normal N, AB·AB, AB·AC, AC·AC, 1 / (AB·AB AC·AC - (AB·AC)²)
+        # (the columns of T that `layout` names T_A .. T_INV)
+        self.tri = np.column_stack([a, b, c, ab, ac, n, aa, abac, cc, inv])
+        self.plane = np.column_stack([n, (n * a).sum(1)])  # unit normal, offset n·A (m)
+        # edges AB, BC, CA as (start, unit direction, length): the swept cylinders
+        starts = np.stack([a, b, c], axis=1)
+        vecs = np.stack([b - a, c - b, a - c], axis=1)
+        del ab, ac, cross
+        lengths = np.linalg.norm(vecs, axis=2)
+        self.edges = np.concatenate([starts, vecs / lengths[..., None], lengths[..., None]], axis=2)
+        del starts, vecs
+        # each triangle's box and bounding ball about its centre (the certificates' reach tests)
+        self.tlo = np.minimum(np.minimum(a, b), c)
+        self.thi = np.maximum(np.maximum(a, b), c)
+        centre = (a + b + c) / 3.0
+        self.centre = centre
+        self.rhos = np.sqrt(np.max([((a - centre) ** 2).sum(1), ((b - centre) ** 2).sum(1),
+                                    ((c - centre) ** 2).sum(1)], axis=0))
+
+        # pseudo-normals: an edge's is the sum of its two faces' normals, a vertex's the sum
+        # of its faces' normals weighted by the face angle at the vertex
+        angles = np.empty((len(f), 3))
+        for k in range(3):
+            e1 = v[f[:, (k + 1) % 3]] - v[f[:, k]]
+            e2 = v[f[:, (k + 2) % 3]] - v[f[:, k]]
+            cosang = (e1 * e2).sum(1) / (np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1))
+            angles[:, k] = np.arccos(np.clip(cosang, -1.0, 1.0))
+        vnormal = np.zeros((len(v), 3))
+        for k in range(3):
+            np.add.at(vnormal, f[:, k], n * angles[:, k:k + 1])
+        vnormal /= np.maximum(np.linalg.norm(vnormal, axis=1), 1e-300)[:, None]
+        nv = len(v)
+        key = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        ukeys, inverse = np.unique(key[:, 0] * nv + key[:, 1], return_inverse=True)
+        inverse = inverse.reshape(-1)
+        enormal = np.zeros((len(ukeys), 3))
+        np.add.at(enormal, inverse, np.repeat(n, 3, axis=0))
+        enormal = enormal[inverse.reshape(-1, 3)]  # (faces, 3 edges, 3)
+        # across each edge (AB, BC, CA), the other triangle of a manifold edge, else -1
+        slots = np.argsort(inverse, kind="stable")
+        counts = np.bincount(inverse)
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        adj = np.full(3 * len(f), -1, dtype=np.int64)
+        pair = np.flatnonzero(counts == 2)
+        one, two = slots[first[pair]], slots[first[pair] + 1]
+        adj[one], adj[two] = two // 3, one // 3
+        self.adj = adj.reshape(-1, 3)
+        fv = vnormal[f]                            # (faces, 3 vertices, 3)
+        self.pn = np.concatenate([n[:, None, :], enormal, fv], axis=1)  # face, edges AB BC CA, vertices A B C
+        self.vn = fv.reshape(-1, 9)                # the vertex normals at A, B, C (force shading)
+        del enormal, fv
+
+        # vertex fans, for the certificate of a nearest point on a vertex: each triangle's
+        # three vertex ids; per vertex its triangles (ascending), the edges to its ring of
+        # neighbours (from the vertex, each with a triangle on it), and a circular cone (axis,
+        # cosine) of directions n that see every edge going away (n·e <= 0): inside it, the
+        # whole fan lies behind the tangent plane of normal n at the vertex
+        self.tv = f
+        order = np.argsort(f.reshape(-1), kind="stable")
+        self.fan_start = np.searchsorted(f.reshape(-1)[order], np.arange(nv + 1))
+        self.fan = order // 3                      # ascending per vertex (a stable sort)
+        # directed edges v -> w, sorted by (v, w), with the first triangle (in face order) on each
+        at = np.unique(inverse, return_index=True)[1] // 3
+        lo, hi = ukeys // nv, ukeys % nv
+        src = np.concatenate([lo, hi])
+        dst = np.concatenate([hi, lo])
+        tri = np.concatenate([at, at])
+        order = np.lexsort((dst, src))
+        src, dst, tri = src[order], dst[order], tri[order]
+        self.ring_start = np.searchsorted(src, np.arange(nv + 1))
+        self.ring_to = dst
+        evec = v[dst] - v[src]
+        self.ring = np.column_stack([evec, tri])   # per edge leaving a vertex: its vector (m), a triangle on it
+        # the largest cone about the vertex normal inside {n: n·e <= 0 for every edge e}
+        cones = np.empty((nv, 4))
+        cones[:, :3] = vnormal
+        cones[:, 3] = 2.0  # no cone: a vertex without edges
+        if len(src):
+            sdown = -((evec / np.linalg.norm(evec, axis=1)[:, None]) * vnormal[src]).sum(1)
+            has = np.flatnonzero(np.diff(self.ring_start) > 0)
+            smin = np.minimum.reduceat(sdown, self.ring_start[has])
+            cos = np.where(smin > 0.0, np.sqrt(np.maximum(0.0, 1.0 - smin * smin)) + 1e-12, 2.0)
+            cones[has, 3] = cos
+        self.vcone = cones
+        self.vpos = v
+
+    def reaching(self, kept: float) -> "MeshTables":
+        """These tables with certificates over `kept` (m) at least: themselves, or the tables
+        of the same triangles built for that reach (the per-triangle and per-vertex arrays
+        shared, the certificates built once per reach and shared like the rest)."""
+        if kept <= self.kept:
+            return self
+        grown = _TABLES.get((self.key, kept))
+        if grown is None:
+            grown = copy.copy(self)
+            grown._certify(kept)
+            _TABLES[(self.key, kept)] = grown
+        return grown
+
+    def _certify(self, kept: float) -> None:
+        """Build the kept certificates of every face and vertex over `kept` (m): per face and
+        side the triangles within it rising above the face's plane (`face_lists`), per vertex
+        its sin β table (`vertex_tables`), each a walk of a box tree over the triangles."""
+        n, nv = self.triangles, len(self.vpos)
+        # short triangles are found through their vertices, long ones in a tree of their own
+        edge = self.edges[:, :, 6].max(axis=1)
+        long_edge = LONG_EDGES * float(np.median(edge))
+        vertex_tree = box_tree(self.vpos, self.vpos)
+        long = np.flatnonzero(edge > long_edge)
+        long_tree = box_tree(self.tlo[long], self.thi[long], long)
+        clear = np.empty((n, 2), dtype=np.int64)
+        listed = np.full((n, 2, STATIC_ABOVE), -1, dtype=np.int64)
+        keep = VERTEX_READ + 1
+        sines = np.empty((nv, keep))
+        ids = np.empty((nv, keep), dtype=np.int64)
+        counts = np.empty(nv, dtype=np.int64)
+        common = (self.tlo, self.thi, self.centre, self.rhos)
+        trees = (*vertex_tree, *long_tree, kept, long_edge)
+        scratch = threading.local()  # per worker: a stamp per triangle and one per vertex
+
+        def faces(s: int, e: int) -> int:
+            if not hasattr(scratch, "tstamp"):
+                scratch.tstamp, scratch.mark = np.zeros(n, dtype=np.int64), np.zeros(nv, dtype=np.int64)
+            face_lists(np.arange(s, e), self.vpos, self.tv, self.plane, *common, self.fan_start, self.fan, *trees,
+                       scratch.tstamp, s, clear[s:e], listed[s:e])
+            return e - s
+
+        def vertices(s: int, e: int) -> int:
+            if not hasattr(scratch, "tstamp"):
+                scratch.tstamp, scratch.mark = np.zeros(n, dtype=np.int64), np.zeros(nv, dtype=np.int64)
+            vertex_tables(np.arange(s, e), self.vpos, self.tv, self.vcone, self.ring_start, self.ring_to, *common,
+                          *trees, scratch.mark, s, sines[s:e], ids[s:e], counts[s:e])
+            return e - s
+
+        jobs = [(faces, s, min(n, s + BUILD_CHUNK)) for s in range(0, n, BUILD_CHUNK)]
+        jobs += [(vertices, s, min(nv, s + BUILD_CHUNK)) for s in range(0, nv, BUILD_CHUNK)]
+        with _progress(n + nv, f"mesh certificates ({n} triangles)") as bar, \
+                ThreadPoolExecutor(max_workers=min(len(jobs), os.cpu_count() or 1, BUILD_THREADS)) as pool:
+            for done in as_completed([pool.submit(*job) for job in jobs]):
+                bar.update(done.result())
+        head = np.arange(keep)[None, :] < counts[:, None]
+        self.clear, self.listed = clear, listed
+        self.vtable = (kept, np.concatenate([[0], np.cumsum(counts)]), sines[head], ids[head])
+        self.kept = kept
+
+
+def reach(radius: float) -> float:
+    """The reach (m) the kept certificates need for a proxy of `radius` (m) sweeping up to KEPT_STEP."""
+    return 2.0 * (radius + CONTACT_TOL) + KEPT_STEP
+
+
+LONG_EDGES = 4.0
+"""A triangle whose longest edge is over this many times the mesh's median is long: the
+certificates find it in a tree of long triangles, the others through their vertices."""
+BUILD_CHUNK = 4096
+"""Faces or vertices per compiled call while building certificates (the progress bar's step)."""
+BUILD_THREADS = 8
+"""Most threads building certificates at once (the compiled calls release the GIL)."""
+
+_TABLES: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+"""Every MeshTables alive, by (a digest of the triangles it was built from, its reach (m))."""
+
+
+def tables_of(vertices, faces, label: str) -> MeshTables:
+    """The MeshTables of triangles (vertices (n, 3), faces (m, 3); geom frame, m), built the
+    first time these exact triangles are seen and shared while any shape holds them; each call
+    warns (`MeshWarning`, naming `label`) of what validation repaired or reported."""
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64).reshape(-1, 3)
+    faces = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
+    h = hashlib.blake2b(digest_size=20)
+    h.update(np.array(vertices.shape + faces.shape, dtype=np.int64).tobytes())
+    h.update(vertices.tobytes())
+    h.update(faces.tobytes())
+    key = h.digest()
+    tables = _TABLES.get((key, reach(KEPT_RADIUS)))
+    if tables is None:
+        v, f, defects, closed = _clean(vertices, faces, label, warn=False)
+        tables = MeshTables(v, f, defects, closed, key)
+        _TABLES[(key, tables.kept)] = tables
+    for d in tables.defects:
+        warnings.warn(f"mesh {label}: {d}", MeshWarning, stacklevel=3)
+    return tables
+
+
+def _progress(total: int, what: str):
+    """A progress bar on stderr when it is a terminal and the work takes over a second."""
+    return tqdm(total=total, desc=what, unit="", delay=1.0, leave=False,
+                disable=not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty()))
+
+
+class _FaceLists(Mapping):
+    """The kept face certificates read as a mapping: face i (or -1 - i, its back) -> (reach
+    (m), the triangles rising above its plane), or (-1.0, None) for a concave patch."""
+
+    def __init__(self, tables: MeshTables) -> None:
+        self._t = tables
+
+    def __getitem__(self, key):
+        t = self._t
+        i, side = (key, 0) if key >= 0 else (-1 - key, 1)
+        if not 0 <= i < t.triangles:
+            raise KeyError(key)
+        m = int(t.clear[i, side])
+        return (-1.0, None) if m < 0 else (t.kept, tuple(t.listed[i, side, :m].tolist()))
+
+    def __iter__(self):
+        for i in range(self._t.triangles):
+            yield i
+            yield -1 - i
+
+    def __len__(self):
+        return 2 * self._t.triangles
+
+
+# ---------------------------------------------------------------------------------------
 # The shape
 # ---------------------------------------------------------------------------------------
 
@@ -152,16 +397,13 @@ class MeshShape(Shape):
     for every mesh geom; pass `mesh_shape=MeshShape` to `shapes_of` (`functools.partial(
     MeshShape, shading=True)` for shading). `defects`: what `validate_mesh` repaired or
     reported; `signed`: watertight (an inside, signed distance) or a two-sided sheet.
-    Arrays in the geom frame (m); a triangle's features are 0 its face, 1-3 its edges AB,
-    BC, CA, 4-6 its vertices A, B, C.
+    The tables (`tables`, a `MeshTables`) are built once per set of triangles and shared by
+    every geom using the same asset. Arrays in the geom frame (m); a triangle's features are
+    0 its face, 1-3 its edges AB, BC, CA, 4-6 its vertices A, B, C.
     """
 
     gtype = GEOM_MESH
-    __slots__ = (
-        "signed", "shading", "defects", "triangles", "_tri", "_edges", "_plane", "_pn", "_vn", "_adj", "_tv",
-        "_centre", "_rhos", "_rho", "_vpos", "_vtree", "_vcone", "_ring", "_fan", "_vt_start", "_vt_tris",
-        "_edge_keys", "_clear", "_kept", "_vtable",
-    )
+    __slots__ = ("shading", "tables")
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool,
                  shading: bool = False, triangles=None) -> None:
@@ -172,205 +414,35 @@ class MeshShape(Shape):
                 raise ValueError(f"geom {self.name!r} is not a mesh geom: give its triangles=(vertices, faces)")
             va, vn = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
             fa, fn = int(model.mesh_faceadr[mesh]), int(model.mesh_facenum[mesh])
-            vertices = np.array(model.mesh_vert[va:va + vn], dtype=np.float64)
-            faces = np.array(model.mesh_face[fa:fa + fn], dtype=np.int64)
+            vertices = model.mesh_vert[va:va + vn]
+            faces = model.mesh_face[fa:fa + fn]
             label = _label(model, geom, mesh, self.name)
         else:
             vertices, faces = _explicit(triangles, self.name)
             label = f"'triangles' (geom {self.name!r})"
-        vertices, faces, self.defects, self.signed = _clean(vertices, faces, label, warn=True)
+        self.tables = tables_of(vertices, faces, label)
         self.shading = bool(shading)
-        self.triangles = len(faces)
         # the bounding sphere about the geom origin that the god-object's broad phase uses
-        used = vertices[np.unique(faces)]
-        self.rbound = float(np.sqrt((used * used).sum(1)).max()) * (1.0 + 1e-12) + 1e-12
-        self._build(vertices, faces)
-        self._clear: dict = {}  # face i (or -1 - i, its back) -> (reach (m), triangles rising above it), or (-1, None)
-        self._kept = 0.0        # the reach (m) every face's and vertex's certificate holds over
-        self._vtable = None     # `_vertex_tables` over every vertex
-        self.prepare(KEPT_RADIUS)
+        self.rbound = self.tables.rbound
 
-    # -- load-time tables ---------------------------------------------------------------
-    def _build(self, v: np.ndarray, f: np.ndarray) -> None:
-        """The per-triangle and per-vertex tables of vertices v and faces f (validated)."""
-        a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-        ab, ac = b - a, c - a
-        cross = np.cross(ab, ac)
-        n = cross / np.linalg.norm(cross, axis=1)[:, None]
-        aa, abac, cc = (ab * ab).sum(1), (ab * ac).sum(1), (ac * ac).sum(1)
-        inv = 1.0 / (aa * cc - abac * abac)
-        # A, B, C, AB, AC, unit normal N, AB·AB, AB·AC, AC·AC, 1 / (AB·AB AC·AC - (AB·AC)²)
-        # (the columns of T that `layout` names T_A .. T_INV)
-        self._tri = np.column_stack([a, b, c, ab, ac, n, aa, abac, cc, inv])
-        self._plane = np.column_stack([n, (n * a).sum(1)])  # unit normal, offset n·A (m)
-        # edges AB, BC, CA as (start, unit direction, length): the swept cylinders
-        starts = np.stack([a, b, c], axis=1)
-        vecs = np.stack([b - a, c - b, a - c], axis=1)
-        lengths = np.linalg.norm(vecs, axis=2)
-        self._edges = np.concatenate([starts, vecs / lengths[..., None], lengths[..., None]], axis=2)
-        # each triangle's bounding sphere about its centre (the certificates' reach tests)
-        centre = (a + b + c) / 3.0
-        self._centre = centre
-        self._rhos = np.sqrt(np.max([((a - centre) ** 2).sum(1), ((b - centre) ** 2).sum(1),
-                                     ((c - centre) ** 2).sum(1)], axis=0))
-        self._rho = float(self._rhos.max())
-
-        # pseudo-normals: an edge's is the sum of its two faces' normals, a vertex's the sum
-        # of its faces' normals weighted by the face angle at the vertex
-        angles = np.empty((len(f), 3))
-        for k in range(3):
-            e1 = v[f[:, (k + 1) % 3]] - v[f[:, k]]
-            e2 = v[f[:, (k + 2) % 3]] - v[f[:, k]]
-            cosang = (e1 * e2).sum(1) / (np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1))
-            angles[:, k] = np.arccos(np.clip(cosang, -1.0, 1.0))
-        vnormal = np.zeros((len(v), 3))
-        for k in range(3):
-            np.add.at(vnormal, f[:, k], n * angles[:, k:k + 1])
-        vnormal /= np.maximum(np.linalg.norm(vnormal, axis=1), 1e-300)[:, None]
-        key = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        _, inverse = np.unique(key, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        enormal = np.zeros((inverse.max() + 1, 3))
-        np.add.at(enormal, inverse, np.repeat(n, 3, axis=0))
-        enormal = enormal[inverse.reshape(-1, 3)]  # (faces, 3 edges, 3)
-        # across each edge (AB, BC, CA), the other triangle of a manifold edge, else -1
-        slots = np.argsort(inverse, kind="stable")
-        counts = np.bincount(inverse)
-        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        adj = np.full(3 * len(f), -1, dtype=np.int64)
-        pair = np.flatnonzero(counts == 2)
-        one, two = slots[first[pair]], slots[first[pair] + 1]
-        adj[one], adj[two] = two // 3, one // 3
-        self._adj = adj.reshape(-1, 3)
-        fv = vnormal[f]                            # (faces, 3 vertices, 3)
-        self._pn = np.concatenate([n[:, None, :], enormal, fv], axis=1)  # face, edges AB BC CA, vertices A B C
-        self._vn = fv.reshape(-1, 9)               # the vertex normals at A, B, C (force shading)
-
-        # vertex fans, for the certificate of a nearest point on a vertex: each triangle's
-        # three vertex ids; per vertex its triangles (ascending), the edges to its ring of
-        # neighbours (from the vertex, each with a triangle on it), and a circular cone (axis,
-        # cosine) of directions n that see every edge going away (n·e <= 0): inside it, the
-        # whole fan lies behind the tangent plane of normal n at the vertex
-        self._tv = f
-        order = np.argsort(f.reshape(-1), kind="stable")
-        bounds = np.searchsorted(f.reshape(-1)[order], np.arange(len(v) + 1))
-        self._vt_start, self._vt_tris = bounds, order // 3
-        self._fan = np.split(self._vt_tris, bounds[1:-1])
-        pairs = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-        pairs = np.unique(np.concatenate([pairs, pairs[:, ::-1]]), axis=0)  # v -> w, sorted
-        pstart = np.searchsorted(pairs[:, 0], np.arange(len(v) + 1))
-        self._edge_keys = pairs[:, 0] * len(v) + pairs[:, 1]
-        evec = v[pairs[:, 1]] - v[pairs[:, 0]]
-        eunit = evec / np.linalg.norm(evec, axis=1)[:, None]
-        # the first triangle (in face order) on each undirected edge
-        undirected = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        ukeys, at = np.unique(undirected[:, 0] * len(v) + undirected[:, 1], return_index=True)
-        lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
-        on_edge = at[np.searchsorted(ukeys, lo * len(v) + hi)] // 3
-        self._ring = np.split(np.column_stack([evec, on_edge]), pstart[1:-1])
-        cones = np.empty((len(v), 4))
-        cones[:, :3] = vnormal
-        for i in range(len(v)):
-            s0, s1 = pstart[i], pstart[i + 1]
-            cos = 2.0  # no cone: a vertex without edges
-            if s1 > s0:
-                # the largest cone about the vertex normal inside {n: n·e <= 0 for every edge e}
-                smin = float((-(eunit[s0:s1] @ vnormal[i])).min())
-                cos = float(np.sqrt(max(0.0, 1.0 - smin * smin))) + 1e-12 if smin > 0.0 else 2.0
-            cones[i, 3] = cos
-        self._vcone = cones
-        self._vpos, self._vtree = v, cKDTree(v)
-
-    # -- certificates kept for the mesh's lifetime ------------------------------------------------
     def prepare(self, radius: float) -> bool:
-        """Build the kept certificates of every face and vertex (numpy, all at once) for a proxy
-        of `radius` (m) sweeping up to KEPT_STEP, so that its queries find them (beyond their
-        reach a query scans the grid). True when they grew (the engine's tables must be rebuilt);
-        load builds them for KEPT_RADIUS."""
-        kept = 2.0 * (radius + CONTACT_TOL) + KEPT_STEP
-        if kept <= self._kept:
+        """Get the kept certificates for a proxy of `radius` (m) (`MeshTables.reaching`: built
+        once per reach, shared by every geom of this asset). True when the engine's tables must
+        be rebuilt."""
+        grown = self.tables.reaching(reach(radius))
+        if grown is self.tables:
             return False
-        self._clear.update(self._face_tables(np.arange(self.triangles), kept))
-        self._vtable = self._vertex_tables(np.arange(len(self._vpos)), kept)
-        self._kept = kept
+        self.tables = grown
         return True
 
-    def _vertices_near(self, points: np.ndarray, reach: np.ndarray):
-        """(k, w) for every vertex w within reach[k] (m) of points[k], as two numpy arrays."""
-        ks, ws = [], []
-        for s in range(0, len(points), PAIR_CHUNK):
-            tree = cKDTree(points[s:s + PAIR_CHUNK])
-            got = tree.sparse_distance_matrix(self._vtree, float(reach[s:s + PAIR_CHUNK].max()), output_type="ndarray")
-            k = got["i"].astype(np.int64) + s
-            keep = got["v"] <= reach[k]
-            ks.append(k[keep])
-            ws.append(got["j"][keep].astype(np.int64))
-        return np.concatenate(ks), np.concatenate(ws)
-
-    def _face_tables(self, faces: np.ndarray, radius: float) -> dict:
-        """Kept face certificates for `faces` (ids) over `radius` (m), all at once: per face and
-        side (key i, or -1 - i for its back), (radius, the triangles within radius of the face
-        that reach above its plane), or (-1, None) when more than STATIC_ABOVE do (a concave
-        patch). A triangle reaches above the plane when one of its vertices does (higher than
-        ABOVE_TOL), and such a vertex lies within radius + the face's and twice the largest
-        triangle's bounding radius of the face's centre: one dot product per vertex that near,
-        then the rising vertices' triangles within radius."""
-        rhos, centre = self._rhos, self._centre
-        k, w = self._vertices_near(centre[faces], radius + rhos[faces] + 2.0 * self._rho)
-        face = faces[k]
-        h = np.einsum("ij,ij->i", np.take(self._vpos, w, axis=0), np.take(self._plane[:, :3], face, axis=0))
-        h -= np.take(self._plane[:, 3], face)
-        start, tris = self._vt_start, self._vt_tris
-        ids = faces.tolist()
-        out = {}
-        for side, rising in ((1.0, h > ABOVE_TOL), (-1.0, h < -ABOVE_TOL)):
-            keys = ids if side > 0.0 else [-1 - i for i in ids]
-            # a face with many rising vertices near it is concave (or seen from behind): not expanded
-            many = np.bincount(k[rising], minlength=len(faces)) > RISING_VERTICES
-            rising &= ~many[k]
-            rk, rw = k[rising], w[rising]
-            # each rising vertex's triangles: (face position, triangle) pairs, kept within radius
-            count = start[rw + 1] - start[rw]
-            first = np.repeat(start[rw] - np.cumsum(count) + count, count)
-            t = tris[first + np.arange(int(count.sum()))]
-            rk = np.repeat(rk, count)
-            gap = np.linalg.norm(centre[t] - centre[faces[rk]], axis=1) - rhos[t] - rhos[faces[rk]]
-            near = gap <= radius
-            pair = np.unique(rk[near] * self.triangles + t[near])
-            rk, t = pair // self.triangles, pair % self.triangles
-            bounds = np.searchsorted(rk, np.arange(len(faces) + 1))
-            counts = np.diff(bounds)
-            out.update(dict.fromkeys(keys, (radius, ())))
-            concave = np.flatnonzero(many | (counts > STATIC_ABOVE)).tolist()
-            out.update(dict.fromkeys([keys[j] for j in concave], (-1.0, None)))
-            for j in np.flatnonzero((counts > 0) & (counts <= STATIC_ABOVE)).tolist():
-                out[keys[j]] = (radius, tuple(t[bounds[j]:bounds[j + 1]].tolist()))
-        return out
-
-    def _vertex_tables(self, vertices: np.ndarray, radius: float):
-        """Kept vertex certificates for `vertices` (ids) over `radius` (m), all at once: per
-        vertex v, the vertices w of the triangles within radius of it (all within radius + twice
-        the largest triangle's bounding radius), but v and the ends of its edges (behind the
-        tangent plane with the fan), by sin β ascending (β: the angle of w - v below the plane
-        square to v's cone axis), the first VERTEX_READ + 1 of them. (radius, start per vertex
-        position, sin β, w), the last two flat (numpy)."""
-        k, w = self._vertices_near(self._vpos[vertices], np.full(len(vertices), radius + 2.0 * self._rho))
-        v = vertices[k]
-        keys = v * len(self._vpos) + w
-        at = np.minimum(np.searchsorted(self._edge_keys, keys), len(self._edge_keys) - 1)
-        off = (w != v) & (self._edge_keys[at] != keys)
-        k, w, v = k[off], w[off], v[off]
-        u = np.take(self._vpos, w, axis=0) - np.take(self._vpos, v, axis=0)
-        sines = -np.einsum("ij,ij->i", u, np.take(self._vcone[:, :3], v, axis=0)) / np.linalg.norm(u, axis=1)
-        # sorted by vertex, then sin β rounded down to 2^-40 (conservative: a lower sin β reads
-        # more), as one integer key
-        grid = np.floor((sines + 1.0) * SINE_GRID).astype(np.int64)
-        order = np.argsort((k << 42) | grid)
-        k, w, sines = k[order], w[order], grid[order] / SINE_GRID - 1.0
-        start = np.searchsorted(k, np.arange(len(vertices) + 1))
-        head = np.arange(len(k)) - start[k] <= VERTEX_READ
-        k, w, sines = k[head], w[head], sines[head]
-        return (radius, np.searchsorted(k, np.arange(len(vertices) + 1)), sines, w)
+    # what the tables say, under the names the tests and the packing read
+    signed = property(lambda self: self.tables.signed)
+    defects = property(lambda self: self.tables.defects)
+    triangles = property(lambda self: self.tables.triangles)
+    _vpos = property(lambda self: self.tables.vpos)
+    _kept = property(lambda self: self.tables.kept)
+    _vtable = property(lambda self: self.tables.vtable)
+    _clear = property(lambda self: _FaceLists(self.tables))
 
 
 def _explicit(triangles, geom_name: str) -> tuple[np.ndarray, np.ndarray]:

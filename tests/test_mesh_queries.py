@@ -576,10 +576,10 @@ def test_kept_certificate_beyond_its_reach_scans():
 def test_kept_tables_built_at_load_match_brute_force():
     """The certificates built at load for every face and vertex at once agree with a brute
     force over all triangles, on a sphere with dents and a floating tetrahedron: a face's list
-    holds every triangle within the reach that rises above its plane (or the face is marked
-    concave, only where one does), and a vertex's table lists every vertex of the triangles
-    within the reach, off its ring, no later than its sin β (β: below the plane square to the
-    vertex normal)."""
+    holds every triangle within the reach of it that rises above its plane (or the face is
+    marked concave, only where one does), and a vertex's table lists every vertex of the
+    triangles within the reach, off its ring, no later than its sin β (β: below the plane
+    square to the vertex normal)."""
     m, d, shapes = dented_ball()
     s = mesh_of(shapes)
     k = int(m.geom_dataid[s.geom])
@@ -590,8 +590,16 @@ def test_kept_tables_built_at_load_match_brute_force():
     radius = s._kept
     abc = v[f]
     concave = listed = 0
+    # points spread over each triangle: a triangle with one within the reach of another
+    # triangle is within the reach (a subset of the triangles the tables must cover)
+    weights = np.array([(a, b, 6 - a - b) for a in range(7) for b in range(7 - a)], float) / 6.0
+    samples = np.einsum("sk,tkx->tsx", weights, abc)
     for i in range(len(f)):
-        near = np.flatnonzero(np.linalg.norm(o.centre - o.centre[i], axis=1) - o.rho - o.rho[i] <= radius)
+        maybe = np.flatnonzero(np.linalg.norm(o.centre - o.centre[i], axis=1) - o.rho - o.rho[i] <= radius)
+        gap = np.minimum(
+            point_triangle(samples[maybe], o.a[i], o.b[i], o.c[i])[0].min(axis=1),
+            point_triangle(samples[i][None], o.a[maybe][:, None], o.b[maybe][:, None], o.c[maybe][:, None])[0].min(axis=1))
+        near = maybe[gap <= radius]
         height = abc[near] @ o.n[i] - o.off[i]
         for side, key in ((1.0, i), (-1.0, -1 - i)):
             rising = set(near[(side * height > ABOVE_TOL).any(axis=1)].tolist())
@@ -616,7 +624,7 @@ def test_kept_tables_built_at_load_match_brute_force():
     for vertex in np.unique(f):
         fan = (f == vertex).any(axis=1)
         ring = set(f[fan].reshape(-1).tolist())
-        near = (np.linalg.norm(o.centre - v[vertex], axis=1) - o.rho <= radius) & ~fan
+        near = (point_triangle(v[vertex][None], o.a, o.b, o.c)[0] <= radius) & ~fan
         others = sorted(set(f[near].reshape(-1).tolist()) - ring)
         u = v[others] - v[vertex]
         beta = -(u @ normal[vertex]) / np.linalg.norm(u, axis=1)

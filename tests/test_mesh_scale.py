@@ -66,3 +66,233 @@ def test_explicit_convex_hull_of_a_mesh_geom_is_felt_as_the_hull():
     assert np.abs(got - o.distance(points)).max() <= EXACT
     mine = np.array([own.distance(*p)[0] for p in points])
     assert ((mine > 0.002) & (got < -0.002)).any()  # in the L's inner corner: outside it, inside its hull
+
+
+# ---------------------------------------------------------------------------------------
+# Load-time tables bounded by local geometry
+# ---------------------------------------------------------------------------------------
+
+def cad_part(sections: int, seed: int = 0) -> trimesh.Trimesh:
+    """Four closed cylinders (radius 6-8 mm, 1-3 cm tall, tilted) tessellated as a CAD export
+    does: two slivers per section the whole height of the side, a fan of slivers on each cap."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    for i in range(4):
+        c = trimesh.creation.cylinder(radius=rng.uniform(0.006, 0.008), height=rng.uniform(0.01, 0.03),
+                                      sections=sections)
+        turn = trimesh.transformations.euler_matrix(*rng.uniform(-0.3, 0.3, 3))
+        turn[:3, 3] = [0.025 * (i % 2), 0.025 * (i // 2), 0.0]
+        c.apply_transform(turn)
+        parts.append(c)
+    return trimesh.util.concatenate(parts)
+
+
+def old_rule_pairs(v: np.ndarray, f: np.ndarray, reach: float) -> int:
+    """How many (vertex, vertex) pairs the former load-time rule gathered for the vertex
+    tables alone: every vertex within reach + twice the largest triangle's bounding radius."""
+    from scipy.spatial import cKDTree
+
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    centre = (a + b + c) / 3.0
+    rho = np.sqrt(np.max([((x - centre) ** 2).sum(1) for x in (a, b, c)], axis=0)).max()
+    tree = cKDTree(v)
+    return int(tree.count_neighbors(tree, reach + 2.0 * rho))
+
+
+def test_sliver_heavy_mesh_builds_within_bounded_memory():
+    """A CAD-like part of 24k triangles, nearly all slivers (sides 2-3 cm long and ~30 µm
+    wide, caps of 1500-sliver fans): the former rule gathered over 10⁸ vertex pairs; the
+    tables now build in bounded memory (peak under 200 MB, the tables themselves included)
+    and the same triangles load once (a second load is the same tables, at once)."""
+    import tracemalloc
+
+    from softproxy.mesh import reach, tables_of
+
+    part = cad_part(1500)
+    v, f = np.asarray(part.vertices), np.asarray(part.faces)
+    assert old_rule_pairs(v, f, reach(0.005)) > 1e8
+    tracemalloc.start()
+    tables = tables_of(v, f, "cad part")
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert tables.triangles == len(f) and peak < 200e6
+    assert tables_of(v.copy(), f.copy(), "the same part again") is tables
+
+
+def test_sliver_heavy_tables_hold_what_the_queries_need():
+    """On a sliver-heavy part (long side slivers, fans on the caps, four cylinders close
+    enough to rise above each other's faces), for sampled faces: every triangle within the
+    reach of the face (by points spread over both) rising above its plane is listed, or the
+    face is marked concave (which only sends its queries to the grid); for sampled vertices: every vertex of a triangle within the reach
+    (exact point-triangle distance) but its ring is in the table no later than its sin β."""
+    from mesh_oracle import Oracle
+    from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
+    from softproxy.mesh import reach, tables_of
+
+    part = cad_part(200, seed=3)
+    v, f = np.asarray(part.vertices, float), np.asarray(part.faces)
+    t = tables_of(v, f, "cad part")
+    v, f = t.vpos, t.tv  # as validated
+    o = Oracle(v, f, True)
+    radius = reach(0.005)
+    assert t.kept == radius
+    abc = v[f]
+    weights = np.array([(a, b, 8 - a - b) for a in range(9) for b in range(9 - a)], float) / 8.0
+    samples = np.einsum("sk,tkx->tsx", weights, abc)
+    rng = np.random.default_rng(4)
+    certified = concave = 0
+    for i in rng.choice(len(f), 100, replace=False):
+        maybe = np.flatnonzero(np.linalg.norm(o.centre - o.centre[i], axis=1) - o.rho - o.rho[i] <= radius)
+        gap = np.minimum(
+            point_triangle(samples[maybe], o.a[i], o.b[i], o.c[i])[0].min(axis=1),
+            point_triangle(samples[i][None], o.a[maybe][:, None], o.b[maybe][:, None], o.c[maybe][:, None])[0].min(axis=1))
+        near = maybe[gap <= radius]
+        height = abc[near] @ o.n[i] - o.off[i]
+        for side, key in ((1.0, i), (-1.0, -1 - i)):
+            rising = set(near[(side * height > ABOVE_TOL).any(axis=1)].tolist()) - {i}
+            got = t_lists(t, key)
+            if got is None:
+                concave += 1
+            else:
+                certified += 1
+                assert rising <= set(got), (i, side)
+    assert certified > 0 and concave > 0
+    _, start, sines, ids = t.vtable
+    normal = t.vcone[:, :3]
+    for vertex in rng.choice(len(v), 100, replace=False):
+        fan = (f == vertex).any(axis=1)
+        ring = set(f[fan].reshape(-1).tolist())
+        near = (point_triangle(v[vertex][None], o.a, o.b, o.c)[0] <= radius) & ~fan
+        others = sorted(set(f[near].reshape(-1).tolist()) - ring)
+        u = v[others] - v[vertex]
+        beta = -(u @ normal[vertex]) / np.linalg.norm(u, axis=1)
+        table = sines[start[vertex]:start[vertex + 1]].tolist()
+        assert table == sorted(table)
+        cut = table[-1] if len(table) > VERTEX_READ else math.inf
+        kept = dict(zip(ids[start[vertex]:start[vertex + 1]].tolist(), table))
+        for w, sine in zip(others, beta):
+            if sine < cut:
+                assert kept[w] <= sine + 1e-12, (vertex, w)
+
+
+def t_lists(t, key):
+    """A face's kept list (key i or -1 - i for its back) as a tuple, None for a concave patch."""
+    i, side = (key, 0) if key >= 0 else (-1 - key, 1)
+    m = int(t.clear[i, side])
+    return None if m < 0 else tuple(t.listed[i, side, :m].tolist())
+
+
+def test_sliver_heavy_queries_match_the_brute_force():
+    """Distances and sweeps about a sliver-heavy part's edges and vertices (the hint on or near
+    the feature: thin fans at the caps' centres, long slivers down the sides), through the
+    tables built under the local rule: the brute force's answers."""
+    from test_mesh_queries import check_distance, near_features, start_from
+
+    m, d, shapes = mesh_model(cad_part(120, seed=5), body='pos=".01 0 .02" euler="10 20 30"')
+    o = Oracle(*world_mesh(m, d, 0), True)
+    s = mesh_of(shapes)
+    rng = np.random.default_rng(6)
+    for k, (p, hint) in enumerate(near_features(o, rng, 120, reach=0.008)):
+        start_from(s, hint)
+        check_distance(o, s, [p], k)
+        start_from(s, hint)
+        u = rng.normal(size=3) * rng.choice([1e-4, 1e-3, 3e-3])
+        r = [0.0, 0.002, 0.005][k % 3]
+        o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=k)
+
+
+def world_mesh(m, d, geom):
+    from mesh_oracle import world_mesh as placed
+
+    return placed(m, d, geom)
+
+
+# ---------------------------------------------------------------------------------------
+# One build per mesh asset
+# ---------------------------------------------------------------------------------------
+
+def test_two_geoms_of_one_asset_share_one_build():
+    """Two geoms using one mesh asset, at different poses, get the same tables (built once)
+    and one copy of its triangles in the engine's table T; each answers at its own pose (the
+    brute force's distances)."""
+    ball = trimesh.creation.icosphere(3, radius=0.03)
+    verts = " ".join(f"{x:.10g}" for x in np.asarray(ball.vertices).ravel())
+    faces = " ".join(str(int(i)) for i in np.asarray(ball.faces).ravel())
+    xml = (f'<mujoco><asset><mesh name="m" vertex="{verts}" face="{faces}"/></asset><worldbody>'
+           '<geom name="a" type="mesh" mesh="m" pos="0.1 0 0"/>'
+           '<geom name="b" type="mesh" mesh="m" pos="-0.1 0 0.05" euler="30 0 0"/></worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    from softproxy.geometry import shapes_of
+
+    shapes = shapes_of(m, d, mesh_shape=MeshShape)
+    a, b = shapes
+    assert a.tables is b.tables
+    assert len(shapes.T) == a.triangles
+    assert shapes.S[a.row].t0 == shapes.S[b.row].t0
+    rng = np.random.default_rng(8)
+    for g, shape in ((0, a), (1, b)):
+        o = Oracle(*world_mesh(m, d, g), True)
+        points = d.geom_xpos[g] + rng.normal(scale=0.03, size=(40, 3))
+        got = np.array([shape.distance(*p)[0] for p in points])
+        assert np.abs(got - o.distance(points)).max() <= EXACT
+
+
+# ---------------------------------------------------------------------------------------
+# Several fingers on one mesh
+# ---------------------------------------------------------------------------------------
+
+def finger_paths(o: Oracle, count: int, ticks: int, rng):
+    """Device paths for `count` fingers on the mesh's upper side, 2 cm apart: each pressed 2 mm
+    into a 5 mm proxy's reach and sliding on a 3 mm circle about its own spot."""
+    top = np.flatnonzero(o.n[:, 2] > 0.8)
+    spots = [int(top[0])]
+    for i in rng.permutation(top):
+        if all(np.linalg.norm(o.centre[i] - o.centre[j]) > 0.02 for j in spots):
+            spots.append(int(i))
+        if len(spots) == count:
+            break
+    assert len(spots) == count
+    paths = []
+    for i in spots:
+        n = o.n[i]
+        t1 = np.cross(n, [1.0, 0.0, 0.0])
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(n, t1)
+        at = o.centre[i] + 0.003 * n
+        paths.append([at + 0.003 * (math.cos(0.05 * k) * t1 + math.sin(0.05 * k) * t2) for k in range(ticks)])
+    return paths
+
+
+def test_fingers_on_one_mesh_agree_with_each_finger_alone():
+    """Five god-objects sliding on one mesh, updated in turn each tick, follow the same paths
+    as each alone on a fresh load (to 1e-12 m): one finger's queries never change another's
+    answers; and each keeps to a hint slot of its own (their last queries lie by them)."""
+    from mesh_oracle import geodesic_sphere
+    from softproxy.proxy import GodObject
+
+    mesh = geodesic_sphere(14, 0.05)
+    rng = np.random.default_rng(9)
+    m, d, shapes = mesh_model(mesh)
+    o = Oracle(*world_mesh(m, d, 0), True)
+    paths = finger_paths(o, 5, 150, rng)
+    gods = [GodObject(shapes, 0.005, 0.5, 0.4, tuple(p[0] + 0.01 * (p[0] / np.linalg.norm(p[0])))) for p in paths]
+    together = [[] for _ in gods]
+    for k in range(150):
+        for god, path, out in zip(gods, paths, together):
+            god.update(*path[k])
+            out.append((god.x, god.y, god.z))
+    assert all(god.contact for god in gods)
+    s = mesh_of(shapes)
+    slots = shapes.S[s.row].key
+    for god in gods:
+        assert np.linalg.norm(slots[:, :3] - (god.x, god.y, god.z), axis=1).min() < 0.005
+    for f, path in enumerate(paths):
+        _, _, alone_shapes = mesh_model(mesh)
+        god = GodObject(alone_shapes, 0.005, 0.5, 0.4, tuple(path[0] + 0.01 * (path[0] / np.linalg.norm(path[0]))))
+        alone = []
+        for k in range(150):
+            god.update(*path[k])
+            alone.append((god.x, god.y, god.z))
+        assert np.abs(np.array(alone) - np.array(together[f])).max() <= 1e-12, f

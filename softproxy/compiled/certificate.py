@@ -51,39 +51,35 @@ assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' list
 
 
 def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """The certificates of MeshShape `s` whose triangles are rows t0.. of T and whose tables
-    start at C[c0]: (its T_ADJ..T_CLEAR columns (triangles × 10), its part of C (vertex
-    records, then rings, fans, sin β tables and face lists), the reach (m) they hold over)."""
-    n, nv = s.triangles, len(s._vpos)
-    adj = np.array(s._adj, dtype=np.float64).reshape(n, 3)
-    adj = np.where(adj >= 0.0, adj + t0, -1.0)
+    """The certificates of `softproxy.mesh.MeshTables` s whose triangles are rows t0.. of T and
+    whose tables start at C[c0]: (its T_ADJ..T_CLEAR columns (triangles × 10), its part of C
+    (vertex records, then rings, fans, sin β tables and face lists), the reach (m) they hold over)."""
+    n, nv = s.triangles, len(s.vpos)
+    adj = np.where(s.adj >= 0, s.adj + t0, -1).astype(np.float64)
     verts = np.zeros((nv, VERTEX_WIDTH))
-    verts[:, V_X:V_X + 3] = s._vpos
-    verts[:, V_AXIS:V_COS + 1] = np.array(s._vcone).reshape(nv, 4)
+    verts[:, V_X:V_X + 3] = s.vpos
+    verts[:, V_AXIS:V_COS + 1] = s.vcone
     at = c0 + verts.size
-    parts = [verts]  # its run starts are filled in below
-
-    def runs(lists, width, column):
-        """Append per-vertex lists (rows of `width` floats) after `at`; record where they start."""
-        nonlocal at
-        counts = np.array([len(x) for x in lists], dtype=np.int64)
-        flat = np.array([e for x in lists for e in x], dtype=np.float64).reshape(-1, width)
-        verts[:, column] = at + width * (np.cumsum(counts) - counts)
-        verts[:, column + 1] = counts
-        at += flat.size
-        parts.append(flat.ravel())
-        return flat
-
-    ring = runs(s._ring, 4, V_RING)               # (edge vector (m), a triangle on the edge)
+    parts = [verts]
+    # per vertex its ring (edge vector (m), a triangle on the edge), then its fan (ascending)
+    ring = s.ring.astype(np.float64)
     ring[:, 3] += t0
-    fans = runs([sorted(f) for f in s._fan], 1, V_FAN)
-    fans += t0
-    radius, start, sines, ids = s._vtable
+    verts[:, V_RING] = at + 4 * s.ring_start[:-1]
+    verts[:, V_RING + 1] = np.diff(s.ring_start)
+    at += ring.size
+    parts.append(ring)
+    verts[:, V_FAN] = at + s.fan_start[:-1]
+    verts[:, V_FAN + 1] = np.diff(s.fan_start)
+    at += len(s.fan)
+    parts.append(s.fan.astype(np.float64) + t0)
+    radius, start, sines, ids = s.vtable
     counts = np.diff(start)
     verts[:, V_SINES] = at + 2 * start[:-1]
     verts[:, V_SINES + 1] = counts
-    parts.append(np.column_stack([sines, ids]).astype(np.float64).ravel())
-    at += 2 * len(sines)
+    table = np.empty((len(sines), 2))
+    table[:, 0], table[:, 1] = sines, ids
+    parts.append(table)
+    at += table.size
     # the threshold on c² (c: the cosine of the plane's normal to the cone's axis) above which
     # every triangle near the vertex lies behind the plane by angle alone (2.0: never)
     least = np.ones(nv)
@@ -92,20 +88,17 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     verts[:, V_THRESHOLD] = np.where(s0 > 0.0, 1.0 - s0 * s0, 2.0)
     # per face and side, the few triangles rising above its plane (-1: a concave patch)
     clear = np.zeros((n, 4))
-    listed = []
-    for i in range(n):
-        for col, key in ((0, i), (2, -1 - i)):
-            got = s._clear.get(key)
-            if got is None or got[1] is None or got[0] < radius:
-                clear[i, col + 1] = -1.0
-                continue
-            clear[i, col], clear[i, col + 1] = at, len(got[1])
-            listed += got[1]
-            at += len(got[1])
-    parts.append(np.array(listed, dtype=np.float64) + t0)
-    columns = np.column_stack([adj, np.array(s._tv, dtype=np.float64).reshape(n, 3), clear])
+    m = s.clear.reshape(-1)                      # face 0 front, face 0 back, face 1 front, ...
+    runs = np.maximum(m, 0)
+    first = at + np.cumsum(runs) - runs
+    clear[:, 0], clear[:, 2] = first[0::2], first[1::2]
+    clear[:, 1], clear[:, 3] = m[0::2], m[1::2]
+    clear[:, [0, 2]] = np.where(clear[:, [1, 3]] < 0, 0.0, clear[:, [0, 2]])
+    flat = s.listed.reshape(-1, s.listed.shape[2])
+    parts.append(flat[np.arange(flat.shape[1])[None, :] < runs[:, None]].astype(np.float64) + t0)
+    columns = np.column_stack([adj, s.tv.astype(np.float64), clear])
     assert columns.shape[1] == T_CLEAR + 4 - T_ADJ
-    return columns, np.concatenate([p.ravel() for p in parts]), float(s._kept)
+    return columns, np.concatenate([p.ravel() for p in parts]), float(s.kept)
 
 
 @njit(cache=True, error_model="numpy")
@@ -216,3 +209,362 @@ def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
     if m < 0:
         return -1
     return _face_few(T, C, other, side1, m)
+
+
+# ---------------------------------------------------------------------------------------
+# Building the kept certificates (at load, compiled; nothing here runs in the tick)
+#
+# Two box trees: one over the vertices, one over the few long triangles (longest edge over
+# `long_edge`). A triangle within reach of a point (or a face) is either short, and then
+# each of its vertices lies within reach + long_edge, found in the vertex tree, or long, found
+# in the long tree: so a face or vertex reads its neighbourhood only, whatever the largest
+# triangle of the mesh, and the tree walks leave out what cannot matter (boxes wholly behind
+# a face's plane; boxes that cannot hold a lower sin β than a full vertex table has).
+# ---------------------------------------------------------------------------------------
+
+LEAF = 8
+"""Items (vertices or triangles) per leaf of a box tree."""
+SINE_GRID = 2.0 ** 40
+"""Steps per unit a kept vertex table's sin β is rounded down to (≈1e-12), so that equal sines sort alike."""
+BUDGET = 2048
+"""Most tree leaves one face's or vertex's walk may open; beyond, it gets no certificate (a
+neighbourhood of more than ~16k vertices within reach: a query there scans the grid)."""
+DEAD_SINE = 1e-12
+"""A full vertex table whose every sin β is below this certifies nothing: a query reads the
+entries below its tilt's sine (never less than 1e-12, `_vertex_few`), all of them, past
+VERTEX_READ. Its walk stops there (a concave, noisy or flat neighbourhood)."""
+STACK = 256
+"""Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
+
+
+def _spread(q: np.ndarray) -> np.ndarray:
+    """21-bit integers with two zero bits put between their bits (a Morton code's one axis)."""
+    q = q.astype(np.uint64) & np.uint64(0x1FFFFF)
+    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+        q = (q | (q << np.uint64(shift))) & np.uint64(mask)
+    return q
+
+
+def box_tree(lo: np.ndarray, hi: np.ndarray, ids: np.ndarray | None = None):
+    """A box tree over items with boxes lo..hi (n × 3, m): the items in Morton order of their
+    boxes' centres, LEAF a leaf, leaves paired level by level into a complete binary tree
+    (node 1 the root, node j's children 2j and 2j + 1, leaf j node `size + j`). Returns (item
+    ids in that order (`ids[...]` when given), node lower corners, node upper corners, size);
+    an empty node's box is inverted (+inf..-inf), an empty tree has one empty leaf."""
+    n = len(lo)
+    ids = np.arange(n) if ids is None else np.asarray(ids, dtype=np.int64)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64), np.full((2, 3), np.inf), np.full((2, 3), -np.inf), 1
+    low, high = lo.min(axis=0), hi.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    q = np.floor((centre - low) / max(float((high - low).max()), 1e-300) * (2 ** 21 - 1))
+    code = _spread(q[:, 0]) | (_spread(q[:, 1]) << np.uint64(1)) | (_spread(q[:, 2]) << np.uint64(2))
+    order = np.argsort(code, kind="stable")
+    leaves = -(-n // LEAF)
+    size = 1 << max(0, int(leaves - 1).bit_length())
+    nlo = np.full((2 * size, 3), np.inf)
+    nhi = np.full((2 * size, 3), -np.inf)
+    starts = np.arange(0, n, LEAF)
+    nlo[size:size + leaves] = np.minimum.reduceat(lo[order], starts, axis=0)
+    nhi[size:size + leaves] = np.maximum.reduceat(hi[order], starts, axis=0)
+    level = size
+    while level > 1:
+        parent = np.arange(level // 2, level)
+        nlo[parent] = np.minimum(nlo[2 * parent], nlo[2 * parent + 1])
+        nhi[parent] = np.maximum(nhi[2 * parent], nhi[2 * parent + 1])
+        level //= 2
+    return ids[order], nlo, nhi, size
+
+
+@njit(cache=True, error_model="numpy")
+def _gap2(lo, hi, qlo, qhi):
+    """Squared distance (m²) between box lo..hi and box qlo..qhi (a point: qlo = qhi)."""
+    g = 0.0
+    for k in range(3):
+        e = qlo[k] - hi[k] if qlo[k] > hi[k] else lo[k] - qhi[k] if lo[k] > qhi[k] else 0.0
+        g += e * e
+    return g
+
+
+@njit(cache=True, error_model="numpy")
+def _heights(lo, hi, nx, ny, nz, off):
+    """The highest and lowest points (m) of box lo..hi over the plane n·x = off."""
+    top = -off
+    bottom = -off
+    for k, nk in enumerate((nx, ny, nz)):
+        if nk > 0.0:
+            top += nk * hi[k]
+            bottom += nk * lo[k]
+        else:
+            top += nk * lo[k]
+            bottom += nk * hi[k]
+    return top, bottom
+
+
+@njit(cache=True, error_model="numpy")
+def _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
+    """Whether triangle t may come within reach (m) of a face of box qlo..qhi and bounding
+    ball (c, ri): both its box and its ball do."""
+    if _gap2(tlo[t], thi[t], qlo, qhi) > reach * reach:
+        return False
+    ex, ey, ez = centre[t, 0] - cx, centre[t, 1] - cy, centre[t, 2] - cz
+    return math.sqrt(ex * ex + ey * ey + ez * ez) - rho[t] - ri <= reach
+
+
+@njit(cache=True, error_model="numpy")
+def _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp):
+    """Record triangle t on the sides of the plane its vertices rise above (by ABOVE_TOL):
+    appended to the rows fj (front) and bj (back) while they hold STATIC_ABOVE, else that
+    side becomes -1 (a concave patch). Returns the new (front, back)."""
+    if tstamp[t] == stamp:
+        return front, back
+    tstamp[t] = stamp
+    h0 = nx * V[F[t, 0], 0] + ny * V[F[t, 0], 1] + nz * V[F[t, 0], 2] - off
+    h1 = nx * V[F[t, 1], 0] + ny * V[F[t, 1], 1] + nz * V[F[t, 1], 2] - off
+    h2 = nx * V[F[t, 2], 0] + ny * V[F[t, 2], 1] + nz * V[F[t, 2], 2] - off
+    if front >= 0 and max(h0, h1, h2) > ABOVE_TOL:
+        if front == STATIC_ABOVE:
+            front = -1
+        else:
+            fj[front] = t
+            front += 1
+    if back >= 0 and min(h0, h1, h2) < -ABOVE_TOL:
+        if back == STATIC_ABOVE:
+            back = -1
+        else:
+            bj[back] = t
+            back += 1
+    return front, back
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder, vlo, vhi, vsize, lorder, llo, lhi,
+               lsize, reach, long_edge, tstamp, stamp0, count, listed):
+    """Per face of `faces` (ids) and side (front, back), the triangles within `reach` (m) of it
+    (box and bounding ball within reach of its own) that rise above its plane on that side (a
+    vertex higher than ABOVE_TOL): their number in count[j, side] and the triangles in
+    listed[j, side], or -1 when more than STATIC_ABOVE do (a concave patch) or the walk
+    opens more than BUDGET leaves. Short triangles are found through their rising vertices
+    within reach + long_edge of the face (the vertex tree vorder/vlo/vhi/vsize), long ones in
+    the long tree (lorder/llo/lhi/lsize); a walk leaves out boxes beyond reach and boxes
+    wholly behind the plane on every side still open. `tstamp` (one int per triangle) is
+    scratch, stamped from stamp0 + 1 on."""
+    stack = np.empty(STACK, np.int64)
+    vreach2 = (reach + long_edge) ** 2
+    reach2 = reach * reach
+    for j in range(len(faces)):
+        i = faces[j]
+        stamp = stamp0 + 1 + j
+        tstamp[i] = stamp  # not its own
+        nx, ny, nz, off = plane[i, 0], plane[i, 1], plane[i, 2], plane[i, 3]
+        qlo, qhi = tlo[i], thi[i]
+        cx, cy, cz, ri = centre[i, 0], centre[i, 1], centre[i, 2], rho[i]
+        fj, bj = listed[j, 0], listed[j, 1]
+        front, back = 0, 0
+        leaves = 0
+        for tree in range(2):
+            order, nlo, nhi, size = (vorder, vlo, vhi, vsize) if tree == 0 else (lorder, llo, lhi, lsize)
+            limit2 = vreach2 if tree == 0 else reach2
+            stack[0] = 1
+            sp = 1
+            while sp > 0 and (front >= 0 or back >= 0):
+                sp -= 1
+                node = stack[sp]
+                lo, hi = nlo[node], nhi[node]
+                if lo[0] > hi[0] or _gap2(lo, hi, qlo, qhi) > limit2:
+                    continue
+                top, bottom = _heights(lo, hi, nx, ny, nz, off)
+                if not ((front >= 0 and top > ABOVE_TOL) or (back >= 0 and bottom < -ABOVE_TOL)):
+                    continue
+                if node < size:
+                    a, b = 2 * node, 2 * node + 1
+                    if _gap2(nlo[a], nhi[a], qlo, qhi) < _gap2(nlo[b], nhi[b], qlo, qhi):
+                        a, b = b, a
+                    stack[sp] = a      # the nearer child last: walked first (a concave side ends sooner)
+                    stack[sp + 1] = b
+                    sp += 2
+                    continue
+                leaves += 1
+                if leaves > BUDGET:
+                    front, back = -1, -1
+                    break
+                first = (node - size) * LEAF
+                for item in range(first, min(len(order), first + LEAF)):
+                    if tree == 1:
+                        t = order[item]
+                        if _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
+                            front, back = _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp)
+                        continue
+                    w = order[item]
+                    h = nx * V[w, 0] + ny * V[w, 1] + nz * V[w, 2] - off
+                    if -ABOVE_TOL <= h <= ABOVE_TOL:
+                        continue
+                    g = 0.0
+                    for k in range(3):
+                        e = V[w, k] - qhi[k] if V[w, k] > qhi[k] else qlo[k] - V[w, k] if V[w, k] < qlo[k] else 0.0
+                        g += e * e
+                    if g > vreach2:
+                        continue
+                    for f in range(fan_start[w], fan_start[w + 1]):
+                        t = fan[f]
+                        if tstamp[t] != stamp and _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
+                            front, back = _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp)
+        count[j, 0], count[j, 1] = front, back
+
+
+@njit(cache=True, error_model="numpy")
+def _sift_down(hs, hw, m):
+    """Restore the max-heap (by hs) of hs[:m], hw[:m] after its top was replaced."""
+    j = 0
+    while True:
+        c = 2 * j + 1
+        if c >= m:
+            return
+        if c + 1 < m and hs[c + 1] > hs[c]:
+            c += 1
+        if hs[c] <= hs[j]:
+            return
+        hs[j], hs[c] = hs[c], hs[j]
+        hw[j], hw[c] = hw[c], hw[j]
+        j = c
+
+
+@njit(cache=True, error_model="numpy")
+def _least_sine(lo, hi, px, py, pz, ax, ay, az, av):
+    """The least sin β a point w of box lo..hi can have, -(w - p)·a / |w - p|: its lowest
+    numerator over the farthest distance when that is >= 0, over the nearest when < 0 (-1
+    when p is in the box), less a rounding's margin."""
+    near2 = 0.0
+    far2 = 0.0
+    top = 0.0
+    for k, (pk, ak) in enumerate(((px, ax), (py, ay), (pz, az))):
+        e = lo[k] - pk if pk < lo[k] else pk - hi[k] if pk > hi[k] else 0.0
+        near2 += e * e
+        f = max(pk - lo[k], hi[k] - pk)
+        far2 += f * f
+        top += ak * hi[k] if ak > 0.0 else ak * lo[k]
+    low = av - top
+    if low >= 0.0:
+        bound = low / math.sqrt(far2) if far2 > 0.0 else 1.0
+    elif near2 > 0.0:
+        bound = max(-1.0, low / math.sqrt(near2))
+    else:
+        bound = -1.0
+    return bound - 1e-12
+
+
+@njit(cache=True, error_model="numpy")
+def _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep):
+    """Offer vertex w to the max-heap of the least sin β (rounded down to 1/SINE_GRID) hs[:m],
+    hw[:m] of at most `keep` entries; returns the new m."""
+    ux, uy, uz = V[w, 0] - px, V[w, 1] - py, V[w, 2] - pz
+    s = -(ux * ax + uy * ay + uz * az) / math.sqrt(ux * ux + uy * uy + uz * uz)
+    s = math.floor((s + 1.0) * SINE_GRID) / SINE_GRID - 1.0
+    if m < keep:
+        c = m
+        hs[c], hw[c] = s, w
+        m += 1
+        while c > 0:  # sift up
+            parent = (c - 1) // 2
+            if hs[parent] >= hs[c]:
+                break
+            hs[parent], hs[c] = hs[c], hs[parent]
+            hw[parent], hw[c] = hw[c], hw[parent]
+            c = parent
+    elif s < hs[0]:
+        hs[0], hw[0] = s, w
+        _sift_down(hs, hw, m)
+    return m
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho, vorder, vlo, vhi, vsize, lorder, llo,
+                  lhi, lsize, reach, long_edge, mark, stamp0, sines, ids, counts):
+    """Per vertex v of `verts` (ids): among the vertices w of the triangles within `reach` (m)
+    of it but its fan, w other than v and the ends of its edges, the VERTEX_READ + 1 of least
+    sin β (β: the angle of w - v below the plane square to v's cone axis), rounded down to
+    1/SINE_GRID, ascending: sines[j], ids[j], their number counts[j]. Every vertex within
+    reach + long_edge is taken (the vertex tree: a superset of the short triangles' vertices,
+    which only makes a table more cautious), and the vertices of the long triangles within
+    reach (the long tree). A walk nearest box first that, once the table is full, leaves out
+    the boxes that cannot hold a lower sin β. A vertex whose walk opens more than BUDGET
+    leaves, or whose full table is all below DEAD_SINE, gets a table that certifies nothing
+    (VERTEX_READ + 1 entries at sin β = -1: every query reads past VERTEX_READ, and the grid
+    serves it). `mark` (one int per vertex) is
+    scratch, stamped from stamp0 + 1 on."""
+    keep = sines.shape[1]
+    stack = np.empty(STACK, np.int64)
+    vreach2 = (reach + long_edge) ** 2
+    reach2 = reach * reach
+    p = np.empty(3)
+    for j in range(len(verts)):
+        v = verts[j]
+        stamp = stamp0 + 1 + j
+        px, py, pz = V[v, 0], V[v, 1], V[v, 2]
+        p[0], p[1], p[2] = px, py, pz
+        ax, ay, az = axis[v, 0], axis[v, 1], axis[v, 2]
+        av = ax * px + ay * py + az * pz
+        mark[v] = stamp
+        for e in range(ring_start[v], ring_start[v + 1]):
+            mark[ring_to[e]] = stamp
+        hs, hw = sines[j], ids[j]
+        m = 0
+        leaves = 0
+        for tree in range(2):
+            order, nlo, nhi, size = (vorder, vlo, vhi, vsize) if tree == 0 else (lorder, llo, lhi, lsize)
+            limit2 = vreach2 if tree == 0 else reach2
+            stack[0] = 1
+            sp = 1
+            while sp > 0 and leaves <= BUDGET:
+                if m == keep and hs[0] < DEAD_SINE:
+                    leaves = BUDGET + 1  # already a table no query can pass: stop here
+                    break
+                sp -= 1
+                node = stack[sp]
+                lo, hi = nlo[node], nhi[node]
+                if lo[0] > hi[0] or _gap2(lo, hi, p, p) > limit2:
+                    continue
+                if m == keep and _least_sine(lo, hi, px, py, pz, ax, ay, az, av) >= hs[0]:
+                    continue
+                if node < size:
+                    a, b = 2 * node, 2 * node + 1
+                    if _gap2(nlo[a], nhi[a], p, p) < _gap2(nlo[b], nhi[b], p, p):
+                        a, b = b, a
+                    stack[sp] = a      # the nearer child last: walked first
+                    stack[sp + 1] = b
+                    sp += 2
+                    continue
+                leaves += 1
+                first = (node - size) * LEAF
+                for item in range(first, min(len(order), first + LEAF)):
+                    if tree == 0:
+                        w = order[item]
+                        if mark[w] != stamp and _gap2(V[w], V[w], p, p) <= vreach2:
+                            mark[w] = stamp
+                            m = _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep)
+                        continue
+                    t = order[item]
+                    if F[t, 0] == v or F[t, 1] == v or F[t, 2] == v or _gap2(tlo[t], thi[t], p, p) > reach2:
+                        continue
+                    ex, ey, ez = centre[t, 0] - px, centre[t, 1] - py, centre[t, 2] - pz
+                    if math.sqrt(ex * ex + ey * ey + ez * ez) - rho[t] > reach:
+                        continue
+                    for c in range(3):
+                        w = F[t, c]
+                        if mark[w] != stamp:
+                            mark[w] = stamp
+                            m = _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep)
+        if leaves > BUDGET:
+            for c in range(keep):
+                hs[c], hw[c] = -1.0, v
+            m = keep
+        # ascending: sort the heap's m entries (by sin β, then vertex id)
+        for a in range(1, m):
+            sa, wa = hs[a], hw[a]
+            b = a - 1
+            while b >= 0 and (hs[b] > sa or (hs[b] == sa and hw[b] > wa)):
+                hs[b + 1], hw[b + 1] = hs[b], hw[b]
+                b -= 1
+            hs[b + 1], hw[b + 1] = sa, wa
+        counts[j] = m

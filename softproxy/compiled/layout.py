@@ -20,7 +20,14 @@ GEOM_MESH = 7
 """MuJoCo's geom types (mjtGeom) a shape can have."""
 
 KEPT_WIDTH = 7
-"""Columns of a kept query in SHAPE["key"]: the point (3), the distance, the normal (3)."""
+"""Columns of a kept query: the point (3), the distance, the normal (3)."""
+HINT_SLOTS = 8
+"""Hint slots per mesh shape in SHAPE["key"]: the queries of each finger on one mesh keep to
+their own (`softproxy.compiled.mesh._slot`)."""
+SLOT_HINT, SLOT_AGE, SLOT_KEPT = 3, 4, 5
+"""A slot's columns: the point of its last query (3, m, geom frame), the row of T that query
+ended on, when it was used (a count), then its last two kept queries (KEPT_WIDTH each)."""
+SLOT_WIDTH = SLOT_KEPT + 2 * KEPT_WIDTH
 
 # -- shape table: one record per Shape, in the order of World.shapes --------------------------
 SHAPE = np.dtype([
@@ -45,9 +52,10 @@ SHAPE = np.dtype([
     ("signed", np.bool_),     # watertight: signed distance; open: unsigned
     ("shading", np.bool_),    # force shading (interpolated vertex normals)
     ("hint", np.int64),       # row of T nearest the last distance query or touched last, -1 for none
-    # the last two distance queries kept, newest first: the point (geom frame, m; NaN for
-    # none), signed distance (m), outward normal (geom frame)
-    ("key", np.float64, (2, KEPT_WIDTH)),
+    # its hint slots: per slot the last query's point and hint and the last two distance
+    # queries kept, newest first: the point (geom frame, m; NaN for none), signed distance
+    # (m), outward normal (geom frame)
+    ("key", np.float64, (HINT_SLOTS, SLOT_WIDTH)),
     ("verts", np.int64),      # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
     ("kept", np.float64),     # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
 ], align=True)

@@ -60,7 +60,8 @@ from numba import njit
 
 from softproxy.compiled.certificate import ABOVE_TOL, certificate_tables, static_clear
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, KEPT_WIDTH, RECORD_WIDTH, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT,
+    SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO,
     T_TV, T_VN, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
@@ -69,6 +70,8 @@ POINT_RADIUS = 1e-8
 """A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
 from the nearest point to a point lying on it is rounding noise, so whether it moves into the
 mesh is not decidable; 10 nm gives it a direction and is far below the 1 µm promise."""
+SLOT_NEAR = 0.005
+"""A query within this distance (m) of a hint slot's last query keeps to that slot (`_slot`)."""
 WALK_STEPS = 8
 """Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
 
@@ -112,44 +115,61 @@ def _grid(tri: np.ndarray, lengths: np.ndarray):
 
 def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
-    rows of the shape table S filled in (where their triangles and grid live). A world with
-    no mesh gets empty tables (the kernels' types stay the same)."""
+    rows of the shape table S filled in (where their triangles and grid live). Geoms of one
+    mesh asset (one `MeshTables`) share its rows of T and its part of C; each keeps its own
+    pose, hint and kept answers in S. A world with no mesh gets empty tables (the kernels'
+    types stay the same)."""
     meshes = [(k, s) for k, s in enumerate(shapes) if s.gtype == GEOM_MESH]
-    ntri = sum(s.triangles for _, s in meshes)
-    rows, grids = [], []
+    assets = list({id(s.tables): s.tables for _, s in meshes}.values())
+    ntri = sum(a.triangles for a in assets)
+    rows, grids, where = [], [], {}
     t0 = 0
     c0 = C_STAMPS + ntri  # the scan counter, the certificates' scratch, a stamp per triangle, then the grids
+    for a in assets:
+        n = a.triangles
+        corners = a.tri[:, :9].reshape(-1, 3, 3)
+        lo, h, dims, starts, tid = _grid(corners, a.edges[:, :, 6])
+        rho = a.rhos * (1.0 + 1e-12) + 1e-15
+        records = np.empty((len(tid), RECORD_WIDTH))
+        records[:, 0:4] = a.plane[tid]
+        records[:, 4:7] = a.centre[tid]
+        records[:, 7] = rho[tid]
+        records[:, 8] = tid + t0
+        first = c0 + len(starts)  # where this asset's records begin in C
+        grids += [first + RECORD_WIDTH * starts, records.ravel()]
+        del records
+        cells = c0
+        c0 = first + len(tid) * RECORD_WIDTH
+        columns, kept, reach = certificate_tables(a, t0, c0)
+        rows.append(np.concatenate([a.tri, a.edges.reshape(n, 3 * EDGE_WIDTH), a.pn.reshape(n, 21), a.vn, columns],
+                                   axis=1))
+        where[id(a)] = (t0, n, cells, lo, h, dims, c0, reach)
+        grids.append(kept)
+        c0 += len(kept)
+        t0 += n
     for k, s in meshes:
-        t = np.array(s._tri)                                     # (n, 22)
-        edges = np.array(s._edges).reshape(len(t), 3 * EDGE_WIDTH)
-        pseudo = np.array(s._pn).reshape(len(t), 21)
-        planes = np.array(s._plane)                              # (n, 4): normal, offset
-        corners = t[:, :9].reshape(-1, 3, 3)
-        lo, h, dims, starts, tid = _grid(corners, edges[:, [6, 13, 20]])
-        centre = corners.mean(axis=1)
-        rho = np.sqrt(((corners - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1) * (1.0 + 1e-12) + 1e-15
-        records = np.column_stack([planes[tid], centre[tid], rho[tid], tid + t0])
-        first = c0 + len(starts)  # where this mesh's records begin in C
-        S[k].t0, S[k].nt, S[k].cells = t0, len(t), c0
+        t0, n, cells, lo, h, dims, verts, reach = where[id(s.tables)]
+        S[k].t0, S[k].nt, S[k].cells = t0, n, cells
         S[k].lox, S[k].loy, S[k].loz = lo
         S[k].h = h
         S[k].dimx, S[k].dimy, S[k].dimz = dims
         S[k].signed = s.signed
         S[k].shading = s.shading
         S[k].hint = -1
-        S[k].key[:, :] = math.nan  # none kept
-        grids += [first + RECORD_WIDTH * starts, records.ravel()]
-        c0 = first + records.size
-        columns, kept, S[k].kept = certificate_tables(s, t0, c0)
-        rows.append(np.column_stack([t, edges, pseudo, np.array(s._vn), columns]))
-        S[k].verts = c0
-        grids.append(kept)
-        c0 += len(kept)
-        t0 += len(t)
-    T = np.concatenate(rows) if rows else np.zeros((0, T_COLUMNS))
+        S[k].key[:, :] = math.nan  # no hint slot used, none kept
+        S[k].verts = verts
+        S[k].kept = reach
+    T = np.concatenate(rows) if len(rows) != 1 else rows[0]
+    if not rows:
+        T = np.zeros((0, T_COLUMNS))
     assert T.shape[1] == T_COLUMNS
-    C = np.concatenate([np.zeros(C_STAMPS + ntri)] + [g.astype(np.float64) for g in grids])
-    assert len(C) < 2 ** 53
+    C = np.empty(c0)
+    C[:C_STAMPS + ntri] = 0.0
+    at = C_STAMPS + ntri
+    for g in grids:
+        C[at:at + len(g)] = g
+        at += len(g)
+    assert at == c0 and len(C) < 2 ** 53
     return np.ascontiguousarray(T), C
 
 
@@ -569,23 +589,63 @@ def _local_distance(S, T, C, k, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _keep(S, k, x, y, z, d, nx, ny, nz):
+def _keep(S, k, sl, x, y, z, d, nx, ny, nz):
     """Keep the answer (signed distance (m), outward normal) at p (geom frame) as the newest
-    of mesh k's two, the older dropped."""
+    of the two of mesh k's hint slot sl, the older dropped."""
     key = S[k].key
     for c in range(KEPT_WIDTH):
-        key[1, c] = key[0, c]
-    key[0, 0], key[0, 1], key[0, 2] = x, y, z
-    key[0, 3], key[0, 4], key[0, 5], key[0, 6] = d, nx, ny, nz
+        key[sl, SLOT_KEPT + KEPT_WIDTH + c] = key[sl, SLOT_KEPT + c]
+    c = SLOT_KEPT
+    key[sl, c], key[sl, c + 1], key[sl, c + 2] = x, y, z
+    key[sl, c + 3], key[sl, c + 4], key[sl, c + 5], key[sl, c + 6] = d, nx, ny, nz
+
+
+@njit(cache=True, error_model="numpy")
+def _slot(S, k, x, y, z):
+    """The hint slot of mesh k a query at p (geom frame) keeps its state in, and the hint it
+    starts from: the slot whose last query was nearest p, if within SLOT_NEAR, else the one
+    used longest ago; the hint of the nearest slot (a finger's own, when each finger keeps to
+    its part of the mesh), or the mesh's last hint when no slot holds one. So fingers on one
+    mesh do not take each other's hints and kept answers."""
+    key = S[k].key
+    best, best2 = -1, math.inf
+    old, oldest = 0, math.inf
+    for s in range(HINT_SLOTS):
+        age = key[s, SLOT_AGE]
+        if not age >= 0.0:
+            age = -1.0  # never used
+        if age < oldest:
+            old, oldest = s, age
+        ex, ey, ez = x - key[s, 0], y - key[s, 1], z - key[s, 2]
+        d2 = ex * ex + ey * ey + ez * ez
+        if d2 < best2 and key[s, SLOT_HINT] >= 0.0:
+            best, best2 = s, d2
+    if best < 0:
+        return old, int(S[k].hint)
+    hint = int(key[best, SLOT_HINT])
+    return (best if best2 <= SLOT_NEAR * SLOT_NEAR else old), hint
+
+
+@njit(cache=True, error_model="numpy")
+def _touch(S, k, sl, x, y, z, hint):
+    """Slot sl of mesh k was used last, by a query at p (geom frame) that ended on row `hint`."""
+    key = S[k].key
+    newest = 0.0
+    for s in range(HINT_SLOTS):
+        if key[s, SLOT_AGE] > newest:
+            newest = key[s, SLOT_AGE]
+    key[sl, 0], key[sl, 1], key[sl, 2] = x, y, z
+    key[sl, SLOT_HINT] = hint
+    key[sl, SLOT_AGE] = newest + 1.0
 
 
 @njit(cache=True, error_model="numpy")
 def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
-    the outward unit normal, world frame. The last two answers are kept,
-    keyed by the point in the geom frame, where the triangles never move (the god-object asks
-    again about the point it holds, about the point it moved to, and about a sweep's start
-    whose nearest point the sweep proved)."""
+    the outward unit normal, world frame. Each hint slot (`_slot`) keeps its last two
+    answers, keyed by the point in the geom frame, where the triangles never move (the
+    god-object asks again about the point it holds, about the point it moved to, and about a
+    sweep's start whose nearest point the sweep proved)."""
     g = int(S[k].geom)
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
     r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
@@ -594,16 +654,20 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     lx = r00 * dx + r10 * dy + r20 * dz
     ly = r01 * dx + r11 * dy + r21 * dz
     lz = r02 * dx + r12 * dy + r22 * dz
+    sl, hint = _slot(S, k, lx, ly, lz)
     key = S[k].key
-    if not (lx == key[0, 0] and ly == key[0, 1] and lz == key[0, 2]):
-        if lx == key[1, 0] and ly == key[1, 1] and lz == key[1, 2]:
+    a, b = SLOT_KEPT, SLOT_KEPT + KEPT_WIDTH
+    if not (lx == key[sl, a] and ly == key[sl, a + 1] and lz == key[sl, a + 2]):
+        if lx == key[sl, b] and ly == key[sl, b + 1] and lz == key[sl, b + 2]:
             for c in range(KEPT_WIDTH):  # the older one: swap the two
-                key[0, c], key[1, c] = key[1, c], key[0, c]
+                key[sl, a + c], key[sl, b + c] = key[sl, b + c], key[sl, a + c]
         else:
+            S[k].hint = hint
             d, nx, ny, nz = _local_distance(S, T, C, k, lx, ly, lz)
-            _keep(S, k, lx, ly, lz, d, nx, ny, nz)
-    nx, ny, nz = key[0, 4], key[0, 5], key[0, 6]
-    return (key[0, 3],
+            _keep(S, k, sl, lx, ly, lz, d, nx, ny, nz)
+            _touch(S, k, sl, lx, ly, lz, S[k].hint)
+    nx, ny, nz = key[sl, a + 4], key[sl, a + 5], key[sl, a + 6]
+    return (key[sl, a + 3],
             r00 * nx + r01 * ny + r02 * nz,
             r10 * nx + r11 * ny + r12 * nz,
             r20 * nx + r21 * ny + r22 * nz)
@@ -665,7 +729,7 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graz
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
+def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
                graze, lam, mx, my, mz):
     """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
     besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When
@@ -692,7 +756,7 @@ def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az,
             best_lam, mx, my, mz, bi = hit, hx, hy, hz, i
     if sd2 >= 0.0:
         d, nx, ny, nz = _answer(S, T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
-        _keep(S, k, ax, ay, az, d, nx, ny, nz)
+        _keep(S, k, sl, ax, ay, az, d, nx, ny, nz)
         S[k].hint = si
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
@@ -701,6 +765,23 @@ def _sweep_few(S, T, C, xmat, k, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az,
 
 @njit(cache=True, error_model="numpy")
 def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
+    """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
+    x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none (`_sweep`), from
+    and into the hint slot of its start (`_slot`)."""
+    g = int(S[k].geom)
+    px, py, pz = x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2]
+    ax = xmat[g, 0] * px + xmat[g, 3] * py + xmat[g, 6] * pz
+    ay = xmat[g, 1] * px + xmat[g, 4] * py + xmat[g, 7] * pz
+    az = xmat[g, 2] * px + xmat[g, 5] * py + xmat[g, 8] * pz
+    sl, hint = _slot(S, k, ax, ay, az)
+    S[k].hint = hint
+    out = _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r)
+    _touch(S, k, sl, ax, ay, az, S[k].hint)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none.
 
@@ -747,7 +828,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
                 # triangles reaching above it can be touched
                 m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, 2.0 * reach + length)
                 if m >= 0:
-                    return _sweep_few(S, T, C, xmat, k, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
+                    return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
                                       r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
         else:
             lam, mx, my, mz, f = _sweep_triangle(T, hint, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
@@ -775,7 +856,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
                 # up to the touch the sphere stays r above the tangent plane there
                 m = static_clear(S, T, C, k, hint, f, mx, my, mz, 2.0 * reach + lam * length)
                 if m >= 0:
-                    return _sweep_few(S, T, C, xmat, k, g, m, hint, -1.0, 0.0, 0.0, 0.0, 0, ax, ay, az, ux, uy, uz,
+                    return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, -1.0, 0.0, 0.0, 0.0, 0, ax, ay, az, ux, uy, uz,
                                       r, dd, far2, graze, lam, mx, my, mz)
                 best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, hint
                 far = reach + lam * length  # only the segment before this touch matters now
@@ -788,7 +869,7 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
                 if dist + nx * ux + ny * uy + nz * uz >= r - CONTACT_TOL:
                     m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, dist + reach + length)
                     if m >= 0:
-                        return _sweep_few(S, T, C, xmat, k, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
+                        return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
                                           uz, r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
     slab = reach + 1e-12
     bx0, bx1 = min(ax, ax + ux) - slab, max(ax, ax + ux) + slab
