@@ -76,7 +76,7 @@ stroke = st.fixed_dictionaries({
     "start": st.floats(-0.02, 0.02),                  # x of the press (m)
     "press": st.floats(5e-4, 4e-3),                   # depth of the device below the top (m)
     "heading": st.floats(-0.6, 0.6),                  # rad off the x axis
-    "reach": st.floats(0.005, 0.03),                  # m slid
+    "beyond": st.floats(0.003, 0.02),                 # m slid past the seam
     "speed": st.floats(0.02, 0.4),                    # m/s
     "back": st.booleans(),                            # slide back the way it came
 })
@@ -102,9 +102,10 @@ def test_pushed_body_is_the_body_touched(s):
     ux, uy = math.cos(s["heading"]), math.sin(s["heading"])
     if s["start"] > 0.0:
         ux = -ux  # toward the seam
-    n = max(1, int(s["reach"] / (s["speed"] * DT)))
+    reach = (abs(s["start"]) + s["beyond"]) / abs(ux)  # m: across the seam, onto the other body
+    n = max(1, int(reach / (s["speed"] * DT)))
     path = [(x0, y0, above[2] + (z0 - above[2]) * k / 20) for k in range(1, 21)]
-    path += [(x0 + ux * s["reach"] * k / n, y0 + uy * s["reach"] * k / n, z0) for k in range(1, n + 1)]
+    path += [(x0 + ux * reach * k / n, y0 + uy * reach * k / n, z0) for k in range(1, n + 1)]
     if s["back"]:
         path += path[-2:20:-1]
     contacts = 0

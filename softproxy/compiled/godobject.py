@@ -281,19 +281,29 @@ def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz):
     one geom while the frictionless proxy went on across a seam onto its neighbour."""
     r = g.radius
     best, best_dot, best_gap = -1, -2.0, math.inf
-    nearest, nearest_gap = -1, math.inf
     for j in range(int(g.nnear)):
         s = near[j]
+        k = int(S[s].geom)
+        reach = S[s].rbound + r + TOUCH_TOL
+        ex, ey, ez = x - xpos[k, 0], y - xpos[k, 1], z - xpos[k, 2]
+        if ex * ex + ey * ey + ez * ez > reach * reach:
+            continue  # its bounding sphere is out of touch (a plane's never is): no query
         d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
         gap = d - r
-        if gap < nearest_gap:
-            nearest, nearest_gap = s, gap
         if gap > TOUCH_TOL:
             continue
         dot = mx * nx + my * ny + mz * nz
         if dot > best_dot + SAME_NORMAL or (dot >= best_dot - SAME_NORMAL and gap < best_gap):
             best, best_dot, best_gap = s, dot, gap
-    return best if best >= 0 else nearest
+    if best >= 0:
+        return best
+    nearest_gap = math.inf
+    for j in range(int(g.nnear)):
+        s = near[j]
+        gap = shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0]
+        if gap < nearest_gap:
+            best, nearest_gap = s, gap
+    return best
 
 
 @njit(cache=True, error_model="numpy")
@@ -306,7 +316,12 @@ def _land(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, pl):
     it ends touching the shape it pushes. pl: a scratch plane list. Returns the position."""
     r = g.radius
     for j in range(int(g.nnear)):
-        if shape_distance(S, T, C, xpos, xmat, near[j], x, y, z)[0] - r <= TOUCH_TOL:
+        s = near[j]
+        k = int(S[s].geom)
+        reach = S[s].rbound + r + TOUCH_TOL
+        ex, ey, ez = x - xpos[k, 0], y - xpos[k, 1], z - xpos[k, 2]
+        if ex * ex + ey * ey + ez * ez <= reach * reach \
+                and shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0] - r <= TOUCH_TOL:
             return x, y, z
     dx, dy, dz = xd - x, yd - y, zd - z
     hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
