@@ -269,20 +269,33 @@ def _touched(pl, n, nx, ny, nz):
 
 
 @njit(cache=True, error_model="numpy")
-def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz):
+def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz, rested):
     """The shape the proxy at (x, y, z) touches, where it ends the tick (the pushed body is
     its body, the proxy is carried in its frame): among the near shapes whose surface is
     within TOUCH_TOL of the sphere, the one whose outward normal there is most aligned with
     the force's direction n, i.e. the constraint that carries the force; on a tie within
-    SAME_NORMAL (two flat faces side by side at a seam) the nearer, then the lower row. None
-    within TOUCH_TOL (not expected: the proxy ends on a surface): the nearest shape.
+    SAME_NORMAL (two flat faces side by side at a seam) the nearer, then the lower row; -1
+    when none is within TOUCH_TOL (the proxy floats: `_land`).
 
     The planes of the frictionless solve do not tell: friction may hold the proxy back on
-    one geom while the frictionless proxy went on across a seam onto its neighbour."""
+    one geom while the frictionless proxy went on across a seam onto its neighbour. The
+    finger's first `rested` planes are known to rest on their shapes' surfaces at the proxy
+    (checked by the solve): their shapes are in touch, their normals the planes', no query."""
     r = g.radius
     best, best_dot, best_gap = -1, -2.0, math.inf
     for j in range(int(g.nnear)):
         s = near[j]
+        dot = -2.0
+        for i in range(rested):
+            p = g.planes[i]
+            if int(p[4]) == s:
+                c = p[0] * nx + p[1] * ny + p[2] * nz
+                if c > dot:
+                    dot = c
+        if dot > -2.0:  # resting on it (within LIFT_TOL): gap 0
+            if dot > best_dot + SAME_NORMAL or (dot >= best_dot - SAME_NORMAL and 0.0 < best_gap):
+                best, best_dot, best_gap = s, dot, 0.0
+            continue
         k = int(S[s].geom)
         reach = S[s].rbound + r + TOUCH_TOL
         ex, ey, ez = x - xpos[k, 0], y - xpos[k, 1], z - xpos[k, 2]
@@ -295,34 +308,29 @@ def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz):
         dot = mx * nx + my * ny + mz * nz
         if dot > best_dot + SAME_NORMAL or (dot >= best_dot - SAME_NORMAL and gap < best_gap):
             best, best_dot, best_gap = s, dot, gap
-    if best >= 0:
-        return best
-    nearest_gap = math.inf
+    return best
+
+
+@njit(cache=True, error_model="numpy")
+def _nearest(S, T, C, xpos, xmat, g, near, x, y, z):
+    """The near shape nearest the point (x, y, z)."""
+    best, best_d = -1, math.inf
     for j in range(int(g.nnear)):
         s = near[j]
-        gap = shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0]
-        if gap < nearest_gap:
-            best, nearest_gap = s, gap
+        d = shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0]
+        if d < best_d:
+            best, best_d = s, d
     return best
 
 
 @njit(cache=True, error_model="numpy")
 def _land(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, pl):
-    """The slipping proxy's point (x, y, z) on the dynamic cone's edge, brought onto a surface:
-    that point lies on the chord from where the proxy was held to the frictionless proxy, and
-    across a convex edge or a step down the chord runs in free space (up to the step's height
-    off every surface). Off every near shape by more than TOUCH_TOL, the proxy is swept from
-    there toward the device, which lies inside the constraint, onto the first surface it meets:
+    """A proxy in contact that touches no shape at (x, y, z), brought onto a surface: a
+    slipping proxy's point on the dynamic cone's edge lies on the chord from where it was
+    held to the frictionless proxy, and across a convex edge or a step down that chord runs
+    in free space (up to the step's height off every surface). The proxy is swept from there
+    toward the device, which lies inside the constraint, onto the first surface it meets, so
     it ends touching the shape it pushes. pl: a scratch plane list. Returns the position."""
-    r = g.radius
-    for j in range(int(g.nnear)):
-        s = near[j]
-        k = int(S[s].geom)
-        reach = S[s].rbound + r + TOUCH_TOL
-        ex, ey, ez = x - xpos[k, 0], y - xpos[k, 1], z - xpos[k, 2]
-        if ex * ex + ey * ey + ez * ez <= reach * reach \
-                and shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0] - r <= TOUCH_TOL:
-            return x, y, z
     dx, dy, dz = xd - x, yd - y, zd - z
     hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
     if hit:
@@ -843,13 +851,20 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
                     saved[j, k] = pl[j, k]
             fx, fy, fz, _, _, _, _, m = _move(S, T, C, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept)
             _keep_resting(S, T, C, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
-        fx, fy, fz = _land(S, T, C, xpos, xmat, g, near, fx, fy, fz, xd, yd, zd, saved)
-    g.x, g.y, g.z = fx, fy, fz
     g.contact = True
     g.nx, g.ny, g.nz = nx, ny, nz
     g.depth = depth
     g.sticking = not slipping
-    best = _touched_at(S, T, C, xpos, xmat, g, near, fx, fy, fz, nx, ny, nz)
+    # the finger's planes rest on their shapes at the proxy (checked by the solve or by
+    # _keep_resting), except those of the frictionless proxy kept for a point on the chord
+    rested = 0 if (not held and g.mu_d > 0.0 and straight) else int(g.nplanes)
+    best = _touched_at(S, T, C, xpos, xmat, g, near, fx, fy, fz, nx, ny, nz, rested)
+    if best < 0:  # floating on the chord across an edge: down onto the surface it pushes
+        fx, fy, fz = _land(S, T, C, xpos, xmat, g, near, fx, fy, fz, xd, yd, zd, saved)
+        best = _touched_at(S, T, C, xpos, xmat, g, near, fx, fy, fz, nx, ny, nz, 0)
+        if best < 0:  # not expected: a proxy in contact ends on a surface
+            best = _nearest(S, T, C, xpos, xmat, g, near, fx, fy, fz)
+    g.x, g.y, g.z = fx, fy, fz
     g.touched = best
     if not S[best].static:  # remember the proxy in the touched geom's frame: it carries it
         g.lx, g.ly, g.lz = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
