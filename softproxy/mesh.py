@@ -40,7 +40,9 @@ import numpy as np
 import trimesh
 from tqdm import tqdm
 
-from softproxy.compiled.certificate import STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, vertex_tables
+from softproxy.compiled.certificate import (
+    STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, node_frames, vertex_tables,
+)
 from softproxy.compiled.layout import GEOM_MESH
 from softproxy.compiled.tolerances import CONTACT_TOL
 from softproxy.geometry import Shape
@@ -274,10 +276,11 @@ class MeshTables:
         n, nv = self.triangles, len(self.vpos)
         # short triangles are found through their vertices, long ones in a tree of their own
         edge = self.edges[:, :, 6].max(axis=1)
-        long_edge = LONG_EDGES * float(np.median(edge))
+        long_edge = min(LONG_EDGES * float(np.median(edge)), 0.5 * kept)
         vertex_tree = box_tree(self.vpos, self.vpos)
         long = np.flatnonzero(edge > long_edge)
         long_tree = box_tree(self.tlo[long], self.thi[long], long)
+        frames = node_frames(long_tree[0], long_tree[3], self.vpos, self.tv, self.plane)
         clear = np.empty((n, 2), dtype=np.int64)
         listed = np.full((n, 2, STATIC_ABOVE), -1, dtype=np.int64)
         keep = VERTEX_READ + 1
@@ -285,7 +288,7 @@ class MeshTables:
         ids = np.empty((nv, keep), dtype=np.int64)
         counts = np.empty(nv, dtype=np.int64)
         common = (self.tlo, self.thi, self.centre, self.rhos)
-        trees = (*vertex_tree, *long_tree, kept, long_edge)
+        trees = (*vertex_tree, *long_tree, kept, long_edge, *frames)
         scratch = threading.local()  # per worker: a stamp per triangle and one per vertex
 
         def faces(s: int, e: int) -> int:
@@ -320,8 +323,9 @@ def reach(radius: float) -> float:
 
 
 LONG_EDGES = 4.0
-"""A triangle whose longest edge is over this many times the mesh's median is long: the
-certificates find it in a tree of long triangles, the others through their vertices."""
+"""A triangle whose longest edge is over this many times the mesh's median (or half the
+certificates' reach) is long: the certificates find it in a tree of long triangles, the
+others through their vertices."""
 BUILD_CHUNK = 4096
 """Faces or vertices per compiled call while building certificates (the progress bar's step)."""
 BUILD_THREADS = 8

@@ -226,9 +226,9 @@ LEAF = 8
 """Items (vertices or triangles) per leaf of a box tree."""
 SINE_GRID = 2.0 ** 40
 """Steps per unit a kept vertex table's sin β is rounded down to (≈1e-12), so that equal sines sort alike."""
-BUDGET = 2048
+BUDGET = 512
 """Most tree leaves one face's or vertex's walk may open; beyond, it gets no certificate (a
-neighbourhood of more than ~16k vertices within reach: a query there scans the grid)."""
+neighbourhood of more than ~4k vertices or triangles within reach: a query there scans the grid)."""
 DEAD_SINE = 1e-12
 """A full vertex table whose every sin β is below this certifies nothing: a query reads the
 entries below its tilt's sine (never less than 1e-12, `_vertex_few`), all of them, past
@@ -275,6 +275,55 @@ def box_tree(lo: np.ndarray, hi: np.ndarray, ids: np.ndarray | None = None):
         nhi[parent] = np.maximum(nhi[2 * parent], nhi[2 * parent + 1])
         level //= 2
     return ids[order], nlo, nhi, size
+
+
+def node_frames(order: np.ndarray, size: int, V: np.ndarray, F: np.ndarray, plane: np.ndarray):
+    """Per node of a box tree over triangles (`box_tree`'s order and size): a box oriented by
+    its first triangle (axes: that triangle's normal, its longest edge, their cross product;
+    the extents of the node's vertices along each), as (nodes × 3 axes × 3) axes and (nodes
+    × 3 × 2) extents; an empty node's extents are inverted. A face that holds a long run of
+    slivers behind it (a CAD cylinder's side, a flat face's fan) is seen to, where the node's
+    axis-aligned box would stick out above its plane."""
+    n = len(order)
+    axes = np.zeros((2 * size, 3, 3))
+    ext = np.empty((2 * size, 3, 2))
+    ext[:, :, 0], ext[:, :, 1] = np.inf, -np.inf
+    if n == 0:
+        return axes, ext
+    tri = F[order]
+    corners = V[tri]                          # (n, 3 vertices, 3)
+    edges = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 1], corners[:, 0] - corners[:, 2]], 1)
+    longest = edges[np.arange(n), np.argmax((edges * edges).sum(2), axis=1)]
+    u2 = longest / np.linalg.norm(longest, axis=1)[:, None]
+    u1 = plane[order, :3]
+    frames = np.stack([u1, u2, np.cross(u1, u2)], axis=1)   # per triangle, its own frame
+    span = size * LEAF                        # items under one node of the level
+    level = 1
+    while level <= size:
+        starts = np.arange(0, n, span)
+        nodes = level + np.arange(len(starts))
+        owner = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, n)))
+        frame = frames[starts]                # the node's first triangle's
+        proj = np.einsum("tvx,tax->tav", corners, frame[owner])  # (n, 3 axes, 3 vertices)
+        axes[nodes] = frame
+        ext[nodes, :, 0] = np.minimum.reduceat(proj.min(axis=2), starts, axis=0)
+        ext[nodes, :, 1] = np.maximum.reduceat(proj.max(axis=2), starts, axis=0)
+        level *= 2
+        span //= 2
+    return axes, ext
+
+
+@njit(cache=True, error_model="numpy")
+def _oriented_heights(axes, ext, node, nx, ny, nz, off):
+    """The highest and lowest points (m) over the plane n·x = off of a node's oriented box."""
+    top = -off
+    bottom = -off
+    for a in range(3):
+        c = nx * axes[node, a, 0] + ny * axes[node, a, 1] + nz * axes[node, a, 2]
+        lo, hi = c * ext[node, a, 0], c * ext[node, a, 1]
+        top += max(lo, hi)
+        bottom += min(lo, hi)
+    return top + 1e-15, bottom - 1e-15
 
 
 @njit(cache=True, error_model="numpy")
@@ -340,15 +389,16 @@ def _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder, vlo, vhi, vsize, lorder, llo, lhi,
-               lsize, reach, long_edge, tstamp, stamp0, count, listed):
+               lsize, reach, long_edge, laxes, lext, tstamp, stamp0, count, listed):
     """Per face of `faces` (ids) and side (front, back), the triangles within `reach` (m) of it
     (box and bounding ball within reach of its own) that rise above its plane on that side (a
     vertex higher than ABOVE_TOL): their number in count[j, side] and the triangles in
     listed[j, side], or -1 when more than STATIC_ABOVE do (a concave patch) or the walk
     opens more than BUDGET leaves. Short triangles are found through their rising vertices
     within reach + long_edge of the face (the vertex tree vorder/vlo/vhi/vsize), long ones in
-    the long tree (lorder/llo/lhi/lsize); a walk leaves out boxes beyond reach and boxes
-    wholly behind the plane on every side still open. `tstamp` (one int per triangle) is
+    the long tree (lorder/llo/lhi/lsize; its nodes' oriented boxes laxes, lext from
+    `node_frames`); a walk leaves out boxes beyond reach and boxes wholly behind the plane on
+    every side still open (by the box, and for the long tree by the oriented box too). `tstamp` (one int per triangle) is
     scratch, stamped from stamp0 + 1 on."""
     stack = np.empty(STACK, np.int64)
     vreach2 = (reach + long_edge) ** 2
@@ -375,6 +425,9 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
                 if lo[0] > hi[0] or _gap2(lo, hi, qlo, qhi) > limit2:
                     continue
                 top, bottom = _heights(lo, hi, nx, ny, nz, off)
+                if tree == 1:
+                    t2, b2 = _oriented_heights(laxes, lext, node, nx, ny, nz, off)
+                    top, bottom = min(top, t2), max(bottom, b2)
                 if not ((front >= 0 and top > ABOVE_TOL) or (back >= 0 and bottom < -ABOVE_TOL)):
                     continue
                 if node < size:
@@ -480,7 +533,7 @@ def _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho, vorder, vlo, vhi, vsize, lorder, llo,
-                  lhi, lsize, reach, long_edge, mark, stamp0, sines, ids, counts):
+                  lhi, lsize, reach, long_edge, laxes, lext, mark, stamp0, sines, ids, counts):
     """Per vertex v of `verts` (ids): among the vertices w of the triangles within `reach` (m)
     of it but its fan, w other than v and the ends of its edges, the VERTEX_READ + 1 of least
     sin β (β: the angle of w - v below the plane square to v's cone axis), rounded down to

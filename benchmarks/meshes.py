@@ -1,0 +1,260 @@
+"""`softproxy bench meshes`: loading meshes at CAD scale, and a tick's cost on them.
+
+Three kinds of mesh, each at about 10k, 100k and 1M triangles, all about 10 cm across and
+generated here (numpy): CAD-like parts of long slivers (cylinders tessellated as a CAD export
+does: one sliver per section down the side, a fan on each cap, tilted), a near-flat gently
+curved open grid, and a scanned-like sphere with radial noise. Per mesh: the time and the
+peak memory (tracemalloc) to load it (`MeshShape` on explicit triangles, then the engine's
+tables), and the god-object update's cost per finger (p50 / p99, µs) with a 5 mm proxy
+pressed into it and sliding on it; on the 100k meshes with 1, 2 and 5 fingers on the one mesh.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import tracemalloc
+
+import mujoco
+import numpy as np
+
+from .report import Progress, figure, save
+
+RADIUS = 0.005
+"""Proxy radius (m)."""
+DEPTH = 0.002
+"""How far the device is held under the surface (m)."""
+SIZES = (10_000, 100_000, 1_000_000)
+"""Triangles per mesh (about)."""
+FINGERS = (1, 2, 5)
+"""Fingers on one mesh, on the 100k-triangle meshes."""
+_GEOM = '<mujoco><worldbody><body name="b"><geom name="g" type="box" size=".01 .01 .01"/></body></worldbody></mujoco>'
+
+
+# ---------------------------------------------------------------------------------------
+# Meshes (geom frame, m)
+# ---------------------------------------------------------------------------------------
+
+def slivers(triangles: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """25 closed cylinders (radius 6-8 mm, height 1-3 cm, tilted up to 15°) on a 2.5 cm grid,
+    each of `sections` sides as a CAD export tessellates it: two slivers per section running
+    the cylinder's height (aspect up to ~10⁴ at 1M), a fan of slivers on each cap."""
+    rng = np.random.default_rng(seed)
+    sections = max(8, triangles // (4 * 25))
+    verts, faces = [], []
+    base = 0
+    for i in range(25):
+        r, h = rng.uniform(0.006, 0.008), rng.uniform(0.01, 0.03)
+        a = np.linspace(0.0, 2.0 * math.pi, sections, endpoint=False)
+        ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
+        v = np.vstack([np.column_stack([ring, np.zeros(sections)]), np.column_stack([ring, np.full(sections, h)]),
+                       [[0.0, 0.0, 0.0], [0.0, 0.0, h]]])
+        j = np.arange(sections)
+        k = (j + 1) % sections
+        lo, hi, c0, c1 = j, j + sections, 2 * sections, 2 * sections + 1
+        f = np.vstack([np.column_stack([lo, k, hi]), np.column_stack([k, k + sections, hi]),
+                       np.column_stack([np.full(sections, c0), k, lo]),
+                       np.column_stack([np.full(sections, c1), hi, k + sections])])
+        tilt = rng.uniform(-0.26, 0.26, 2)
+        cx, sx, cy, sy = math.cos(tilt[0]), math.sin(tilt[0]), math.cos(tilt[1]), math.sin(tilt[1])
+        turn = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        v = v @ turn.T + [0.025 * (i % 5) - 0.05, 0.025 * (i // 5) - 0.05, rng.uniform(-0.005, 0.005)]
+        verts.append(v)
+        faces.append(f + base)
+        base += len(v)
+    return np.vstack(verts), np.vstack(faces)
+
+
+def grid(triangles: int) -> tuple[np.ndarray, np.ndarray]:
+    """An open sheet 10 cm square, gently curved (3 mm waves 8-10 cm long), of n × n vertices."""
+    n = max(3, int(math.sqrt(triangles / 2.0)) + 1)
+    x, y = np.meshgrid(np.linspace(-0.05, 0.05, n), np.linspace(-0.05, 0.05, n), indexing="ij")
+    z = 0.003 * np.sin(2.0 * math.pi * x / 0.08) * np.cos(2.0 * math.pi * y / 0.1)
+    v = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    a = (i * n + j).ravel()
+    f = np.vstack([np.column_stack([a, a + n, a + 1]), np.column_stack([a + 1, a + n, a + n + 1])])
+    return v, f
+
+
+def noisy_sphere(triangles: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A geodesic sphere (radius 5 cm, 20 k² triangles) with radial noise of a tenth of an edge,
+    as a scan: isotropic triangles, locally dented everywhere."""
+    k = max(1, int(round(math.sqrt(triangles / 20.0))))
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    ico = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
+                    [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    tri = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
+                    [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
+                    [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    # points of each face by integer barycentrics (i, j, k - i - j): a point on a shared edge is
+    # the same sum of the same two terms from either face, so equal bit for bit and welded
+    ii, jj = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+    keep = ii + jj <= k
+    ii, jj = ii[keep], jj[keep]
+    index = -np.ones((k + 1, k + 1), dtype=np.int64)
+    index[ii, jj] = np.arange(len(ii))
+    a, b = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    up = (a + b < k).ravel()
+    down = (a + b < k - 1).ravel()
+    a, b = a.ravel(), b.ravel()
+    local = np.vstack([np.column_stack([index[a, b], index[a + 1, b], index[a, b + 1]])[up],
+                       np.column_stack([index[a + 1, b], index[a + 1, b + 1], index[a, b + 1]])[down]])
+    points = (ii[None, :, None] * ico[tri[:, 0]][:, None, :] + jj[None, :, None] * ico[tri[:, 1]][:, None, :]
+              + (k - ii - jj)[None, :, None] * ico[tri[:, 2]][:, None, :]) / k
+    v, inverse = np.unique(points.reshape(-1, 3), axis=0, return_inverse=True)
+    f = inverse.reshape(-1)[(local[None, :, :] + len(ii) * np.arange(20)[:, None, None]).reshape(-1, 3)]
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    edge = 1.1 / k  # about, on the unit sphere
+    v *= 0.05 * (1.0 + 0.1 * edge * np.random.default_rng(seed).standard_normal(len(v)))[:, None]
+    return v, f[:, ::-1]
+
+
+KINDS = {"slivers (CAD-like)": slivers, "near-flat grid": grid, "noisy sphere": noisy_sphere}
+
+
+# ---------------------------------------------------------------------------------------
+# Measurements
+# ---------------------------------------------------------------------------------------
+
+def _model():
+    model = mujoco.MjModel.from_xml_string(_GEOM)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def load(vertices, faces):
+    """(ShapeSet, seconds, peak bytes) of a mesh shape on the triangles, built from scratch."""
+    from softproxy.geometry import ShapeSet
+    from softproxy.mesh import MeshShape
+
+    model, data = _model()
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    shape = MeshShape(model, data, 0, True, triangles=(vertices, faces))
+    shapes = ShapeSet([shape], data)
+    seconds = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return shapes, seconds, peak
+
+
+def spots(vertices, faces, count: int, seed: int = 1):
+    """`count` places on the mesh at least 1.5 cm apart, on its upper side: (point, outward normal)."""
+    rng = np.random.default_rng(seed)
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    centre = (a + b + c) / 3.0
+    up = np.flatnonzero((n[:, 2] > 0.9) & (np.abs(centre[:, :2]) < 0.04).all(axis=1))
+    chosen = []
+    for i in rng.permutation(up):
+        if all(np.linalg.norm(centre[i] - centre[j]) > 0.015 for j in chosen):
+            chosen.append(i)
+            if len(chosen) == count:
+                break
+    return [(centre[i], n[i]) for i in chosen]
+
+
+def ticks(shapes, places, sliding: bool, updates: int, warm: int) -> np.ndarray:
+    """µs per god-object update, every finger's each tick, for fingers held at `places`
+    (pressed DEPTH in, still but for a 10 µm tremor, or sliding on 3 mm circles)."""
+    from softproxy.proxy import GodObject
+
+    gods = [GodObject(shapes, RADIUS, 0.5, 0.4, tuple(p + 3 * RADIUS * n)) for p, n in places]
+    frames = []
+    for p, n in places:
+        t = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        t /= np.linalg.norm(t)
+        frames.append((p + (RADIUS - DEPTH) * n, t, np.cross(n, t)))
+    clock = time.perf_counter
+    out = np.empty((updates, len(gods)))
+    for i in range(-warm, updates):
+        for f, (god, (at, u, w)) in enumerate(zip(gods, frames)):
+            if sliding:
+                a = 0.004 * i
+                x = at + 0.003 * (math.cos(a) * u + math.sin(a) * w)
+            else:
+                x = at + 1e-5 * math.sin(0.1 * i) * u
+            t0 = clock()
+            god.update(*x)
+            if i >= 0:
+                out[i, f] = clock() - t0
+    return out.ravel() * 1e6
+
+
+def measure(sizes=SIZES, updates: int = 2000, warm: int = 300, progress=None) -> dict:
+    """Load and tick every kind at every size; returns the result dict."""
+    load(*grid(200))  # the compiled kernels loaded (compiled on a first run), not timed
+    rows = []
+    for kind, make in KINDS.items():
+        for size in sizes:
+            if progress is not None:
+                progress(f"{kind}, {size} triangles")
+            v, f = make(size)
+            shapes, seconds, peak = load(v, f)
+            row = {"kind": kind, "triangles": int(shapes[0].triangles), "load_s": round(seconds, 3),
+                   "peak_mb": round(peak / 1e6, 1)}
+            fingers = FINGERS if size == sizes[len(sizes) // 2] else (1,)
+            where = spots(v, f, max(fingers))
+            for count in fingers:
+                for mode in ("pressed", "sliding"):
+                    us = ticks(shapes, where[:count], mode == "sliding", updates, warm)
+                    row[f"{mode}_{count}f_p50_us"] = round(float(np.percentile(us, 50)), 2)
+                    row[f"{mode}_{count}f_p99_us"] = round(float(np.percentile(us, 99)), 2)
+            rows.append(row)
+            del shapes
+    return {"radius_m": RADIUS, "updates": updates, "rows": rows}
+
+
+def chart(result: dict):
+    rows = result["rows"]
+    fig, axes = figure(1, 3, (14, 4.5))
+    kinds = list(dict.fromkeys(r["kind"] for r in rows))
+    colours = ["#4a7ab8", "#c07030", "#30a050"]
+    for kind, colour in zip(kinds, colours):
+        mine = [r for r in rows if r["kind"] == kind]
+        n = [r["triangles"] for r in mine]
+        axes[0].plot(n, [r["load_s"] for r in mine], "o-", color=colour, label=kind)
+        axes[1].plot(n, [r["peak_mb"] for r in mine], "o-", color=colour, label=kind)
+        axes[2].plot(n, [r["pressed_1f_p99_us"] for r in mine], "o-", color=colour, label=f"{kind}, pressed")
+        axes[2].plot(n, [r["sliding_1f_p99_us"] for r in mine], "s--", color=colour, label=f"{kind}, sliding")
+    axes[0].axhline(5.0, color="#c03030", lw=0.8, ls=":", label="target at 100k (5 s)")
+    axes[1].axhline(500.0, color="#c03030", lw=0.8, ls=":", label="target at 100k (500 MB)")
+    for ax, label in zip(axes, ("load (s)", "peak memory at load (MB)", "update p99, one finger (µs)")):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("triangles")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=7)
+    axes[0].set_title("load time")
+    axes[1].set_title("load memory (tracemalloc peak)")
+    axes[2].set_title(f"god-object update, {result['radius_m'] * 1e3:g} mm proxy")
+    return fig
+
+
+def main(args) -> int:
+    progress = Progress("meshes")
+    result = measure(SIZES, updates=5000 if getattr(args, "full", False) else 2000, progress=progress)
+    progress.done()
+    fig = chart(result)
+    json_path, png_path = save(args.out, "meshes", result, fig)
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    print(f"meshes: load and god-object update ({result['radius_m'] * 1e3:g} mm proxy, {result['updates']} updates "
+          "per finger); µs per finger update, p50/p99")
+    print(f"  {'mesh':20s}{'triangles':>10s}{'load s':>8s}{'peak MB':>9s}  {'fingers':>7s}"
+          f"{'pressed':>16s}{'sliding':>16s}")
+    for r in result["rows"]:
+        for count in FINGERS:
+            if f"pressed_{count}f_p50_us" not in r:
+                continue
+            head = (f"  {r['kind']:20s}{r['triangles']:10d}{r['load_s']:8.2f}{r['peak_mb']:9.1f}" if count == 1
+                    else " " * 49)
+            print(f"{head}  {count:7d}{r[f'pressed_{count}f_p50_us']:8.1f}/{r[f'pressed_{count}f_p99_us']:<7.1f}"
+                  f"{r[f'sliding_{count}f_p50_us']:8.1f}/{r[f'sliding_{count}f_p99_us']:<7.1f}")
+    print(f"  wrote {json_path} and {png_path}")
+    return 0
