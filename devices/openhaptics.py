@@ -58,6 +58,7 @@ render zero, then stops the scheduler and disables the device; it never raises.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import ctypes
 import importlib
@@ -65,6 +66,7 @@ import io
 import math
 import time
 import types
+import weakref
 
 from softproxy.device import DeviceError, DeviceSample
 
@@ -82,6 +84,11 @@ DEVICE_TO_ENGINE = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
 """Rows: the engine's x, y, z in OpenHaptics' frame (x right, y up, z towards the operator)."""
 HD_NOMINAL_MAX_FORCE, HD_NOMINAL_MAX_CONTINUOUS_FORCE = 0x2603, 0x2604
 """hdGetDoublev parameters (hd_define), used when the binding does not export them."""
+HD_INVALID_HANDLE = 0xFFFFFFFF
+"""What hdInitDevice returns when it fails. pyOpenHaptics 1.0.1 compares the handle with the error
+code HD_BAD_HANDLE instead, so it hands this on as the device's id (its None is never seen)."""
+OPEN_HINT = ("is it connected, set up in Touch Setup under that name, and readable by you? "
+             "see docs/devices.md")
 
 # model name (lower case, as hdGetString(HD_DEVICE_MODEL_TYPE) says it) -> (peak N, continuous N);
 # 3D Systems' specifications: Touch 3.3 N peak, 0.88 N continuous; Touch X 7.9 N, 1.75 N; their
@@ -94,6 +101,18 @@ MODEL_LIMITS = {
 }
 UNKNOWN_LIMITS = (3.3, 0.88)
 """A model not in MODEL_LIMITS and no limit from the SDK: the Touch's, the smallest device."""
+
+_OPEN: "weakref.WeakSet[OpenHapticsDevice]" = weakref.WeakSet()
+"""Devices opened and not closed yet: closed at interpreter exit, while their scheduler still runs."""
+
+
+@atexit.register
+def _close_open_devices() -> None:
+    """At exit, zero force and stop the scheduler of every device left open: the scheduler
+    thread calls into Python, which must not happen in an interpreter being torn down."""
+    for device in list(_OPEN):
+        device.close()
+
 
 _CONFIG_KEYS = {"type", "device_name", "workspace_scale", "workspace_offset", "max_force_N", "stale_ms",
                 "command_timeout_ms"}
@@ -209,6 +228,7 @@ class OpenHapticsDevice:
         self._latest: tuple | None = None     # (time, x, y, z mm, r00..r22, g0, g1, g2, buttons)
         self._command: tuple | None = None    # (fx, fy, fz N device frame, time)
         self._armed = False                   # the callback renders commands only while armed
+        self._zero_after_close = False        # a frame begun after close() rendered zero
         self._callback_error: str | None = None
         self._fault: str | None = None
         self._failed = False                  # from a failure to the next valid sample
@@ -226,6 +246,7 @@ class OpenHapticsDevice:
                              f"got {max_force!r}")
         self.peak_force = peak
         self.max_force = float(continuous if max_force is None else max_force)
+        _OPEN.add(self)
 
     # -- opening and closing -----------------------------------------------------------------
 
@@ -234,13 +255,27 @@ class OpenHapticsDevice:
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # the binding prints as it opens
                 device = self._binding.HapticDevice(callback=self._callback, device_name=self.device_name)
+        except NameError as exc:  # pyOpenHaptics loads libHD on Linux and Windows only
+            raise DeviceError(f"the OpenHaptics SDK library was not found (pyOpenHaptics loads libHD on Linux "
+                              f"and Windows only; {exc}): {SDK_HINT}") from None
         except Exception as exc:
-            raise DeviceError(f"cannot open {NAME} device {self.device_name!r}: {type(exc).__name__}: {exc}") from None
-        if getattr(device, "id", None) is None:  # the binding reports a failed hdInitDevice by an id of None
+            # a failed hdInitDevice goes on unnoticed by the binding until a call without a device
+            # fails (hdGetString's NULL: "'NoneType' object has no attribute 'decode'")
+            self._stop_scheduler()
+            raise DeviceError(f"cannot open {NAME} device {self.device_name!r}: hdInitDevice failed or the "
+                              f"device did not answer ({type(exc).__name__}: {exc}); {OPEN_HINT}") from None
+        if getattr(device, "id", None) in (None, HD_INVALID_HANDLE):  # failed hdInitDevice, as 1.0.1 and as meant
             self._stop(device)
-            raise DeviceError(f"cannot open {NAME} device {self.device_name!r}: hdInitDevice failed (is it "
-                              "connected, set up in Touch Setup under that name, and readable by you? see docs/devices.md)")
+            raise DeviceError(f"cannot open {NAME} device {self.device_name!r}: hdInitDevice failed ({OPEN_HINT})")
         return device
+
+    def _stop_scheduler(self) -> None:
+        """Stop a scheduler an unfinished HapticDevice may have started."""
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                self._hd.stop_scheduler()
+        except Exception:
+            pass
 
     def _stop(self, device) -> None:
         try:
@@ -290,21 +325,27 @@ class OpenHapticsDevice:
             # column-major: m[3] is the translation, m[c][r] the rotation's row r, column c
             self._latest = (now, m[3][0], m[3][1], m[3][2], m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1],
                             m[0][2], m[1][2], m[2][2], g[0], g[1], g[2], b)
+            closing = self.closed  # read before the command: a frame that saw it renders zero
             cmd = self._command
-            if cmd is not None and self._armed and now - cmd[3] <= self.command_timeout_s:
+            if not closing and cmd is not None and self._armed and now - cmd[3] <= self.command_timeout_s:
                 force = [cmd[0], cmd[1], cmd[2]]
             else:
-                if cmd is not None and self._armed:
+                if cmd is not None and self._armed and not closing:
                     self.callback_zeroed += 1
                 force = [0.0, 0.0, 0.0]
             hd.set_force(force)
             self.last_force = tuple(force)
+            if closing:
+                self._zero_after_close = True
             self.callback_ticks += 1
         except BaseException as exc:  # nothing may escape into the scheduler
             self._callback_error = f"{type(exc).__name__}: {exc}"
             try:
+                closing = self.closed
                 hd.set_force([0.0, 0.0, 0.0])
                 self.last_force = (0.0, 0.0, 0.0)
+                if closing:
+                    self._zero_after_close = True
             except BaseException:
                 pass
 
@@ -378,7 +419,7 @@ class OpenHapticsDevice:
         s.valid = ok
         if not ok:
             self.invalid_samples += 1
-        elif not self._armed:  # a valid sample arms the device: the first one, and after a failure
+        elif not self._armed and not self.closed:  # a valid sample arms the device: the first, and after a failure
             if self._failed:
                 self._failed = False
                 self.recoveries += 1
@@ -432,16 +473,19 @@ class OpenHapticsDevice:
         self._command = (float(f[0]), float(f[1]), float(f[2]), self._clock())  # one assignment: the slot
 
     def close(self) -> None:
-        """Disarm and zero the command, wait (at most CLOSE_WAIT_S) for the callback to render
-        zero, then stop the scheduler and disable the device. Never raises."""
+        """Mark closed, disarm and zero the command, wait (at most CLOSE_WAIT_S) for a frame that
+        began after that to render zero, then stop the scheduler and disable the device. A frame
+        already under way when close() starts may still write the old force: waiting for any
+        frame to end would let that one pass for the zero. Never raises."""
         if self.closed:
             return
-        self.closed = True
+        self.closed = True  # first: every frame that reads it from now on renders zero
         self._armed = False
         self._command = None
+        _OPEN.discard(self)
         try:
-            ticks, deadline = self.callback_ticks, time.monotonic() + CLOSE_WAIT_S
-            while self.callback_ticks == ticks and time.monotonic() < deadline:
+            deadline = time.monotonic() + CLOSE_WAIT_S
+            while not self._zero_after_close and time.monotonic() < deadline:
                 self._sleep(0.001)
         except Exception:
             pass

@@ -2,8 +2,12 @@
 `devices/openhaptics.py` uses, with the binding's signatures and conventions.
 
 Mirrored from pyOpenHaptics/hd.py, hd_callback.py and hd_device.py of the 1.0.1 wheel:
-* `hd.init_device(name="Default Device")` returns the handle, or prints and returns None when
-  hdInitDevice fails (the binding catches its own DeviceInitException);
+* `hd.init_device(name="Default Device")` returns the handle; when hdInitDevice fails it returns
+  HD_INVALID_HANDLE (0xFFFFFFFF) silently: the binding compares the handle with the error code
+  HD_BAD_HANDLE (0x0104), so its DeviceInitException / print / None path never runs;
+* after a failed hdInitDevice, `hd.get_vendor()` / `hd.get_model()` (hdGetString with no
+  device) raise AttributeError - hdGetString returns NULL and the binding calls `.decode()` on
+  None - unless `strings_without_device = "ok"` (then HapticDevice finishes with that id);
 * `hd.get_transform()` a column-major 4x4 `(c_double * 4) * 4` (translation in [3][0..2], mm),
   `hd.get_gimbals()` a `c_double * 3` (rad), `hd.get_buttons()` an int,
   `hd.set_force(feedback)` takes 3 floats (N) and returns None, `hd.get_error()` a bool (and
@@ -17,7 +21,8 @@ Mirrored from pyOpenHaptics/hd.py, hd_callback.py and hd_device.py of the 1.0.1 
   prints it and the callback returns 0);
 * `HapticDevice(callback, device_name="Default Device", scheduler_type="async")` prints, calls
   init_device, enable_force, start_scheduler, get_error, then schedules the callback;
-  `close()` is stop_scheduler then close_device.
+  `close()` is stop_scheduler then close_device. The real scheduler runs the callback in a
+  thread of its own, one frame after another, concurrently with the application.
 
 The scheduler is stepped by the test: `step(n)` runs every scheduled callback n times (a
 haptic frame each), or `start_thread()` runs it at about 1 kHz in a thread of its own. The
@@ -26,7 +31,8 @@ fails: `init_fails` (init_device returns None), `error_frames` (that many next f
 an HD error, which ends the callback), `raise_in` (names of `hd` functions that raise),
 `garbage` (readings NaN or None). Every force the device received is kept in `forces` as
 (fx, fy, fz) in N, device frame; `force` is what it renders now (zero once the scheduler
-stops, as hdStopScheduler turns force output off).
+stops: what the motors do after hdStopScheduler is not documented, so the fake keeps the last
+force written, and a test sees what the adapter left).
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ import types
 
 HD_CALLBACK_DONE, HD_CALLBACK_CONTINUE = 0, 1
 HD_NOMINAL_MAX_FORCE, HD_NOMINAL_MAX_CONTINUOUS_FORCE = 0x2603, 0x2604
+HD_BAD_HANDLE, HD_INVALID_HANDLE = 0x0104, 0xFFFFFFFF
 hduMatrix = (ctypes.c_double * 4) * 4
 hduVector3Dd = ctypes.c_double * 3
 
@@ -56,6 +63,9 @@ class FakeOpenHaptics:
         self.gimbals = [0.0, 0.0, 0.0]
         self.buttons = 0
         self.init_fails = False
+        self.strings_without_device = "null"  # hdGetString after a failed init: "null" (raises) or "ok"
+        self.device_ok = False                # the last init_device succeeded
+        self.set_force_hook = None            # called with the force inside set_force, before it lands
         self.error_frames = 0
         self.raise_in: set[str] = set()
         self.garbage = None
@@ -91,11 +101,12 @@ class FakeOpenHaptics:
 
         def init_device(name: str = "Default Device"):
             fake.inits += 1
-            if fake.init_fails:
-                fake.printed.append("Unable to initialize the device. Check the connection!")
+            handle = HD_INVALID_HANDLE if fake.init_fails else fake.inits
+            fake.device_ok = not fake.init_fails
+            if handle == HD_BAD_HANDLE:  # the binding's own test, never true of a handle
                 print("Unable to initialize the device. Check the connection!")
                 return None
-            return fake.inits
+            return handle
 
         def get_transform():
             fake._check("get_transform")
@@ -124,6 +135,8 @@ class FakeOpenHaptics:
             fake._check("set_force")
             v = hduVector3Dd(*feedback)  # as _set_doublev: exactly 3 doubles
             f = (v[0], v[1], v[2])
+            if fake.set_force_hook is not None:
+                fake.set_force_hook(f)
             fake.forces.append(f)
             fake.force = f
 
@@ -145,7 +158,6 @@ class FakeOpenHaptics:
         def stop_scheduler() -> None:
             fake.running = False
             fake.scheduled.clear()
-            fake.force = (0.0, 0.0, 0.0)
 
         def enable_force() -> None:
             print("Force feedback enabled!")
@@ -164,11 +176,16 @@ class FakeOpenHaptics:
         def get_current_device():
             return fake.inits
 
+        def _string(value):
+            if not fake.device_ok and fake.strings_without_device == "null":
+                return None.decode()  # AttributeError, as hdGetString's NULL in the binding
+            return value
+
         def get_model() -> str:
-            return fake.model
+            return _string(fake.model)
 
         def get_vendor() -> str:
-            return "3D Systems"
+            return _string("3D Systems")
 
         for f in (init_device, get_transform, get_gimbals, get_buttons, set_force, get_error, _get_doublev,
                   start_scheduler, stop_scheduler, enable_force, close_device, begin_frame, end_frame,

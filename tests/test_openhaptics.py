@@ -225,14 +225,28 @@ def test_close_renders_zero_then_stops_and_never_raises():
 
 
 def test_an_unopenable_device_and_a_missing_binding_are_one_line(monkeypatch):
-    """hdInitDevice failing (the binding returns an id of None): DeviceError naming the device
-    and what to check, the scheduler it started stopped; no pyOpenHaptics or no libHD: one line
-    naming what to install."""
+    """hdInitDevice failing: pyOpenHaptics 1.0.1 misses it (it compares the handle with an error
+    code) and either fails later, on hdGetString's NULL, or finishes with HD_INVALID_HANDLE as
+    its id; both are DeviceError naming the device and what to check, the scheduler stopped. No
+    pyOpenHaptics, no libHD, or a platform the binding loads no libHD on: one line naming what
+    to install."""
+    for strings in ("null", "ok"):
+        fake = FakeOpenHaptics()
+        fake.init_fails = True
+        fake.strings_without_device = strings
+        with pytest.raises(DeviceError, match="cannot open OpenHaptics device 'Left': hdInitDevice failed") as e:
+            OpenHapticsDevice(fake, device_name="Left")
+        assert "\n" not in str(e.value) and "Touch Setup" in str(e.value) and not fake.running, strings
+
     fake = FakeOpenHaptics()
-    fake.init_fails = True
-    with pytest.raises(DeviceError, match="cannot open OpenHaptics device 'Left': hdInitDevice failed") as e:
-        OpenHapticsDevice(fake, device_name="Left")
-    assert "\n" not in str(e.value) and not fake.running
+
+    def no_lib_hd(*args, **kwargs):
+        raise NameError("name '_lib_hd' is not defined")  # macOS: the binding defines no _lib_hd
+
+    fake.HapticDevice = no_lib_hd
+    with pytest.raises(DeviceError, match="OpenHaptics SDK library was not found.*Linux and Windows only") as e:
+        OpenHapticsDevice(fake)
+    assert "\n" not in str(e.value) and "install the OpenHaptics SDK" in str(e.value)
 
     def no_module(name):
         raise ModuleNotFoundError("No module named 'pyOpenHaptics'", name="pyOpenHaptics")
@@ -383,3 +397,74 @@ def test_an_exception_in_a_with_block_leaves_zero_force_and_a_stopped_scheduler(
             assert max(np.linalg.norm(f) for f in fake.forces) > 0.5
             1 / 0
     assert fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running and fake.disabled and dev.closed
+
+
+def test_close_waits_for_a_frame_begun_after_it():
+    """A frame already under way when close() starts has read the old force; when it ends it must
+    not pass for the zero: close() waits for a frame begun after it, so the last force written
+    before the scheduler stops is zero. The scheduler runs in its own thread, as the real one;
+    frames are gated so that each of close()'s waits lets exactly one more frame finish."""
+    fake = FakeOpenHaptics()
+    held, release, frame_waiting, gate = threading.Event(), threading.Event(), threading.Event(), threading.Semaphore(0)
+    gating = [False]
+    waits = [0]
+    get_transform = fake.hd.get_transform
+
+    def gated_get_transform():  # the start of a frame
+        if gating[0]:
+            frame_waiting.set()
+            gate.acquire(timeout=1.0)
+        return get_transform()
+
+    def hold_a_frame(f):  # inside set_force: the frame has chosen its force
+        if f != (0.0, 0.0, 0.0) and not held.is_set():
+            held.set()
+            gating[0] = True
+            release.wait(1.0)
+
+    def sleep(s):  # close() waiting: the frame under way ends; after the first wait, one more frame runs
+        waits[0] += 1
+        if waits[0] == 1:
+            release.set()
+        else:
+            frame_waiting.clear()
+            gate.release()
+        frame_waiting.wait(1.0)
+
+    fake.start_thread()
+    try:
+        dev = OpenHapticsDevice(fake, sleep=sleep, yield_gil=False)
+        s = [DeviceSample()]
+        deadline = time.monotonic() + 2.0
+        while not s[0].valid and time.monotonic() < deadline:
+            time.sleep(0.002)
+            dev.read(0.0, s)
+        fake.hd.get_transform = gated_get_transform
+        fake.set_force_hook = hold_a_frame
+        dev.send(0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
+        assert held.wait(1.0)
+        dev.close()  # the frame under way writes 0.5 N after close() started
+        assert fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running
+    finally:
+        gating[0] = False
+        release.set()
+        for _ in range(3):
+            gate.release()
+        fake.stop_thread()
+
+
+def test_a_device_left_open_is_zeroed_and_stopped_at_exit():
+    """The exit hook closes every device still open (its scheduler thread must not call into an
+    interpreter being torn down): zero force last, scheduler stopped; closed devices are left out."""
+    dev, fake, clock = make()
+    s = [DeviceSample()]
+    tick(dev, fake, clock, s)
+    dev.send(0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
+    fake.step(1)
+    assert fake.forces[-1] != (0.0, 0.0, 0.0)
+    other, other_fake, _ = make()
+    other.close()
+    closes = len(other_fake.disabled)
+    ohmod._close_open_devices()
+    assert dev.closed and fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running and fake.disabled
+    assert len(other_fake.disabled) == closes
