@@ -52,8 +52,15 @@ scheduling) is a failure: `read` raises DeviceError naming the device, the comma
 and the device disarmed (the callback renders zero). While failed, every REOPEN_INTERVAL_S of
 its clock the device is closed (scheduler stopped, device disabled) and opened again; the
 failure ends when the callback runs again, and forces render again after a valid sample.
-`close()` disarms and zeroes the command, waits (at most CLOSE_WAIT_S) for the callback to
-render zero, then stops the scheduler and disables the device; it never raises.
+`close()` marks the device closed (every frame that sees it renders zero), disarms and zeroes
+the command, waits (at most CLOSE_WAIT_S) for a frame begun after that to render zero - a frame
+already under way may still write the old force - then stops the scheduler and disables the
+device; it never raises. A device left open is closed at interpreter exit (`atexit`), before
+the scheduler's thread could call into an interpreter being torn down.
+
+Opening. pyOpenHaptics 1.0.1 misses a failed hdInitDevice (it compares the handle with an error
+code): the open then fails later, on a call without a device, or returns HD_INVALID_HANDLE as the
+id; both are reported as hdInitDevice failing, naming what to check.
 """
 
 from __future__ import annotations
