@@ -49,7 +49,9 @@ same model and serial number as before); once that goes through, samples are inv
 one reads clean, and forces render again after it (`recoveries`). A reading that is not a
 finite number (or a frame that is no rotation) makes that sample invalid, never a force.
 `close()` always tries zero force (CLOSE_ZERO_ATTEMPTS writes), then disables the force
-(`enableForce(False)`) and closes the device; it never raises.
+(`enableForce(False)`) and closes the device; it never raises. `read`, `send` and `close` take
+one lock, so a close from another thread cannot let a command land after its zero, and once
+closed only zero is ever written. A device left open is closed at interpreter exit (`atexit`).
 
 Configuration: `from_config` takes a scene's [device] table (`type = "forcedimension"`),
 `from_argument` serves `--device forcedimension[:index=0,gripper=off,...]`. `availability()`
@@ -58,12 +60,15 @@ says what `softproxy devices` prints about the backend.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import ctypes
 import importlib
 import io
 import math
+import threading
 import time
+import weakref
 
 from softproxy.device import DeviceError, DeviceSample
 
@@ -106,6 +111,17 @@ MODEL_LIMITS = {
 }
 UNKNOWN_LIMITS = ("unknown model", 5.0, 0.0, 0.0)
 """A type id not in MODEL_LIMITS (a newer model, a custom controller): a conservative force, no torque."""
+
+_OPEN: "weakref.WeakSet[ForceDimensionDevice]" = weakref.WeakSet()
+"""Devices opened and not closed yet: closed (zero force, forces disabled) at interpreter exit."""
+
+
+@atexit.register
+def _close_open_devices() -> None:
+    """At exit, zero force on every device left open: nothing else would write it."""
+    for device in list(_OPEN):
+        device.close()
+
 
 _CONFIG_KEYS = {"type", "index", "serial", "gripper", "gripper_axis", "workspace_scale", "workspace_offset",
                 "max_force_N", "max_torque_Nm", "max_gripper_force_N"}
@@ -241,6 +257,9 @@ class ForceDimensionDevice:
         self._axis = _AXES[gripper_axis]
         self._clock = clock
         self.closed = False
+        # read/send/close from different threads (a loop closed from another thread): one at a
+        # time, so no command can land between close()'s zero and the forces being disabled
+        self._lock = threading.RLock()
         self.sends = self.nan_sends = self.saturated = 0
         self.invalid_samples = self.failures = self.errors = self.reopens = self.recoveries = 0
         self.last_reopen_error = ""
@@ -307,6 +326,7 @@ class ForceDimensionDevice:
         except DeviceError:
             self._release()
             raise
+        _OPEN.add(self)
 
     # -- opening ------------------------------------------------------------------------------
 
@@ -413,6 +433,10 @@ class ForceDimensionDevice:
     # -- the Device protocol -----------------------------------------------------------------
 
     def read(self, t: float, samples: list[DeviceSample]) -> None:
+        with self._lock:
+            self._read(t, samples)
+
+    def _read(self, t: float, samples: list[DeviceSample]) -> None:
         if self.closed:
             raise DeviceError(f"{self.label}: device is closed")
         if self._fault is not None and not self._recover():
@@ -478,6 +502,10 @@ class ForceDimensionDevice:
         return ok
 
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
+        with self._lock:
+            self._send(finger, fx, fy, fz, tx, ty, tz)
+
+    def _send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
         if isinstance(finger, bool) or not isinstance(finger, int) or not 0 <= finger < self.fingers:
             raise DeviceError(f"{self.label} drives {self.fingers} finger(s), not finger {finger!r}")
         if self.closed:
@@ -522,7 +550,10 @@ class ForceDimensionDevice:
         return force, torque, grip
 
     def _write(self, force, torque, grip: float, what: str) -> None:
-        """One SDK write of the whole command; a failure is a DeviceError (and the failed state)."""
+        """One SDK write of the whole command; a failure is a DeviceError (and the failed state).
+        Once closed, only zero goes out (a send the close interrupted in the same thread)."""
+        if self.closed and (any(force) or any(torque) or grip):
+            raise DeviceError(f"{self.label}: device is closed")
         dhd, i = self._dhd, self._id
         try:
             if self.active_gripper:
@@ -542,9 +573,14 @@ class ForceDimensionDevice:
     def close(self) -> None:
         """Zero force first, whatever happened before (up to CLOSE_ZERO_ATTEMPTS writes, the second on
         a reopened device), then forces disabled and the device closed. Never raises."""
+        with self._lock:
+            self._close()
+
+    def _close(self) -> None:
         if self.closed:
             return
         self.closed = True
+        _OPEN.discard(self)
         for attempt in range(CLOSE_ZERO_ATTEMPTS):
             try:
                 if attempt == 1:

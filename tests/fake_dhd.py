@@ -12,7 +12,8 @@ Mirrored from forcedimension_core/dhd/__init__.py of the 1.0.0 wheel:
 * setForce(f, ID=-1), setForceAndTorque(f, t, ID=-1), setForceAndTorqueAndGripperForce(f, t, fg,
   ID=-1) return 0 or MOTOR_SATURATED (2) on success, -1 otherwise;
 * getSystemType(ID=-1) returns the DeviceType (an int enum) and raises ValueError on failure
-  (the binding wraps -1 in DeviceType(), which is no member); getSystemName(ID=-1) a str or None;
+  (the binding wraps -1 in DeviceType(), which is no member) and for a type id the enum lacks
+  (a model newer than the binding); getSystemName(ID=-1) a str or None;
   getSerialNumber(ID=-1) an int or -1; getButtonMask(ID=-1) an int; has*(ID=-1) bools;
   getMax*(ID=-1) the limit set or -1.0 when none; getDeviceCount() a count or -1;
 * errorGetLast() the last ErrorNum, errorGetLastStr() its text; ID=-1 is the default device
@@ -37,6 +38,8 @@ ERROR_TEXT = {NO_ERROR: "no error", COM: "communication error", NO_DEVICE_FOUND:
               INVALID_INDEX: "invalid index"}
 
 OMEGA3, OMEGA7_RIGHT, SIGMA7_RIGHT, FALCON = 33, 35, 104, 60
+DEVICE_TYPES = {0, 63, 33, 34, 36, 35, 37, 81, 82, 91, 206, 104, 105, 203, 108, 109, 60}
+"""forcedimension_core.constants.DeviceType's values (1.0.0)."""
 MODELS = {  # type: (name, wrist, active wrist, gripper, active gripper)
     OMEGA3: ("omega.3", False, False, False, False),
     OMEGA7_RIGHT: ("omega.7", True, False, True, True),
@@ -61,6 +64,7 @@ class Hardware:
         self.force_enabled = False
         self.wire: list[tuple] = []
         self.limits = {"force": -1.0, "torque": -1.0, "gripper": -1.0}
+        self.command_hook = None  # called inside a set* command, before it reaches the device
 
 
 class FakeDHD:
@@ -177,11 +181,13 @@ class FakeDHD:
         hw = self._enter("getSystemType", ID)
         if hw is None:
             raise ValueError("-1 is not a valid DeviceType")  # DeviceType(-1) in the binding
+        if hw.kind not in DEVICE_TYPES:
+            raise ValueError(f"{hw.kind} is not a valid DeviceType")
         return hw.kind
 
     def getSystemName(self, ID: int = -1):
         hw = self._enter("getSystemName", ID)
-        return None if hw is None else MODELS[hw.kind][0]
+        return None if hw is None else MODELS.get(hw.kind, ("unknown",))[0]
 
     def getSerialNumber(self, ID: int = -1) -> int:
         hw = self._enter("getSerialNumber", ID)
@@ -284,6 +290,8 @@ class FakeDHD:
         hw = self._enter(name, ID)
         if hw is None:
             return -1
+        if hw.command_hook is not None:
+            hw.command_hook(f, t, fg)
         f = [float(f[0]), float(f[1]), float(f[2])]
         t = [float(t[0]), float(t[1]), float(t[2])]
         rc = 0

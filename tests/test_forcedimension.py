@@ -223,7 +223,8 @@ def test_unplugged_device_is_reopened_and_must_be_the_same_one():
     clock.now += REOPEN_INTERVAL_S
     dev.read(0.004, s)
     assert s[0].valid and dev.reopens == 1 and dev.recoveries == 1
-    assert_zero(hw.wire[n]) and hw.force_enabled
+    assert_zero(hw.wire[n])
+    assert hw.force_enabled
 
     dhd.unplug()
     with pytest.raises(DeviceError):
@@ -249,7 +250,8 @@ def test_close_always_tries_zero_force_and_never_raises():
         dev.read(0.001, s)
     dhd.fail.clear()
     dev.close()
-    assert_zero(hw.wire[-1]) and not hw.force_enabled and not dhd.handles
+    assert_zero(hw.wire[-1])
+    assert not hw.force_enabled and not dhd.handles
     dev.close()
     with pytest.raises(DeviceError, match="closed"):
         dev.read(0.002, s)
@@ -355,7 +357,8 @@ def test_servo_loop_presses_survives_a_failure_and_ends_at_zero_force():
     assert max(c[0][2] for c in hw.wire[n:]) > 0.5 and dev.recoveries == 1
     assert_zero(hw.wire[-1])  # a run ends with zero force
     loop.close()
-    assert_zero(hw.wire[-1]) and dev.closed
+    assert_zero(hw.wire[-1])
+    assert dev.closed
     assert_finite_and_clamped(dev, hw.wire)
 
 
@@ -488,4 +491,52 @@ def test_an_exception_in_a_with_block_leaves_zero_force_and_a_closed_device():
             loop.run(50)
             assert max(np.linalg.norm(c[0]) for c in hw.wire) > 1.0
             1 / 0
-    assert_zero(hw.wire[-1]) and not hw.force_enabled and dev.closed and not dhd.handles
+    assert_zero(hw.wire[-1])
+    assert not hw.force_enabled and dev.closed and not dhd.handles
+
+
+def test_a_close_from_another_thread_never_lets_a_command_land_after_its_zero():
+    """close() from another thread while a send is writing: the send's command lands first, then
+    close()'s zero, forces disabled; the last command on the device is zero force."""
+    import threading
+
+    dev, dhd, hw, _ = make(SIGMA7_RIGHT)
+    dev.read(0.0, samples(dev))
+    closer = threading.Thread(target=dev.close)
+
+    def close_meanwhile(f, t, fg):
+        if any(f) and not closer.is_alive() and not dev.closed:
+            closer.start()
+            closer.join(0.2)  # without the lock, close() runs to its end here
+
+    hw.command_hook = close_meanwhile
+    dev.send(0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0)
+    closer.join(2.0)
+    assert dev.closed and not closer.is_alive()
+    assert hw.wire[-2][0][2] == pytest.approx(4.0)
+    assert_zero(hw.wire[-1])
+    assert not hw.force_enabled and not dhd.handles
+
+
+def test_a_device_left_open_is_zeroed_at_exit():
+    """The exit hook closes every device still open: zero force last, forces disabled, handle
+    closed; a device closed already is left alone."""
+    dev, dhd, hw, _ = make(SIGMA7_RIGHT)
+    dev.read(0.0, samples(dev))
+    dev.send(0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0)
+    other, other_dhd, _, _ = make(OMEGA3)
+    other.close()
+    calls = len(other_dhd.calls)
+    fdmod._close_open_devices()
+    assert dev.closed
+    assert_zero(hw.wire[-1])
+    assert not hw.force_enabled and not dhd.handles and len(other_dhd.calls) == calls
+
+
+def test_a_model_the_binding_does_not_know_is_refused_in_one_line():
+    """The binding turns the type id into its DeviceType enum, which raises for an id it lacks
+    (a model newer than the binding): no device is driven with guessed limits; one line."""
+    dhd = FakeDHD(Hardware(kind=77))
+    with pytest.raises(DeviceError, match="cannot read what it is.*77") as e:
+        ForceDimensionDevice(dhd)
+    assert "\n" not in str(e.value) and not dhd.handles
