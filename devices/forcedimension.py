@@ -547,6 +547,11 @@ class ForceDimensionDevice:
         torque = _clamp_norm(_to_device(torque), self.max_torque) if self.max_torque > 0.0 else [0.0, 0.0, 0.0]
         g = self.max_gripper_force
         grip = g if grip > g else -g if grip < -g else grip
+        if not all(math.isfinite(v) for v in (*force, *torque, grip)):
+            # finite fingers can still overflow: their sum, difference or moment is inf, and a
+            # clamp of inf (inf * 0) or a product with a zero axis component is NaN
+            self.nan_sends += 1
+            return [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 0.0
         return force, torque, grip
 
     def _write(self, force, torque, grip: float, what: str) -> None:

@@ -540,3 +540,19 @@ def test_a_model_the_binding_does_not_know_is_refused_in_one_line():
     with pytest.raises(DeviceError, match="cannot read what it is.*77") as e:
         ForceDimensionDevice(dhd)
     assert "\n" not in str(e.value) and not dhd.handles
+
+
+def test_finite_fingers_whose_sum_overflows_send_zero_not_nan():
+    """Two fingers' wrenches each finite but so large their sum, squeeze or moment overflows
+    (inf, and inf * 0 = NaN in the clamp): the command is zero and counted, never NaN or inf."""
+    dev, dhd, hw, _ = make(SIGMA7_RIGHT)
+    dev.read(0.0, samples(dev))
+    for w0, w1 in (((1e308, 0.0, 0.0), (1e308, 0.0, 0.0)), ((-1e308, 0.0, 1e308), (1e308, 0.0, -1e308))):
+        before = dev.nan_sends
+        dev.send(0, *w0, 0.0, 0.0, 0.0)
+        dev.send(1, *w1, 0.0, 0.0, 0.0)
+        assert_zero(hw.wire[-1])
+        assert dev.nan_sends > before
+    dev.send(0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    dev.send(1, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    assert hw.wire[-1][0] == pytest.approx((0.0, 0.0, 2.0))
