@@ -6,7 +6,10 @@ Mirrored from forcedimension_core/dhd/__init__.py of the 1.0.0 wheel:
   close(ID=-1), enableForce(enable, ID=-1), setMax*(limit, ID=-1), stop(ID=-1) return 0 or -1;
 * getPosition(out, ID=-1), getOrientationRad(out, ID=-1) write out[0..2] and
   getOrientationFrame(out, ID=-1) out[i][j] (always, as the binding copies the C values out
-  whatever the return code), returning 0 or TIMEGUARD (1) on success and -1 on failure;
+  whatever the return code: zeros on failure), returning 0 or TIMEGUARD (1) on success and -1
+  on failure;
+* the set* commands' values go through c_double argtypes: an int or float each, anything else
+  (a numpy float32, None, a string) is a ctypes.ArgumentError;
 * getGripperGap(out, ID=-1) writes a `ctypes.c_double` (anything else is a ctypes.ArgumentError,
   as ctypes raises for the real argtypes);
 * setForce(f, ID=-1), setForceAndTorque(f, t, ID=-1), setForceAndTorqueAndGripperForce(f, t, fg,
@@ -267,7 +270,7 @@ class FakeDHD:
         hw = self._enter("getOrientationFrame", ID)
         for i in range(3):
             for j in range(3):
-                out[i][j] = self._value(hw.frame[i][j]) if hw is not None else float(i == j)
+                out[i][j] = self._value(hw.frame[i][j]) if hw is not None else 0.0  # the binding's zeroed buffer
         return -1 if hw is None else TIMEGUARD
 
     def getGripperGap(self, out, ID: int = -1) -> int:
@@ -292,6 +295,9 @@ class FakeDHD:
             return -1
         if hw.command_hook is not None:
             hw.command_hook(f, t, fg)
+        for v in (f[0], f[1], f[2], t[0], t[1], t[2], fg):  # the argtypes are c_double: ctypes takes int/float only
+            if not isinstance(v, (int, float)):
+                raise ctypes.ArgumentError(f"argument: TypeError: wrong type {type(v).__name__}")
         f = [float(f[0]), float(f[1]), float(f[2])]
         t = [float(t[0]), float(t[1]), float(t[2])]
         rc = 0
