@@ -285,9 +285,12 @@ class OpenHapticsDevice:
             pass
 
     def _stop(self, device) -> None:
+        """HapticDevice.close() is hdStopScheduler then hdDisableDevice: done as two steps, so a
+        scheduler that fails to stop still leaves the device disabled."""
+        self._stop_scheduler()
         try:
             with contextlib.redirect_stdout(io.StringIO()):
-                device.close()  # hdStopScheduler, hdDisableDevice
+                self._hd.close_device(device.id)
         except Exception:
             pass
 

@@ -221,7 +221,7 @@ def test_close_renders_zero_then_stops_and_never_raises():
     tick(dev, fake, clock, s)
     fake.hd.stop_scheduler = lambda: (_ for _ in ()).throw(OSError("gone"))
     dev.close()
-    assert dev.closed
+    assert dev.closed and fake.disabled == [1]  # disabled even so
 
 
 def test_an_unopenable_device_and_a_missing_binding_are_one_line(monkeypatch):
