@@ -134,15 +134,20 @@ def load_binding():
     """The `forcedimension_core.dhd` module, or DeviceError (one line) naming what to install.
     The binding loads libdrd when imported and writes to stderr when it cannot: that is kept
     out of the user's terminal, the message says it instead."""
+    said = io.StringIO()
     try:
-        with contextlib.redirect_stderr(io.StringIO()):
+        with contextlib.redirect_stderr(said):
             return importlib.import_module("forcedimension_core.dhd")
     except ModuleNotFoundError as exc:
         if exc.name and exc.name.split(".")[0] == "forcedimension_core":
             raise DeviceError(f"the Force Dimension binding is not installed: {INSTALL_HINT}") from None
         raise DeviceError(f"the Force Dimension binding cannot load ({exc}): {INSTALL_HINT}") from None
     except (ImportError, OSError) as exc:
-        raise DeviceError(f"the Force Dimension SDK library was not found ({exc}): {SDK_HINT}") from None
+        # the binding raises the same ImportError whatever went wrong and writes the reason to
+        # stderr: libdrd not found, found but not loadable (libusb), or older than it needs
+        why = " ".join(line.strip() for line in said.getvalue().splitlines() if line.strip()) or str(exc)
+        raise DeviceError(f"the Force Dimension SDK library was not found or cannot load ({why}): "
+                          f"{SDK_HINT}") from None
 
 
 def availability(dhd=None) -> dict:

@@ -269,7 +269,8 @@ def test_close_always_tries_zero_force_and_never_raises():
 
 def test_missing_binding_or_sdk_is_one_line_naming_what_to_install(monkeypatch):
     """No forcedimension_core: the message names the extra; the binding present but libdrd
-    missing (its import raises ImportError): the message names the SDK; one line each."""
+    missing, unloadable or too old (its import writes why to stderr and raises ImportError): the
+    message gives the reason and names the SDK; one line each."""
     def no_module(name):
         raise ModuleNotFoundError(f"No module named {name.split('.')[0]!r}", name=name.split(".")[0])
 
@@ -280,14 +281,22 @@ def test_missing_binding_or_sdk_is_one_line_naming_what_to_install(monkeypatch):
     row = fdmod.availability()
     assert row["binding"] is False and "pip install" in row["message"]
 
-    def no_sdk(name):
-        raise ImportError("There were problems loading libdrd.")
+    def no_sdk(name):  # as forcedimension_core.runtime does: the reason on stderr, then ImportError
+        sys.stderr.write("Invalid version. v3.14.0.0 found but v3.16.0.0 is required.\n")
+        raise ImportError("There were problems loading libdrd. Check if you have it installed properly.")
 
     monkeypatch.setattr(fdmod.importlib, "import_module", no_sdk)
-    with pytest.raises(DeviceError, match="SDK library was not found.*FDSDK") as e:
+    with pytest.raises(DeviceError, match="SDK library was not found.*v3.14.0.0 found but v3.16.0.0.*FDSDK") as e:
         ForceDimensionDevice()
     assert "\n" not in str(e.value)
     assert fdmod.availability()["binding"] is True and fdmod.availability()["sdk"] is False
+
+    def no_sdk_silent(name):
+        raise ImportError("There were problems loading libdrd.")
+
+    monkeypatch.setattr(fdmod.importlib, "import_module", no_sdk_silent)
+    with pytest.raises(DeviceError, match="SDK library was not found.*problems loading libdrd.*FDSDK"):
+        ForceDimensionDevice()
 
 
 def test_availability_counts_devices():
