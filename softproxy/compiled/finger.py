@@ -274,7 +274,6 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     f.valid = True
     if not f.contact:
         f.was_sticking = False
-        f.sx = f.sy = f.sz = 0.0
         f.stwist = 0.0
         if f.has_torsion and f.in_contact:
             torsion_release(f)
@@ -304,7 +303,6 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     fx = k * sx + c * wx
     fy = k * sy + c * wy
     fz = k * sz + c * wz
-    f.sx, f.sy, f.sz = sx, sy, sz
     ramp = f.ramp
     if ramp < 1.0:  # soft start: no kick when a finger starts inside an object
         v = ramp + dt / f.soft_start

@@ -133,7 +133,6 @@ FINGER = np.dtype([
     ("dt", np.float64),                                           # the last tick's period (s)
     ("ramp", np.float64),                                         # soft start: fraction of the clamps in force
     ("xd", np.float64), ("yd", np.float64), ("zd", np.float64),   # device position (m, world)
-    ("sx", np.float64), ("sy", np.float64), ("sz", np.float64),   # last spring stretch (m), for damping
     ("stwist", np.float64),                                       # last torsional stretch (rad)
     ("fx", np.float64), ("fy", np.float64), ("fz", np.float64),   # force on the finger (N, world)
     ("torque", np.float64),                                       # M about n (N·m)
