@@ -41,6 +41,15 @@ library clamps again whatever this adapter does. Every send is finite and within
 a non-finite wrench becomes zero (counted in `nan_sends`); the sum of two fingers' forces is
 clamped again (each finger is clamped by the engine, their sum may be twice that).
 
+Stalls. DHD keeps rendering the last command until it gets another, so a loop that stops
+sending (a pause in the host, a hung tick, an application stopped in a debugger) would leave
+its last force on the hand. A watchdog thread (the adapter's own, every `stall_ms` / 4)
+replaces a non-zero command older than `stall_ms` (50 ms; the OpenHaptics command timeout's
+figure) by zero force (counted in `stall_zeroes`); the loop's next send renders again. The
+controller's own watchdog (`dhdSetWatchdog`) would also cover a dead process, but it needs
+expert mode, not every model has it, and what it leaves disabled after tripping is not
+documented: it is not used.
+
 Failure and recovery (as `devices/hid.py`). A call that returns -1, or raises, is a failure:
 that read or send raises DeviceError naming the device and the SDK's reason, and the loop
 renders zero force. From then on no force is written: every read first writes zero force
@@ -80,6 +89,8 @@ REOPEN_INTERVAL_S = 0.2
 """While failed, the device is closed and opened again every this many seconds of its clock."""
 CLOSE_ZERO_ATTEMPTS = 3
 """Zero-force writes `close()` tries before giving up on them."""
+STALL_MS = 50.0
+"""Default of `stall_ms`: a non-zero command older than this (ms) is replaced by zero force."""
 MAX_GAP_M = 0.2
 """A gripper gap beyond this (m) is no reading of a hand-held gripper: the sample is invalid."""
 TIMEGUARD, MOTOR_SATURATED = 1, 2
@@ -124,7 +135,7 @@ def _close_open_devices() -> None:
 
 
 _CONFIG_KEYS = {"type", "index", "serial", "gripper", "gripper_axis", "workspace_scale", "workspace_offset",
-                "max_force_N", "max_torque_Nm", "max_gripper_force_N"}
+                "max_force_N", "max_torque_Nm", "max_gripper_force_N", "stall_ms"}
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -177,6 +188,21 @@ def availability(dhd=None) -> dict:
     row["devices"] = n
     row["message"] = f"{n} device(s) connected" + ("" if n else " (check the USB cable, power and udev rule)")
     return row
+
+
+def _watchdog(ref, period: float) -> None:
+    """The stall watchdog's thread: every `period` s, the device's check, until it is closed or
+    gone (a weak reference: the thread does not keep it open)."""
+    while True:
+        time.sleep(period)
+        device = ref()
+        if device is None or device.closed:
+            return
+        try:
+            device._watch_once()
+        except Exception:
+            pass
+        del device
 
 
 def _last_error(dhd) -> str:
@@ -240,9 +266,11 @@ class ForceDimensionDevice:
     def __init__(self, dhd=None, *, index: int | None = None, serial: int | None = None, gripper: str = "auto",
                  gripper_axis: str = "y", workspace_scale: float = 1.0, workspace_offset=(0.0, 0.0, 0.0),
                  max_force: float | None = None, max_torque: float | None = None,
-                 max_gripper_force: float | None = None, clock=time.monotonic, label: str | None = None) -> None:
+                 max_gripper_force: float | None = None, stall_ms: float = STALL_MS, clock=time.monotonic,
+                 label: str | None = None) -> None:
         """Open the device: the one at enumeration `index`, the one with `serial`, or the first
-        available. `dhd`: the binding's module (a fake in tests); None loads the real one."""
+        available. `dhd`: the binding's module (a fake in tests); None loads the real one.
+        `stall_ms`: the stall watchdog's limit (0: no watchdog)."""
         if gripper not in ("auto", "on", "off"):
             raise ValueError(f"gripper must be \"auto\", \"on\" or \"off\", got {gripper!r}")
         if gripper_axis not in _AXES:
@@ -255,7 +283,12 @@ class ForceDimensionDevice:
         for name, value in (("index", index), ("serial", serial)):
             if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 0):
                 raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
+        if not (_finite(stall_ms) and 0 <= stall_ms <= 1000):
+            raise ValueError(f"stall_ms must be a number of milliseconds in [0, 1000] (0: no watchdog), got {stall_ms!r}")
         self._dhd = load_binding() if dhd is None else dhd
+        self.stall_s = stall_ms / 1000.0
+        self.stall_zeroes = 0
+        self._last_write = time.monotonic()  # when a command last went out (host clock, s)
         self.index, self.serial_wanted = index, serial
         self.workspace_scale = float(workspace_scale)
         self.workspace_offset = tuple(float(v) for v in offset)
@@ -332,6 +365,9 @@ class ForceDimensionDevice:
             self._release()
             raise
         _OPEN.add(self)
+        if self.stall_s > 0.0:
+            threading.Thread(target=_watchdog, args=(weakref.ref(self), self.stall_s / 4.0),
+                             name="softproxy-dhd-watchdog", daemon=True).start()
 
     # -- opening ------------------------------------------------------------------------------
 
@@ -579,6 +615,28 @@ class ForceDimensionDevice:
         if rc == MOTOR_SATURATED:
             self.saturated += 1
         self.last_command = (tuple(force), tuple(torque), grip)
+        self._last_write = time.monotonic()
+
+    def _watch_once(self, now: float | None = None) -> None:
+        """The stall watchdog's check: a non-zero command older than `stall_s` (host clock, `now`
+        in tests) becomes zero force. Waits for the lock at most `stall_s`: a call stuck in the
+        SDK holds it, and then nothing written from here would get through either."""
+        if self.closed or not self._lock.acquire(timeout=self.stall_s):
+            return
+        try:
+            cmd = self.last_command
+            now = time.monotonic() if now is None else now
+            if self.closed or cmd is None or now - self._last_write <= self.stall_s:
+                return
+            if not (any(cmd[0]) or any(cmd[1]) or cmd[2]):
+                return
+            try:
+                self._write((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, "writing zero force after the loop stalled")
+            except DeviceError:
+                return  # failed: the next read reports it and keeps writing zero
+            self.stall_zeroes += 1
+        finally:
+            self._lock.release()
 
     def close(self) -> None:
         """Zero force first, whatever happened before (up to CLOSE_ZERO_ATTEMPTS writes, the second on
@@ -614,7 +672,8 @@ class ForceDimensionDevice:
     def stats(self) -> dict:
         """Counters of what the device did."""
         return {name: getattr(self, name) for name in (
-            "sends", "nan_sends", "saturated", "invalid_samples", "failures", "errors", "reopens", "recoveries")}
+            "sends", "nan_sends", "saturated", "invalid_samples", "failures", "errors", "reopens", "recoveries",
+            "stall_zeroes")}
 
     def __repr__(self) -> str:
         return (f"ForceDimensionDevice({self.label!r}, fingers={self.fingers}, max_force={self.max_force:g}, "
@@ -636,6 +695,7 @@ class ForceDimensionDevice:
             max_force_N = 5.0             # lower the model's limits (never raise them)
             max_torque_Nm = 0.1
             max_gripper_force_N = 3.0
+            stall_ms = 50                 # a force not renewed for this long is replaced by zero (0: never)
         """
         def fail(field, expected, got):
             return ValueError(f"{source}: {field} must be {expected}, got {got!r}")
@@ -685,6 +745,11 @@ class ForceDimensionDevice:
                 if not (_finite(v) and v >= 0):
                     raise fail(f"device.{key}", "a finite number >= 0", v)
                 kwargs[arg] = float(v)
+        if "stall_ms" in cfg:
+            v = cfg["stall_ms"]
+            if not (_finite(v) and 0 <= v <= 1000):
+                raise fail("device.stall_ms", "a number of milliseconds in [0, 1000] (0: no watchdog)", v)
+            kwargs["stall_ms"] = float(v)
         if clock is not None:
             kwargs["clock"] = clock
         try:

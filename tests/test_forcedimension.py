@@ -6,6 +6,7 @@ and comes back, close() never raises."""
 
 import math
 import sys
+import time
 from pathlib import Path
 
 import mujoco
@@ -33,6 +34,7 @@ class Clock:
 
 
 def make(kind=SIGMA7_RIGHT, **kwargs):
+    kwargs.setdefault("stall_ms", 0)  # no watchdog thread writing zero between a send and its check
     hw = Hardware(kind)
     dhd = FakeDHD(hw)
     clock = Clock()
@@ -565,3 +567,38 @@ def test_finite_fingers_whose_sum_overflows_send_zero_not_nan():
     dev.send(0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
     dev.send(1, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
     assert hw.wire[-1][0] == pytest.approx((0.0, 0.0, 2.0))
+
+
+def test_a_stalled_loop_leaves_zero_force_not_its_last():
+    """DHD renders the last command until the next: a non-zero command not renewed for stall_ms
+    is replaced by zero force (once, counted); a fresh send renders again; a zero command or a
+    closed device is left alone. Then the watchdog's own thread, on a real 20 ms stall."""
+    dev, dhd, hw, _ = make(SIGMA7_RIGHT, stall_ms=1000)  # its thread would wait 1 s: the checks are driven here
+    dev.read(0.0, samples(dev))
+    dev.send(0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0)
+    sent_at, n = dev._last_write, len(hw.wire)
+    dev._watch_once(now=sent_at + 0.9)
+    assert len(hw.wire) == n  # not stale yet
+    dev._watch_once(now=sent_at + 1.1)
+    assert_zero(hw.wire[-1])
+    assert dev.stall_zeroes == 1 and len(hw.wire) == n + 1
+    dev._watch_once(now=sent_at + 5.0)
+    assert len(hw.wire) == n + 1 and dev.stall_zeroes == 1  # zero already
+    dev.send(0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0)
+    assert hw.wire[-1][0][2] == pytest.approx(3.0)
+    dev.close()
+    n = len(hw.wire)
+    dev._watch_once(now=sent_at + 100.0)
+    assert len(hw.wire) == n
+
+    dev, dhd, hw, _ = make(OMEGA3, stall_ms=20)
+    dev.read(0.0, samples(dev))
+    dev.send(0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0)
+    deadline = time.monotonic() + 2.0
+    while dev.stall_zeroes == 0 and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert dev.stall_zeroes == 1
+    assert_zero(hw.wire[-1])
+    dev.close()
+    with pytest.raises(ValueError, match="stall_ms"):
+        ForceDimensionDevice(FakeDHD(Hardware()), stall_ms=-1)
