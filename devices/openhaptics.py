@@ -267,8 +267,10 @@ class OpenHapticsDevice:
                               f"and Windows only; {exc}): {SDK_HINT}") from None
         except Exception as exc:
             # a failed hdInitDevice goes on unnoticed by the binding until a call without a device
-            # fails (hdGetString's NULL: "'NoneType' object has no attribute 'decode'")
-            self._stop_scheduler()
+            # fails (hdGetString's NULL: "'NoneType' object has no attribute 'decode'"). The
+            # scheduler is the process's: stop it only if no other device of ours runs on it
+            if not any(d is not self for d in _OPEN):
+                self._stop_scheduler()
             raise DeviceError(f"cannot open {NAME} device {self.device_name!r}: hdInitDevice failed or the "
                               f"device did not answer ({type(exc).__name__}: {exc}); {OPEN_HINT}") from None
         if getattr(device, "id", None) in (None, HD_INVALID_HANDLE):  # failed hdInitDevice, as 1.0.1 and as meant
