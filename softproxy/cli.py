@@ -241,15 +241,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     realtime = args.realtime or window  # a window shows the run as it happens
     if views is not None and window and not args.realtime:
         views.note = "softproxy run: the viewer window is open; the run is paced in real time"
+    duration = args.duration if args.duration is not None else scene.duration_s
+    bar = _run_progress(duration, realtime)
+    on_tick = views.on_tick if views else None
+    if bar is not None:
+        on_tick = bar.chain(on_tick)
     try:
         try:
             result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
                                finger_model=args.finger_model, realtime=realtime, record=args.record,
-                               on_built=views.on_built if views else None, on_tick=views.on_tick if views else None,
+                               on_built=views.on_built if views else None, on_tick=on_tick,
                                every=1 if views is not None and views.video is not None else 10,  # video frames on time
                                priority=args.rt_priority)
         finally:
             device.close()
+            if bar is not None:
+                bar.close()
         if views is not None:
             views.save()
         if args.json:
@@ -427,6 +434,35 @@ def cmd_replay_batch(args: argparse.Namespace) -> int:
     else:
         report(result, paths)
     return 1 if result["summary"]["failed"] else 0
+
+
+class _RunProgress:
+    """A tqdm bar of servo seconds on stderr for a run that takes a while (on_tick feeds it)."""
+
+    def __init__(self, duration_s: float) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=round(duration_s, 3), desc="  run", unit="s", file=sys.stderr, leave=False,
+                        bar_format="{desc} {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s servo time [{elapsed}<{remaining}]")
+
+    def chain(self, on_tick):
+        """on_tick(loop) that moves the bar to the loop's time, then calls `on_tick` if given."""
+        def tick(loop) -> None:
+            self.bar.update(round(loop.t - self.bar.n, 3))  # tqdm redraws at most 10 times a second
+            if on_tick is not None:
+                on_tick(loop)
+        return tick
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def _run_progress(duration_s: float, realtime: bool) -> _RunProgress | None:
+    """A progress bar for a real-time run longer than 2 s on a terminal (a lockstep run of a
+    day's servo time takes minutes, so it gets one past a minute of servo time); else None."""
+    if not sys.stderr.isatty() or duration_s <= (2.0 if realtime else 60.0):
+        return None
+    return _RunProgress(duration_s)
 
 
 def _progress_bar(command: str):

@@ -58,3 +58,23 @@ def test_run_help_lists_every_scene_with_its_description():
         line = next((l for l in listed.splitlines() if l.split()[:1] == [path.stem]), None)
         assert line is not None, path.stem
         assert len(line.split(None, 1)) == 2  # a description follows the name
+
+
+def test_a_long_run_on_a_terminal_shows_progress_and_is_silent_otherwise(monkeypatch, capsys):
+    """A real-time run over 2 s (lockstep: over a minute of servo time) on a terminal gets a bar
+    of servo seconds on stderr; a short run, or any run into a pipe or file, prints none."""
+    from softproxy import cli
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    assert cli._run_progress(3600.0, True) is None
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert cli._run_progress(1.5, True) is None and cli._run_progress(30.0, False) is None
+    bar = cli._run_progress(3.0, True)
+
+    class Loop:
+        t = 1.5
+
+    bar.chain(None)(Loop())
+    assert bar.bar.n == 1.5
+    bar.close()
+    assert "servo time" in capsys.readouterr().err
