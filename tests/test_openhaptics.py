@@ -468,3 +468,17 @@ def test_a_device_left_open_is_zeroed_and_stopped_at_exit():
     ohmod._close_open_devices()
     assert dev.closed and fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running and fake.disabled
     assert len(other_fake.disabled) == closes
+
+
+def test_a_failed_open_leaves_a_running_device_alone():
+    """The HD scheduler is the process's: a second device that fails to open must not stop the
+    scheduler a device already open runs on."""
+    dev, fake, clock = make()
+    s = [DeviceSample()]
+    tick(dev, fake, clock, s)
+    fake.init_fails = True
+    with pytest.raises(DeviceError, match="hdInitDevice failed"):
+        OpenHapticsDevice(fake, device_name="Right")
+    assert fake.running
+    dev.close()
+    assert not fake.running
