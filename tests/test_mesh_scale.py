@@ -296,3 +296,23 @@ def test_fingers_on_one_mesh_agree_with_each_finger_alone():
             god.update(*path[k])
             alone.append((god.x, god.y, god.z))
         assert np.abs(np.array(alone) - np.array(together[f])).max() <= 1e-12, f
+
+
+def test_bench_meshes_in_miniature():
+    """`softproxy bench meshes` in miniature: every kind of mesh loads and is timed pressed and
+    sliding, with 1, 2 and 5 fingers at the middle size; the generated meshes have about the
+    triangles asked for, and the sliver kind is made of slivers (aspect over 50)."""
+    from softproxy.benchmarks import meshes
+
+    v, f = meshes.slivers(40000)
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1), np.linalg.norm(a - c, axis=1)], 0)
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    assert np.median(longest * longest / area2) > 50
+    result = meshes.measure(sizes=(1500, 3000, 6000), updates=30, warm=10)
+    rows = result["rows"]
+    assert len(rows) == 9 and {r["kind"] for r in rows} == set(meshes.KINDS)
+    for r, size in zip(rows, [1500, 3000, 6000] * 3):
+        assert 0.5 * size < r["triangles"] < 1.5 * size and r["load_s"] > 0.0 and r["peak_mb"] > 0.0
+        assert r["pressed_1f_p99_us"] >= r["pressed_1f_p50_us"] > 0.0
+    assert all("sliding_5f_p99_us" in r and "sliding_5f_alone_p99_us" in r for r in rows[1::3])

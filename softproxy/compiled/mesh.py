@@ -76,10 +76,8 @@ WALK_STEPS = 8
 """Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
 
 
-GRID_CELLS = 256
+GRID_CELLS = 48
 """Most grid cells per axis of a mesh's grid."""
-CELLS_PER_TRIANGLE = 4.0
-"""Most grid cells per triangle of a mesh (its grid's memory grows with its triangles)."""
 CELL_EDGES = 2.0
 """A grid cell is this many mean edge lengths wide (a 5 mm proxy on a 10k-triangle, 10 cm
 sphere reads ~30-60 cells and ~100 triangles a query)."""
@@ -94,9 +92,7 @@ def _grid(tri: np.ndarray, lengths: np.ndarray):
     cell starts, triangle of each record), each triangle listed in every cell its box overlaps."""
     tlo, thi = tri.min(axis=1), tri.max(axis=1)
     lo, hi = tlo.min(axis=0), thi.max(axis=0)
-    extent = np.maximum(hi - lo, 1e-9)
-    h = max(CELL_EDGES * float(lengths.mean()), float(extent.max()) / GRID_CELLS,
-            float(np.prod(extent) / (CELLS_PER_TRIANGLE * len(tri))) ** (1.0 / 3.0), 1e-9)
+    h = max(CELL_EDGES * float(lengths.mean()), float((hi - lo).max()) / GRID_CELLS, 1e-9)
     dims = np.minimum(np.floor((hi - lo) / h).astype(np.int64) + 1, GRID_CELLS)
 
     def cell(p):
