@@ -255,6 +255,14 @@ class MeshTables:
             cones[has, 3] = cos
         self.vcone = cones
         self.vpos = v
+        # the box tree the queries fall back on where no certificate holds: triangles in
+        # Morton order, LEAF a leaf; per node its axis-aligned box and a box oriented by its
+        # first triangle (tight about a run of slivers, which an axis-aligned box is not)
+        order, nlo, nhi, size = box_tree(self.tlo, self.thi)
+        axes, ext = node_frames(order, size, v, f, self.plane)
+        self.tree = (order, size, np.concatenate([nlo, nhi, axes.reshape(-1, 9), ext.transpose(0, 2, 1).reshape(-1, 6)],
+                                                 axis=1))
+        del nlo, nhi, axes, ext
 
     def reaching(self, kept: float) -> "MeshTables":
         """These tables with certificates over `kept` (m) at least: themselves, or the tables

@@ -41,14 +41,11 @@ SHAPE = np.dtype([
     ("a", np.float64),        # sphere/capsule/cylinder radius, box hx, ellipsoid a (m)
     ("b", np.float64),        # capsule/cylinder half-length, box hy, ellipsoid b (m)
     ("c", np.float64),        # box hz, ellipsoid c (m)
-    # a mesh: where its triangles and its grid live in the mesh tables T and C
-    # (`softproxy.compiled.mesh`), the grid in the geom frame; then what its queries keep
+    # a mesh: where its triangles and its box tree live in the mesh tables T and C
+    # (`softproxy.compiled.mesh`), the tree in the geom frame; then what its queries keep
     ("t0", np.int64),         # its first row of T
     ("nt", np.int64),         # its number of triangles
-    ("cells", np.int64),      # where its grid's cell starts begin in C (ncells + 1 entries)
-    ("lox", np.float64), ("loy", np.float64), ("loz", np.float64),  # the grid's lower corner (m, geom frame)
-    ("h", np.float64),        # cell size (m)
-    ("dimx", np.int64), ("dimy", np.int64), ("dimz", np.int64),  # cells per axis
+    ("tree", np.int64),       # where its box tree begins in C (TREE_SIZE, TREE_RECORDS, then the nodes)
     ("signed", np.bool_),     # watertight: signed distance; open: unsigned
     ("shading", np.bool_),    # force shading (interpolated vertex normals)
     ("hint", np.int64),       # row of T nearest the last distance query or touched last, -1 for none
@@ -83,13 +80,23 @@ T_COLUMNS = 83
 # -- mesh grids C: one float64 array (indices stored as floats, exact below 2**53) ----------
 C_STAMP = 0
 """C[0]: the number of the last scan; C[C_STAMPS + row of T]: the scan that last read that
-triangle (a triangle is listed in every cell its bounding box overlaps, and read once per
-scan); C[C_FEW:C_STAMPS]: the triangles a certificate leaves to read (scratch, one query's).
-Then per mesh its cell starts (where each cell's records begin in C, ncells + 1 of them) and
-its cells' records, RECORD_WIDTH floats each: the triangle's plane (nx, ny, nz, offset), its
-bounding ball (centre, radius; m) and its row of T, so that a scan reads a cell's bounds in
-one sequential pass and opens only the triangles they cannot rule out."""
+triangle (a sweep's scan reads the hint first and skips it in the tree);
+C[C_FEW:C_STAMPS]: the triangles a certificate leaves to read (scratch, one query's).
+Then per mesh its box tree (`softproxy.compiled.mesh`): from C[S.tree] the number of leaves
+(a power of two, TREE_SIZE) and where its records begin (TREE_RECORDS), then its nodes,
+NODE_WIDTH floats each (node j of 1 .. 2 size - 1 at TREE_NODES + NODE_WIDTH (j - 1); node
+j's children 2j and 2j + 1, leaf j node size + j holding the records of the LEAF
+(`softproxy.compiled.certificate`) triangles from j LEAF on), then its records, RECORD_WIDTH floats per triangle in
+the tree's order: the triangle's plane (nx, ny, nz, offset), its bounding ball (centre,
+radius; m) and its row of T, so that a leaf's bounds are read in one sequential pass and
+only the triangles they cannot rule out are opened."""
 RECORD_WIDTH = 9
+TREE_SIZE, TREE_RECORDS, TREE_NODES = 0, 1, 2
+# a node: its axis-aligned box (lower, upper corner; m), the three axes of its oriented box
+# (the first triangle's normal, its longest edge, their cross product) and its extents
+# along each (lower, upper; m); an empty node's boxes are inverted (+inf..-inf)
+N_LO, N_HI, N_AXES, N_EXT = 0, 3, 6, 15
+NODE_WIDTH = 21
 C_FEW = 1
 FEW_SLOTS = 16   # two faces' lists at an edge, STATIC_ABOVE (softproxy.compiled.certificate) each
 C_STAMPS = C_FEW + FEW_SLOTS

@@ -6,9 +6,8 @@ themselves, in the geom frame MuJoCo compiled them into (`model.mesh_vert` is ex
 the frame of `geom_xpos` / `geom_xmat`), from two arrays that `mesh_tables` packs for every
 mesh of a world out of what `softproxy.mesh.MeshShape` built at load: T, one row per
 triangle (its corners, edges, plane, the pseudo-normals of its features, its vertex normals,
-its neighbours and certificate lists; columns in `layout`), and C (per mesh a uniform grid
-over its bounding box, each triangle listed in every cell its box overlaps, and the kept
-certificates of `softproxy.compiled.certificate`).
+its neighbours and certificate lists; columns in `layout`), and C (per mesh a box tree over
+its triangles, and the kept certificates of `softproxy.compiled.certificate`).
 
 - `mesh_distance`: the exact Euclidean distance to the nearest triangle, so 1-Lipschitz. On
   a watertight mesh it is signed by the angle-weighted pseudo-normal of the nearest feature
@@ -37,10 +36,15 @@ Cost per query is bounded on large meshes:
    vertex reached holds more often. A point at distance d needs the certificates to hold over a
    reach of 2d, a sphere of radius r sliding by L over 2r + L: they are built at load for a
    5 mm proxy, and for a larger one by `MeshShape.prepare` when a proxy is made;
-2. where they do not hold (a concave patch, a reach beyond theirs, no hint yet), the grid:
-   the cells within the ball the hint's distance bounds (distance) or near the segment
-   (sweep); a cell's records carry each triangle's plane and bounding ball, so a scan rules
-   out most triangles without opening them;
+2. where they do not hold (a concave patch, a reach beyond theirs, no hint yet), the box
+   tree built at load (`softproxy.mesh.MeshTables`: triangles in Morton order, 8 a leaf, per
+   node an axis-aligned box and a box oriented by its first triangle, tight about a run of
+   slivers): walked nearest node first, leaving out nodes farther than the best distance
+   found (distance), or the nodes the segment enters, grown by the reach, before the earliest
+   touch found, earliest first (sweep); a leaf's records carry each triangle's plane and
+   bounding ball, so most of its triangles are ruled out without opening them. The walk
+   reads the nodes near the query, O(log n) of them where the boxes are tight, not a
+   region's worth of triangles;
 3. the last two distance answers are kept, and a sweep keeps its start point's answer when a
    certificate proved its nearest point (the god-object asks again about the point it holds,
    and about where a sweep left it), keyed by the point in the geom frame, so a new pose
@@ -58,11 +62,11 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.certificate import ABOVE_TOL, certificate_tables, static_clear
+from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, static_clear
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT,
-    SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO,
-    T_TV, T_VN, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO, NODE_WIDTH,
+    RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES,
+    TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 
@@ -76,83 +80,59 @@ WALK_STEPS = 8
 """Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
 
 
-GRID_CELLS = 48
-"""Most grid cells per axis of a mesh's grid."""
-CELL_EDGES = 2.0
-"""A grid cell is this many mean edge lengths wide (a 5 mm proxy on a 10k-triangle, 10 cm
-sphere reads ~30-60 cells and ~100 triangles a query)."""
+TREE_MARGIN = 1e-12
+"""A box tree's boxes are grown by this (m, plus as much per metre of the mesh's bounding
+radius) beyond their triangles, so that no rounding of a box test leaves a triangle out."""
+STACK = 256
+"""Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
 
 
 # ---------------------------------------------------------------------------------------
 # Packing (numpy, at load)
 # ---------------------------------------------------------------------------------------
 
-def _grid(tri: np.ndarray, lengths: np.ndarray):
-    """A uniform grid over triangles (n, 3 vertices, 3): (lower corner, cell size, dims,
-    cell starts, triangle of each record), each triangle listed in every cell its box overlaps."""
-    tlo, thi = tri.min(axis=1), tri.max(axis=1)
-    lo, hi = tlo.min(axis=0), thi.max(axis=0)
-    h = max(CELL_EDGES * float(lengths.mean()), float((hi - lo).max()) / GRID_CELLS, 1e-9)
-    dims = np.minimum(np.floor((hi - lo) / h).astype(np.int64) + 1, GRID_CELLS)
-
-    def cell(p):
-        return np.clip(np.floor((p - lo) / h).astype(np.int64), 0, dims - 1)
-
-    ilo, ihi = cell(tlo), cell(thi)
-    span = ihi - ilo + 1
-    count = span.prod(axis=1)
-    tid = np.repeat(np.arange(len(tri)), count)
-    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-    sy, sz = span[tid, 1], span[tid, 2]
-    ix = ilo[tid, 0] + local // (sy * sz)
-    iy = ilo[tid, 1] + (local // sz) % sy
-    iz = ilo[tid, 2] + local % sz
-    key = (ix * dims[1] + iy) * dims[2] + iz
-    order = np.argsort(key, kind="stable")
-    starts = np.searchsorted(key[order], np.arange(int(dims.prod()) + 1))
-    return lo, h, dims, starts, tid[order]
-
-
 def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
-    rows of the shape table S filled in (where their triangles and grid live). Geoms of one
-    mesh asset (one `MeshTables`) share its rows of T and its part of C; each keeps its own
-    pose, hint and kept answers in S. A world with no mesh gets empty tables (the kernels'
-    types stay the same)."""
+    rows of the shape table S filled in (where their triangles and box tree live). Geoms of
+    one mesh asset (one `MeshTables`) share its rows of T and its part of C; each keeps its
+    own pose, hint and kept answers in S. A world with no mesh gets empty tables (the
+    kernels' types stay the same)."""
     meshes = [(k, s) for k, s in enumerate(shapes) if s.gtype == GEOM_MESH]
     assets = list({id(s.tables): s.tables for _, s in meshes}.values())
     ntri = sum(a.triangles for a in assets)
-    rows, grids, where = [], [], {}
+    rows, parts, where = [], [], {}
     t0 = 0
-    c0 = C_STAMPS + ntri  # the scan counter, the certificates' scratch, a stamp per triangle, then the grids
+    c0 = C_STAMPS + ntri  # the scan counter, the certificates' scratch, a stamp per triangle, then the trees
     for a in assets:
         n = a.triangles
-        corners = a.tri[:, :9].reshape(-1, 3, 3)
-        lo, h, dims, starts, tid = _grid(corners, a.edges[:, :, 6])
+        order, size, nodes = a.tree
+        nodes = nodes[1:].copy()  # node 0 is not a node
+        grow = TREE_MARGIN * (1.0 + a.rbound)
+        nodes[:, N_LO:N_LO + 3] -= grow
+        nodes[:, N_HI:N_HI + 3] += grow
+        nodes[:, N_EXT:N_EXT + 3] -= grow
+        nodes[:, N_EXT + 3:N_EXT + 6] += grow
+        first = c0 + TREE_NODES + nodes.size  # where this asset's records begin in C
         rho = a.rhos * (1.0 + 1e-12) + 1e-15
-        records = np.empty((len(tid), RECORD_WIDTH))
-        records[:, 0:4] = a.plane[tid]
-        records[:, 4:7] = a.centre[tid]
-        records[:, 7] = rho[tid]
-        records[:, 8] = tid + t0
-        first = c0 + len(starts)  # where this asset's records begin in C
-        grids += [first + RECORD_WIDTH * starts, records.ravel()]
-        del records
-        cells = c0
-        c0 = first + len(tid) * RECORD_WIDTH
+        records = np.empty((n, RECORD_WIDTH))
+        records[:, 0:4] = a.plane[order]
+        records[:, 4:7] = a.centre[order]
+        records[:, 7] = rho[order]
+        records[:, 8] = order + t0
+        parts += [np.array([size, first], dtype=np.float64), nodes.ravel(), records.ravel()]
+        del records, nodes
+        tree = c0
+        c0 = first + n * RECORD_WIDTH
         columns, kept, reach = certificate_tables(a, t0, c0)
         rows.append(np.concatenate([a.tri, a.edges.reshape(n, 3 * EDGE_WIDTH), a.pn.reshape(n, 21), a.vn, columns],
                                    axis=1))
-        where[id(a)] = (t0, n, cells, lo, h, dims, c0, reach)
-        grids.append(kept)
+        where[id(a)] = (t0, n, tree, c0, reach)
+        parts.append(kept)
         c0 += len(kept)
         t0 += n
     for k, s in meshes:
-        t0, n, cells, lo, h, dims, verts, reach = where[id(s.tables)]
-        S[k].t0, S[k].nt, S[k].cells = t0, n, cells
-        S[k].lox, S[k].loy, S[k].loz = lo
-        S[k].h = h
-        S[k].dimx, S[k].dimy, S[k].dimz = dims
+        t0, n, tree, verts, reach = where[id(s.tables)]
+        S[k].t0, S[k].nt, S[k].tree = t0, n, tree
         S[k].signed = s.signed
         S[k].shading = s.shading
         S[k].hint = -1
@@ -166,7 +146,7 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     C = np.empty(c0)
     C[:C_STAMPS + ntri] = 0.0
     at = C_STAMPS + ntri
-    for g in grids:
+    for g in parts:
         C[at:at + len(g)] = g
         at += len(g)
     assert at == c0 and len(C) < 2 ** 53
@@ -369,59 +349,70 @@ def _shade(T, i, qx, qy, qz, nx, ny, nz):
 
 
 # ---------------------------------------------------------------------------------------
-# The grid
+# The box tree: node j of mesh k at C[S.tree + TREE_NODES + NODE_WIDTH (j - 1)]
 # ---------------------------------------------------------------------------------------
 
 @njit(cache=True, error_model="numpy")
-def _cells(S, k, x0, y0, z0, x1, y1, z1):
-    """The range of mesh k's grid cells a box (geom frame, m) overlaps, clamped to the grid:
-    (ix0, ix1, iy0, iy1, iz0, iz1, whole), whole when that is every cell."""
-    h = S[k].h
-    nx, ny, nz = int(S[k].dimx), int(S[k].dimy), int(S[k].dimz)
-    lx, ly, lz = S[k].lox, S[k].loy, S[k].loz
-    ix0 = min(max(int(math.floor((x0 - lx) / h)), 0), nx - 1)
-    ix1 = min(max(int(math.floor((x1 - lx) / h)), 0), nx - 1)
-    iy0 = min(max(int(math.floor((y0 - ly) / h)), 0), ny - 1)
-    iy1 = min(max(int(math.floor((y1 - ly) / h)), 0), ny - 1)
-    iz0 = min(max(int(math.floor((z0 - lz) / h)), 0), nz - 1)
-    iz1 = min(max(int(math.floor((z1 - lz) / h)), 0), nz - 1)
-    whole = ix0 == 0 and iy0 == 0 and iz0 == 0 and ix1 == nx - 1 and iy1 == ny - 1 and iz1 == nz - 1
-    return ix0, ix1, iy0, iy1, iz0, iz1, whole
+def _node_gap2(C, at, x, y, z):
+    """A lower bound on the squared distance (m²) from p to any triangle of the node at C[at]:
+    the larger of the squared distances to its axis-aligned and to its oriented box (inf for
+    an empty node)."""
+    ex = C[at + N_LO] - x if x < C[at + N_LO] else x - C[at + N_HI] if x > C[at + N_HI] else 0.0
+    ey = C[at + N_LO + 1] - y if y < C[at + N_LO + 1] else y - C[at + N_HI + 1] if y > C[at + N_HI + 1] else 0.0
+    ez = C[at + N_LO + 2] - z if z < C[at + N_LO + 2] else z - C[at + N_HI + 2] if z > C[at + N_HI + 2] else 0.0
+    box = ex * ex + ey * ey + ez * ez
+    oriented = 0.0
+    for a in range(3):
+        c = at + N_AXES + 3 * a
+        p = C[c] * x + C[c + 1] * y + C[c + 2] * z
+        lo, hi = C[at + N_EXT + a], C[at + N_EXT + 3 + a]
+        e = lo - p if p < lo else p - hi if p > hi else 0.0
+        oriented += e * e
+    return box if box > oriented else oriented
 
 
 @njit(cache=True, error_model="numpy")
-def _outside_grid(S, k, x0, y0, z0, x1, y1, z1):
-    """True when a box (geom frame, m) misses mesh k's grid box, so holds no triangle."""
-    h = S[k].h
-    return (x1 < S[k].lox or y1 < S[k].loy or z1 < S[k].loz
-            or x0 > S[k].lox + h * S[k].dimx or y0 > S[k].loy + h * S[k].dimy
-            or z0 > S[k].loz + h * S[k].dimz)
+def _slab_entry(p, u, lo, hi, t0, t1):
+    """The part [t0, t1] of the line p + t u (one axis) that lies within lo..hi (t0 > t1: none)."""
+    if u == 0.0:
+        if p < lo or p > hi:
+            return 1.0, 0.0
+        return t0, t1
+    a, b = (lo - p) / u, (hi - p) / u
+    if a > b:
+        a, b = b, a
+    return (a if a > t0 else t0), (b if b < t1 else t1)
 
-
-# ---------------------------------------------------------------------------------------
-# Queries (geom frame inside, world frame outside)
-# ---------------------------------------------------------------------------------------
 
 @njit(cache=True, error_model="numpy")
-def _column(S, k, ix, iy, x, y, z, radius):
-    """The cells (iz0, iz1) of column (ix, iy) of mesh k's grid that come within `radius` (m)
-    of p (geom frame); iz0 > iz1 when none does. A column's cells are contiguous in C, so
-    their records are read as one run."""
-    h = S[k].h
-    x0, y0 = S[k].lox + ix * h, S[k].loy + iy * h
-    ex = x0 - x if x < x0 else x - x0 - h if x > x0 + h else 0.0
-    ey = y0 - y if y < y0 else y - y0 - h if y > y0 + h else 0.0
-    rest = radius * radius - ex * ex - ey * ey
-    if rest < 0.0:
-        return 1, 0
-    dz = math.sqrt(rest)
-    nz = int(S[k].dimz)
-    lz = S[k].loz
-    if z + dz < lz or z - dz > lz + nz * h:
-        return 1, 0  # above or below the grid
-    iz0 = min(max(int(math.floor((z - dz - lz) / h)), 0), nz - 1)
-    iz1 = min(max(int(math.floor((z + dz - lz) / h)), 0), nz - 1)
-    return iz0, iz1
+def _node_entry(C, at, ax, ay, az, ux, uy, uz, grow, tmax):
+    """Where (fraction of the segment a + t u, t in [0, tmax]) it enters the node at C[at]'s
+    boxes, each grown by `grow` (m) on every side; > tmax when it does not. A sphere of
+    radius r < grow touching a triangle of the node has its centre inside both grown boxes,
+    so no touch on the segment comes before this."""
+    t0, t1 = 0.0, tmax
+    t0, t1 = _slab_entry(ax, ux, C[at + N_LO] - grow, C[at + N_HI] + grow, t0, t1)
+    t0, t1 = _slab_entry(ay, uy, C[at + N_LO + 1] - grow, C[at + N_HI + 1] + grow, t0, t1)
+    t0, t1 = _slab_entry(az, uz, C[at + N_LO + 2] - grow, C[at + N_HI + 2] + grow, t0, t1)
+    if t0 > t1:
+        return 2.0 * tmax + 1.0
+    for a in range(3):
+        c = at + N_AXES + 3 * a
+        p = C[c] * ax + C[c + 1] * ay + C[c + 2] * az
+        v = C[c] * ux + C[c + 1] * uy + C[c + 2] * uz
+        t0, t1 = _slab_entry(p, v, C[at + N_EXT + a] - grow, C[at + N_EXT + 3 + a] + grow, t0, t1)
+        if t0 > t1:
+            return 2.0 * tmax + 1.0
+    return t0
+
+
+@njit(cache=True, error_model="numpy")
+def _leaf_records(C, tree, node, size, n):
+    """The records (C[j0:j1]) of the triangles of leaf node `node` of a tree at C[tree]."""
+    first = (node - size) * LEAF
+    last = min(first + LEAF, n)
+    rec = int(C[tree + TREE_RECORDS])
+    return rec + first * RECORD_WIDTH, rec + max(last, first) * RECORD_WIDTH
 
 
 @njit(cache=True, error_model="numpy")
@@ -483,7 +474,8 @@ def _nearest(S, T, C, k, x, y, z):
 
     From the hint (`_from_hint`): when the kept certificates hold at its nearest point, the
     few triangles they name (none on a convex patch) are all that may be nearer; else the
-    grid is scanned within the ball the hint's distance bounds."""
+    box tree is walked nearest node first, leaving out every node farther than the best
+    found (the hint's, to begin with)."""
     best2 = math.inf
     qx = qy = qz = 0.0
     bf = 0
@@ -503,51 +495,59 @@ def _nearest(S, T, C, k, x, y, z):
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
                 S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
-        half = math.sqrt(best2) * (1.0 + 1e-9) + 1e-12
-    else:
-        half = S[k].h
-    ny, nz = int(S[k].dimy), int(S[k].dimz)
-    cells = int(S[k].cells)
-    while True:
-        whole = False
-        if not _outside_grid(S, k, x - half, y - half, z - half, x + half, y + half, z + half):
-            ix0, ix1, iy0, iy1, _, _, whole = _cells(S, k, x - half, y - half, z - half,
-                                                     x + half, y + half, z + half)
-            C[C_STAMP] += 1.0
-            stamp = C[C_STAMP]
-            if bi >= 0:
-                C[C_STAMPS + bi] = stamp
-            best = math.sqrt(best2)
-            for ix in range(ix0, ix1 + 1):
-                for iy in range(iy0, iy1 + 1):
-                    # the cells of this column within the ball that may hold a nearer triangle
-                    c0, c1 = _column(S, k, ix, iy, x, y, z, best if best < half else half)
-                    if c0 > c1:
-                        continue
-                    row = cells + (ix * ny + iy) * nz
-                    for j in range(int(C[row + c0]), int(C[row + c1 + 1]), RECORD_WIDTH):
-                        h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
-                        if h >= best or -h >= best:
-                            continue  # its plane is already farther than the best
-                        # or the disc about its centre that holds it in its plane: the
-                        # height over the plane and the distance beyond the disc bound it
-                        ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
-                        beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
-                        if beyond > 0.0 and h * h + beyond * beyond >= best2:
-                            continue
-                        i = int(C[j + 8])
-                        if C[C_STAMPS + i] == stamp:
-                            continue
-                        C[C_STAMPS + i] = stamp
-                        d2, rx, ry, rz, f = _closest(T, i, x, y, z)
-                        if d2 < best2:
-                            best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
-                            best = math.sqrt(d2)
-        best = math.sqrt(best2)
-        if best <= half or whole:
-            break
-        # a triangle may be nearer than the best found, outside the cube: a cube that holds it
-        half = best * (1.0 + 1e-9) + 1e-12 if best2 < math.inf else 2.0 * half
+    # the box tree, nearest node first; a node whose boxes lie farther than the best found
+    # holds nothing nearer
+    tree = int(S[k].tree)
+    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
+    base = tree + TREE_NODES - NODE_WIDTH
+    nodes = np.empty(STACK, dtype=np.int64)
+    gaps = np.empty(STACK)
+    nodes[0], gaps[0] = 1, _node_gap2(C, base + NODE_WIDTH, x, y, z)
+    top = 1
+    best = math.sqrt(best2)
+    while top > 0:
+        top -= 1
+        node, gap = nodes[top], gaps[top]
+        if gap > best2:
+            continue
+        if node >= size:
+            j0, j1 = _leaf_records(C, tree, node, size, n)
+            for j in range(j0, j1, RECORD_WIDTH):
+                h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
+                if h >= best or -h >= best:
+                    continue  # its plane is already farther than the best
+                # or the disc about its centre that holds it in its plane: the height over
+                # the plane and the distance beyond the disc bound it
+                ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
+                beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
+                if beyond > 0.0 and h * h + beyond * beyond >= best2:
+                    continue
+                i = int(C[j + 8])
+                if i == bi:
+                    continue
+                d2, rx, ry, rz, f = _closest(T, i, x, y, z)
+                if d2 < best2:
+                    best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
+                    best = math.sqrt(d2)
+            continue
+        g0 = _node_gap2(C, base + NODE_WIDTH * 2 * node, x, y, z)
+        g1 = _node_gap2(C, base + NODE_WIDTH * (2 * node + 1), x, y, z)
+        # the nearer child on top of the stack, read first
+        if g0 <= g1:
+            if g1 <= best2:
+                nodes[top], gaps[top] = 2 * node + 1, g1
+                top += 1
+            if g0 <= best2:
+                nodes[top], gaps[top] = 2 * node, g0
+                top += 1
+        else:
+            if g0 <= best2:
+                nodes[top], gaps[top] = 2 * node, g0
+                top += 1
+            if g1 <= best2:
+                nodes[top], gaps[top] = 2 * node + 1, g1
+                top += 1
+    best = math.sqrt(best2)
     S[k].hint = bi
     return best, qx, qy, qz, bf, bi
 
@@ -789,8 +789,8 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     touch is at once; touching it and moving along or away, or touching it on the way, or
     near it and staying above its tangent plane, the kept certificates may leave only a few
     triangles to sweep (and prove the start's nearest point, kept for `mesh_distance`);
-    else the grid is scanned: a short segment's columns within the ball about its middle
-    that holds the swept sphere, a long one's cells whose bounding ball meets the swept one."""
+    else the box tree is walked: the nodes whose boxes, grown by the reach, the segment
+    enters before the earliest touch found, earliest first."""
     dd = dx * dx + dy * dy + dz * dz
     if dd == 0.0:
         return (-1.0, 0.0, 0.0, 0.0)
@@ -871,47 +871,47 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
                     if m >= 0:
                         return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
                                           uz, r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
+    # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
+    # a node entered after the earliest touch found holds no earlier one
     slab = reach + 1e-12
-    bx0, bx1 = min(ax, ax + ux) - slab, max(ax, ax + ux) + slab
-    by0, by1 = min(ay, ay + uy) - slab, max(ay, ay + uy) + slab
-    bz0, bz1 = min(az, az + uz) - slab, max(az, az + uz) + slab
-    if not _outside_grid(S, k, bx0, by0, bz0, bx1, by1, bz1):
-        ix0, ix1, iy0, iy1, iz0, iz1, _ = _cells(S, k, bx0, by0, bz0, bx1, by1, bz1)
-        h = S[k].h
-        # a short segment: the columns' cells within the ball about its middle that holds the
-        # swept sphere; a long one: each cell of its box whose bounding ball meets the swept one
-        short = length <= h
-        midx, midy, midz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
-        around = slab + 0.5 * length
-        cull2 = (slab + 0.8660254037844387 * h) ** 2
-        ny, nz = int(S[k].dimy), int(S[k].dimz)
-        cells = int(S[k].cells)
-        C[C_STAMP] += 1.0
-        stamp = C[C_STAMP]
-        if bi >= 0:
-            C[C_STAMPS + bi] = stamp
-        for ix in range(ix0, ix1 + 1):
-            for iy in range(iy0, iy1 + 1):
-                row = cells + (ix * ny + iy) * nz
-                if short:
-                    c0, c1 = _column(S, k, ix, iy, midx, midy, midz, around)
-                    if c0 <= c1:
-                        best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
-                            T, C, int(C[row + c0]), int(C[row + c1 + 1]), stamp, ax, ay, az, ux, uy, uz, r,
-                            dd, graze, slab, reach, length, best_lam, bnx, bny, bnz, bi, far2)
-                    continue
-                for iz in range(iz0, iz1 + 1):
-                    cx = S[k].lox + (ix + 0.5) * h - ax
-                    cy = S[k].loy + (iy + 0.5) * h - ay
-                    cz = S[k].loz + (iz + 0.5) * h - az
-                    t = (cx * ux + cy * uy + cz * uz) / dd
-                    t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
-                    cx, cy, cz = cx - t * ux, cy - t * uy, cz - t * uz
-                    if cx * cx + cy * cy + cz * cz > cull2:
-                        continue
-                    best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
-                        T, C, int(C[row + iz]), int(C[row + iz + 1]), stamp, ax, ay, az, ux, uy, uz, r,
-                        dd, graze, slab, reach, length, best_lam, bnx, bny, bnz, bi, far2)
+    tree = int(S[k].tree)
+    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
+    base = tree + TREE_NODES - NODE_WIDTH
+    C[C_STAMP] += 1.0
+    stamp = C[C_STAMP]
+    if bi >= 0:
+        C[C_STAMPS + bi] = stamp
+    nodes = np.empty(STACK, dtype=np.int64)
+    entries = np.empty(STACK)
+    nodes[0], entries[0] = 1, _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, slab, best_lam)
+    top = 1
+    while top > 0:
+        top -= 1
+        node, entry = nodes[top], entries[top]
+        if entry > best_lam:
+            continue
+        if node >= size:
+            j0, j1 = _leaf_records(C, tree, node, size, n)
+            best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
+                T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
+                best_lam, bnx, bny, bnz, bi, far2)
+            continue
+        e0 = _node_entry(C, base + NODE_WIDTH * 2 * node, ax, ay, az, ux, uy, uz, slab, best_lam)
+        e1 = _node_entry(C, base + NODE_WIDTH * (2 * node + 1), ax, ay, az, ux, uy, uz, slab, best_lam)
+        if e0 <= e1:  # the earlier entered on top of the stack, read first
+            if e1 <= best_lam:
+                nodes[top], entries[top] = 2 * node + 1, e1
+                top += 1
+            if e0 <= best_lam:
+                nodes[top], entries[top] = 2 * node, e0
+                top += 1
+        else:
+            if e0 <= best_lam:
+                nodes[top], entries[top] = 2 * node, e0
+                top += 1
+            if e1 <= best_lam:
+                nodes[top], entries[top] = 2 * node + 1, e1
+                top += 1
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
     return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, ax, ay, az, ux, uy, uz, r, graze)
