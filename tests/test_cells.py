@@ -62,6 +62,7 @@ def serial():
     return check_outcomes(run_cells(stability.cell, CELLS))
 
 
+@pytest.mark.slow
 def test_serial_outcomes_are_the_cells_run_directly(serial):
     """Serially, each outcome is what calling the cell gives, and a second sweep gives it again."""
     assert serial[:2] + serial[3:] == [stability.cell(**c) for c in WALL]
