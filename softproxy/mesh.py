@@ -44,6 +44,7 @@ from softproxy.compiled.certificate import (
     STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, node_frames, vertex_tables,
 )
 from softproxy.compiled.layout import GEOM_MESH
+from softproxy.compiled.mesh import tree_nodes
 from softproxy.compiled.tolerances import CONTACT_TOL
 from softproxy.geometry import Shape
 
@@ -259,10 +260,7 @@ class MeshTables:
         # Morton order, LEAF a leaf; per node its axis-aligned box and a box oriented by its
         # first triangle (tight about a run of slivers, which an axis-aligned box is not)
         order, nlo, nhi, size = box_tree(self.tlo, self.thi)
-        axes, ext = node_frames(order, size, v, f, self.plane)
-        self.tree = (order, size, np.concatenate([nlo, nhi, axes.reshape(-1, 9), ext.transpose(0, 2, 1).reshape(-1, 6)],
-                                                 axis=1))
-        del nlo, nhi, axes, ext
+        self.tree = (order, size, tree_nodes(order, nlo, nhi, size, v, f, self.plane))
 
     def reaching(self, kept: float) -> "MeshTables":
         """These tables with certificates over `kept` (m) at least: themselves, or the tables

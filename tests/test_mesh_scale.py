@@ -316,3 +316,102 @@ def test_bench_meshes_in_miniature():
         assert 0.5 * size < r["triangles"] < 1.5 * size and r["load_s"] > 0.0 and r["peak_mb"] > 0.0
         assert r["pressed_1f_p99_us"] >= r["pressed_1f_p50_us"] > 0.0
     assert all("sliding_5f_p99_us" in r and "sliding_5f_alone_p99_us" in r for r in rows[1::3])
+
+
+# ---------------------------------------------------------------------------------------
+# The box tree (where no certificate holds)
+# ---------------------------------------------------------------------------------------
+
+def tree_shape(v, f):
+    """(MeshShape on explicit triangles on a turned box geom, brute force in the world frame)."""
+    xml = ('<mujoco><worldbody><body pos="0.02 -0.01 0.03" euler="20 -30 40">'
+           '<geom type="box" size="0.01 0.01 0.01"/></body></worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    s = MeshShape(m, d, 0, True, triangles=(v, f))
+    ShapeSet([s], d)
+    t = s.tables
+    return s, Oracle(local_to_world(d, 0, t.vpos), t.tv, s.signed)
+
+
+def from_tree(shape, hint: int = -1) -> None:
+    """The next query of `shape` starts from triangle `hint` (-1: none, so it goes straight to
+    the box tree), its kept answers forgotten."""
+    record = shape.set.S[shape.row]
+    record.hint = -1 if hint < 0 else int(record.t0) + hint
+    record.key[:, :] = math.nan
+
+
+def noisy_ball(triangles: int):
+    from softproxy.benchmarks.meshes import noisy_sphere
+
+    return noisy_sphere(triangles, seed=3)
+
+
+def sliver_part():
+    part = cad_part(300, seed=7)
+    return part.vertices, part.faces
+
+
+@pytest.mark.parametrize("make", [sliver_part, lambda: noisy_ball(6000)], ids=["slivers", "noisy sphere"])
+def test_tree_queries_match_the_brute_force(make):
+    """With no hint, every distance and sweep is the box tree's walk alone: on a sliver-heavy
+    part and on a noisy sphere, at random points near and far and on random segments short
+    and long (radius 0, 2 and 5 mm), its answers are the brute force's. The tree holds fewer
+    nodes than triangles (its memory is bounded by the mesh's)."""
+    from test_mesh_queries import check_distance
+
+    v, f = make()
+    s, o = tree_shape(np.asarray(v, float), np.asarray(f))
+    _, size, nodes = s.tables.tree
+    assert len(nodes) == 2 * size <= max(2, s.triangles)
+    rng = np.random.default_rng(11)
+    lo, hi = o.v.min(0), o.v.max(0)
+    surface = o.centre[rng.choice(len(o.f), 60)] + rng.normal(scale=0.004, size=(60, 3))
+    points = np.vstack([surface, rng.uniform(lo - 0.02, hi + 0.02, size=(20, 3))])
+    for k, p in enumerate(points):
+        from_tree(s)
+        check_distance(o, s, [p], k)
+    for k, p in enumerate(surface):
+        u = rng.normal(size=3) * rng.choice([1e-4, 3e-3, 3e-2])
+        r = [0.0, 0.002, 0.005][k % 3]
+        from_tree(s)
+        o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=k)
+
+
+def test_tree_finds_the_nearest_triangle_in_a_far_leaf():
+    """Where the nearest triangle lies in a part of the tree far from the hint (a small
+    tetrahedron 2.5 cm off a noisy sphere, the hint on the sphere's far side), the walk
+    finds it; and a sphere leaving the sphere's surface towards the tetrahedron, its start
+    inside the boxes of the sphere's nodes nearby (entered first), stops on the tetrahedron
+    where the brute force does: a walk that left out a node it must read (a box bound too
+    tight, a best distance or touch taken too early) would answer on the noisy sphere or
+    miss the tetrahedron."""
+    from mesh_oracle import small_tetra
+    from test_mesh_queries import check_distance
+
+    bv, bf = noisy_ball(4000)
+    tetra = small_tetra(np.array([0.075, 0.0, 0.0]))
+    v = np.vstack([bv, tetra.vertices])
+    f = np.vstack([bf, np.asarray(tetra.faces) + len(bv)])
+    s, o = tree_shape(v, f)
+    assert s.triangles == len(f)
+    far_side = int(np.argmin(s.tables.centre[:, 0]))
+    toward = o.v[-4:].mean(0)  # the tetrahedron's centre (world frame)
+    out = (toward - o.v[:-4].mean(0)) / np.linalg.norm(toward - o.v[:-4].mean(0))
+    rng = np.random.default_rng(12)
+    points = toward + rng.normal(scale=0.003, size=(20, 3))
+    assert (o.nearest(points)[2] >= len(bf)).all()  # every one nearest a tetrahedron's triangle
+    for k, p in enumerate(points):
+        from_tree(s, far_side)
+        check_distance(o, s, [p], k)
+    hits = 0
+    for k in range(12):
+        start = toward - 0.021 * out + rng.normal(scale=0.001, size=3)
+        u = toward + rng.normal(scale=1e-4, size=3) - start
+        from_tree(s, far_side)
+        hit = s.sweep(*start, *u, 0.001)
+        o.check_sweep(start, u, 0.001, hit, context=k)
+        hits += hit is not None
+    assert hits == 12

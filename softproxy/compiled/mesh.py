@@ -91,6 +91,56 @@ STACK = 256
 # Packing (numpy, at load)
 # ---------------------------------------------------------------------------------------
 
+@njit(cache=True, error_model="numpy")
+def tree_nodes(order, nlo, nhi, size, V, F, plane):
+    """The nodes (2 size, NODE_WIDTH; node 0 unused) of a box tree over triangles (`box_tree`'s
+    order, node boxes and size over the triangles' boxes; vertices V, faces F, planes): each
+    node's axis-aligned box and its box oriented by its first triangle (axes: that triangle's
+    normal, its longest edge, their cross product; the extents of the node's vertices along
+    each). An empty node's boxes are inverted (+inf..-inf)."""
+    n = len(order)
+    out = np.empty((2 * size, NODE_WIDTH))
+    out[:, N_LO:N_LO + 3] = nlo
+    out[:, N_HI:N_HI + 3] = nhi
+    out[:, N_AXES:N_AXES + 9] = 0.0
+    out[:, N_EXT:N_EXT + 3] = np.inf
+    out[:, N_EXT + 3:N_EXT + 6] = -np.inf
+    level, span = 1, size * LEAF
+    while level <= size:
+        for j in range(level, 2 * level):
+            s = (j - level) * span
+            if s >= n:
+                break
+            e = min(s + span, n)
+            t = order[s]
+            a, b, c = F[t, 0], F[t, 1], F[t, 2]
+            best, ex, ey, ez = -1.0, 0.0, 0.0, 0.0
+            for p, q in ((a, b), (b, c), (c, a)):
+                dx, dy, dz = V[q, 0] - V[p, 0], V[q, 1] - V[p, 1], V[q, 2] - V[p, 2]
+                d2 = dx * dx + dy * dy + dz * dz
+                if d2 > best:
+                    best, ex, ey, ez = d2, dx, dy, dz
+            length = math.sqrt(best)
+            ex, ey, ez = ex / length, ey / length, ez / length
+            nx, ny, nz = plane[t, 0], plane[t, 1], plane[t, 2]
+            axes = (nx, ny, nz, ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex)
+            for m in range(9):
+                out[j, N_AXES + m] = axes[m]
+            for i in range(s, e):
+                for w in range(3):
+                    v = F[order[i], w]
+                    x, y, z = V[v, 0], V[v, 1], V[v, 2]
+                    for m in range(3):
+                        h = axes[3 * m] * x + axes[3 * m + 1] * y + axes[3 * m + 2] * z
+                        if h < out[j, N_EXT + m]:
+                            out[j, N_EXT + m] = h
+                        if h > out[j, N_EXT + 3 + m]:
+                            out[j, N_EXT + 3 + m] = h
+        level *= 2
+        span //= 2
+    return out
+
+
 def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
     rows of the shape table S filled in (where their triangles and box tree live). Geoms of
@@ -385,11 +435,18 @@ def _slab_entry(p, u, lo, hi, t0, t1):
 
 
 @njit(cache=True, error_model="numpy")
-def _node_entry(C, at, ax, ay, az, ux, uy, uz, grow, tmax):
-    """Where (fraction of the segment a + t u, t in [0, tmax]) it enters the node at C[at]'s
-    boxes, each grown by `grow` (m) on every side; > tmax when it does not. A sphere of
-    radius r < grow touching a triangle of the node has its centre inside both grown boxes,
-    so no touch on the segment comes before this."""
+def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, grow, tmax):
+    """Where (fraction of the segment a + t u, t in [0, tmax], |u| = length (m)) it enters
+    the node at C[at]'s boxes, each grown by `grow` (m) on every side; > tmax when it does
+    not, or when the boxes lie farther than `grow` plus half its length from its middle. A
+    sphere of radius r < grow touching a triangle of the node has its centre within r of
+    both boxes, so no touch on the segment comes before this. The second test is what keeps
+    a sphere sliding over a surface to the nodes right under it: grown per axis, the boxes
+    of every patch within r beside it would hold its centre."""
+    mx, my, mz = ax + 0.5 * tmax * ux, ay + 0.5 * tmax * uy, az + 0.5 * tmax * uz
+    ball = grow + 0.5 * tmax * length
+    if _node_gap2(C, at, mx, my, mz) > ball * ball:
+        return 2.0 * tmax + 1.0
     t0, t1 = 0.0, tmax
     t0, t1 = _slab_entry(ax, ux, C[at + N_LO] - grow, C[at + N_HI] + grow, t0, t1)
     t0, t1 = _slab_entry(ay, uy, C[at + N_LO + 1] - grow, C[at + N_HI + 1] + grow, t0, t1)
@@ -883,7 +940,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
         C[C_STAMPS + bi] = stamp
     nodes = np.empty(STACK, dtype=np.int64)
     entries = np.empty(STACK)
-    nodes[0], entries[0] = 1, _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, slab, best_lam)
+    nodes[0], entries[0] = 1, _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, slab, best_lam)
     top = 1
     while top > 0:
         top -= 1
@@ -896,8 +953,8 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
                 T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
                 best_lam, bnx, bny, bnz, bi, far2)
             continue
-        e0 = _node_entry(C, base + NODE_WIDTH * 2 * node, ax, ay, az, ux, uy, uz, slab, best_lam)
-        e1 = _node_entry(C, base + NODE_WIDTH * (2 * node + 1), ax, ay, az, ux, uy, uz, slab, best_lam)
+        e0 = _node_entry(C, base + NODE_WIDTH * 2 * node, ax, ay, az, ux, uy, uz, length, slab, best_lam)
+        e1 = _node_entry(C, base + NODE_WIDTH * (2 * node + 1), ax, ay, az, ux, uy, uz, length, slab, best_lam)
         if e0 <= e1:  # the earlier entered on top of the stack, read first
             if e1 <= best_lam:
                 nodes[top], entries[top] = 2 * node + 1, e1
