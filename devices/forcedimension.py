@@ -72,6 +72,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import ctypes
+import functools
 import importlib
 import io
 import math
@@ -80,6 +81,8 @@ import time
 import weakref
 
 from softproxy.device import DeviceError, DeviceSample
+
+from . import device_config as config
 
 NAME = "Force Dimension"
 INSTALL_HINT = "pip install 'softproxy[forcedimension]'"
@@ -212,10 +215,6 @@ def _last_error(dhd) -> str:
         return f"no reason given ({type(exc).__name__})"
 
 
-def _finite(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
 def _clamp_norm(v: list, limit: float) -> list:
     n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     return [c * (limit / n) for c in v] if n > limit else v
@@ -275,23 +274,18 @@ class ForceDimensionDevice:
             raise ValueError(f"gripper must be \"auto\", \"on\" or \"off\", got {gripper!r}")
         if gripper_axis not in _AXES:
             raise ValueError(f"gripper_axis must be \"x\", \"y\" or \"z\" (the wrist frame's axis), got {gripper_axis!r}")
-        if not (_finite(workspace_scale) and workspace_scale > 0):
-            raise ValueError(f"workspace_scale must be a finite number > 0, got {workspace_scale!r}")
-        offset = tuple(workspace_offset)
-        if len(offset) != 3 or not all(_finite(v) for v in offset):
-            raise ValueError(f"workspace_offset must be 3 finite numbers (m), got {workspace_offset!r}")
+        scale, offset = config.check_workspace(workspace_scale, workspace_offset)
         for name, value in (("index", index), ("serial", serial)):
             if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 0):
                 raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
-        if not (_finite(stall_ms) and 0 <= stall_ms <= 1000):
+        if not (config.finite(stall_ms) and 0 <= stall_ms <= 1000):
             raise ValueError(f"stall_ms must be a number of milliseconds in [0, 1000] (0: no watchdog), got {stall_ms!r}")
         self._dhd = load_binding() if dhd is None else dhd
         self.stall_s = stall_ms / 1000.0
         self.stall_zeroes = 0
         self._last_write = time.monotonic()  # when a command last went out (host clock, s)
         self.index, self.serial_wanted = index, serial
-        self.workspace_scale = float(workspace_scale)
-        self.workspace_offset = tuple(float(v) for v in offset)
+        self.workspace_scale, self.workspace_offset = scale, offset
         self._axis = _AXES[gripper_axis]
         self._clock = clock
         self.closed = False
@@ -323,7 +317,7 @@ class ForceDimensionDevice:
             cap_g = cap_g if self.active_gripper else 0.0
             for getter, cap in (("getMaxForce", "f"), ("getMaxTorque", "t"), ("getMaxGripperForce", "g")):
                 sdk = getattr(dhd_, getter)(self._id) if hasattr(dhd_, getter) else -1.0
-                if _finite(sdk) and sdk >= 0.0:  # a limit the SDK enforces already: never above it
+                if config.finite(sdk) and sdk >= 0.0:  # a limit the SDK enforces already: never above it
                     if cap == "f":
                         cap_f = min(cap_f, float(sdk))
                     elif cap == "t":
@@ -344,7 +338,7 @@ class ForceDimensionDevice:
         self.label = label or f"{self.system_name} #{self.serial}"
         for name, value, cap in (("max_force", max_force, cap_f), ("max_torque", max_torque, cap_t),
                                  ("max_gripper_force", max_gripper_force, cap_g)):
-            if value is not None and not (_finite(value) and 0.0 <= value <= cap):
+            if value is not None and not (config.finite(value) and 0.0 <= value <= cap):
                 self._release()
                 raise ValueError(f"{name} must be a finite number in [0, {cap:g}] ({self.system_name}'s limit), "
                                  f"got {value!r}")
@@ -697,18 +691,10 @@ class ForceDimensionDevice:
             max_gripper_force_N = 3.0
             stall_ms = 50                 # a force not renewed for this long is replaced by zero (0: never)
         """
-        def fail(field, expected, got):
-            return ValueError(f"{source}: {field} must be {expected}, got {got!r}")
-
-        if not isinstance(cfg, dict):
-            raise fail("device", "a table", cfg)
-        if cfg.get("type", "forcedimension") != "forcedimension":
-            raise fail("device.type", "\"forcedimension\" (this scene's [device] is for another device type)",
-                       cfg.get("type"))
-        unknown = set(cfg) - _CONFIG_KEYS
-        if unknown:
-            raise ValueError(f"{source}: device has unknown field(s) {sorted(unknown)}; "
-                             f"expected some of {sorted(_CONFIG_KEYS)}")
+        config.check_table(cfg, source)
+        config.check_type(cfg, source, "forcedimension")
+        config.check_keys(cfg, source, _CONFIG_KEYS)
+        fail = functools.partial(config.field_error, source)
         kwargs = {}
         for key in ("index", "serial"):
             if key in cfg:
@@ -728,28 +714,13 @@ class ForceDimensionDevice:
             if cfg["gripper_axis"] not in _AXES:
                 raise fail("device.gripper_axis", "\"x\", \"y\" or \"z\"", cfg["gripper_axis"])
             kwargs["gripper_axis"] = cfg["gripper_axis"]
-        if "workspace_scale" in cfg:
-            v = cfg["workspace_scale"]
-            if not (_finite(v) and v > 0):
-                raise fail("device.workspace_scale", "a finite number > 0", v)
-            kwargs["workspace_scale"] = float(v)
-        if "workspace_offset" in cfg:
-            v = cfg["workspace_offset"]
-            if not (isinstance(v, (list, tuple)) and len(v) == 3 and all(_finite(c) for c in v)):
-                raise fail("device.workspace_offset", "3 finite numbers [x, y, z] (m)", v)
-            kwargs["workspace_offset"] = tuple(float(c) for c in v)
-        for key, arg in (("max_force_N", "max_force"), ("max_torque_Nm", "max_torque"),
-                         ("max_gripper_force_N", "max_gripper_force")):
-            if key in cfg:
-                v = cfg[key]
-                if not (_finite(v) and v >= 0):
-                    raise fail(f"device.{key}", "a finite number >= 0", v)
-                kwargs[arg] = float(v)
-        if "stall_ms" in cfg:
-            v = cfg["stall_ms"]
-            if not (_finite(v) and 0 <= v <= 1000):
-                raise fail("device.stall_ms", "a number of milliseconds in [0, 1000] (0: no watchdog)", v)
-            kwargs["stall_ms"] = float(v)
+        config.workspace_fields(cfg, source, kwargs)
+        config.limit_fields(cfg, source, kwargs, (("max_force_N", "max_force"), ("max_torque_Nm", "max_torque"),
+                                                  ("max_gripper_force_N", "max_gripper_force")))
+        stall_ms = config.number(cfg, source, "stall_ms", "a number of milliseconds in [0, 1000] (0: no watchdog)",
+                                 lambda v: 0 <= v <= 1000)
+        if stall_ms is not None:
+            kwargs["stall_ms"] = stall_ms
         if clock is not None:
             kwargs["clock"] = clock
         try:
@@ -763,33 +734,9 @@ class ForceDimensionDevice:
         `from_config`, vectors separated by ':' (`workspace_offset=0:0:0.05`). When the scene's
         own [device] is a Force Dimension one, the argument overrides its fields."""
         source = f"--device forcedimension:{argument}"
-        device_cfg = getattr(scene, "device", None)
-        cfg = dict(device_cfg) if isinstance(device_cfg, dict) and device_cfg.get("type") == "forcedimension" else {}
-        cfg["type"] = "forcedimension"
-        parts = [p.strip() for p in str(argument).split(",") if p.strip()]
+        cfg, parts = config.argument_table(argument, scene, "forcedimension")
         if parts and "=" not in parts[0] and parts[0] not in ("first", "auto"):
             parts[0] = f"index={parts[0]}"
-        for item in parts:
-            if item in ("first", "auto"):
-                continue
-            key, eq, value = (s.strip() for s in item.partition("="))
-            if not eq or not key:
-                raise ValueError(f"{source}: expected key=value items, got {item!r}")
-            if key == "workspace_offset":
-                try:
-                    cfg[key] = [float(v) for v in value.split(":")]
-                except ValueError:
-                    raise ValueError(f"{source}: {key} must be 3 numbers separated by ':', got {value!r}") from None
-            elif key in ("index", "serial"):
-                try:
-                    cfg[key] = int(value)
-                except ValueError:
-                    raise ValueError(f"{source}: {key} must be an integer, got {value!r}") from None
-            elif key in ("gripper", "gripper_axis", "type"):
-                cfg[key] = value
-            else:
-                try:
-                    cfg[key] = float(value)
-                except ValueError:
-                    raise ValueError(f"{source}: {key} must be a number, got {value!r}") from None
+        config.argument_items(cfg, [p for p in parts if p not in ("first", "auto")], source, usage="key=value items",
+                              strings=("gripper", "gripper_axis", "type"), integers=("index", "serial"))
         return cls.from_config(cfg, source=source, dhd=dhd, clock=clock)

@@ -75,6 +75,7 @@ scene)` serves `softproxy run SCENE --device hid:spacemouse,mode=rate`.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import math
@@ -84,6 +85,7 @@ from pathlib import Path
 
 from softproxy.device import DeviceError, DeviceSample
 
+from . import device_config as config
 from .hid_profile import (
     Profile,
     ProfileError,
@@ -121,10 +123,6 @@ def _import_hid():
     if not (hasattr(mod, "enumerate") and hasattr(mod, "device")):
         raise DeviceError(f"the `hid` module found at {getattr(mod, '__file__', '?')} is not cython-hidapi")
     return mod
-
-
-def _finite(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _path_text(path) -> str:
@@ -221,29 +219,24 @@ class HidDevice:
         mode = profile.mode if mode is None else mode
         if mode not in profile.modes:
             raise ValueError(f"mode must be one of {list(profile.modes)} for profile {profile.name!r}, got {mode!r}")
-        if not (_finite(workspace_scale) and workspace_scale > 0):
-            raise ValueError(f"workspace_scale must be a finite number > 0, got {workspace_scale!r}")
-        offset = tuple(workspace_offset)
-        if len(offset) != 3 or not all(_finite(v) for v in offset):
-            raise ValueError(f"workspace_offset must be 3 finite numbers (m), got {workspace_offset!r}")
+        scale, offset = config.check_workspace(workspace_scale, workspace_offset)
         half = tuple(workspace_half_m)
-        if len(half) != 3 or not all(_finite(v) and v > 0 for v in half):
+        if len(half) != 3 or not all(config.finite(v) and v > 0 for v in half):
             raise ValueError(f"workspace_half_m must be 3 finite numbers > 0 (m), got {workspace_half_m!r}")
-        if not (_finite(twist_limit_rad) and twist_limit_rad > 0):
+        if not (config.finite(twist_limit_rad) and twist_limit_rad > 0):
             raise ValueError(f"twist_limit_rad must be a finite number > 0, got {twist_limit_rad!r}")
         stale_ms = profile.stale_ms if stale_ms is None else stale_ms
-        if not (_finite(stale_ms) and stale_ms >= 0):
+        if not (config.finite(stale_ms) and stale_ms >= 0):
             raise ValueError(f"stale_ms must be a finite number >= 0, got {stale_ms!r}")
         for name, value, cap in (("max_force", max_force, profile.max_force),
                                  ("max_torque", max_torque, profile.max_torque)):
-            if value is not None and not (_finite(value) and 0 <= value <= cap):
+            if value is not None and not (config.finite(value) and 0 <= value <= cap):
                 raise ValueError(f"{name} must be a finite number in [0, {cap:g}] (the profile's limit), "
                                  f"got {value!r}")
         if not (isinstance(max_reports_per_read, int) and max_reports_per_read >= 1):
             raise ValueError(f"max_reports_per_read must be an integer >= 1, got {max_reports_per_read!r}")
         self.mode = mode
-        self.workspace_scale = float(workspace_scale)
-        self.workspace_offset = tuple(float(v) for v in offset)
+        self.workspace_scale, self.workspace_offset = scale, offset
         self.workspace_half_m = tuple(float(v) for v in half)
         self.twist_limit_rad = float(twist_limit_rad)
         self.stale_ms = float(stale_ms)
@@ -367,18 +360,10 @@ class HidDevice:
 
         `transport` (a fake `hid.device`, already open), `hid_module` and `clock` are for tests.
         """
-        def fail(field, expected, got):
-            return ValueError(f"{source}: {field} must be {expected}, got {got!r}")
-
-        if not isinstance(cfg, dict):
-            raise fail("device", "a table", cfg)
-        unknown = set(cfg) - _CONFIG_KEYS
-        if unknown:
-            raise ValueError(f"{source}: device has unknown field(s) {sorted(unknown)}; "
-                             f"expected some of {sorted(_CONFIG_KEYS)}")
-        if cfg.get("type", "hid") != "hid":
-            raise fail("device.type", "\"hid\" for a HID device (this scene's [device] is for another device type)",
-                       cfg.get("type"))
+        fail = functools.partial(config.field_error, source)
+        config.check_table(cfg, source)
+        config.check_keys(cfg, source, _CONFIG_KEYS)
+        config.check_type(cfg, source, "hid", " for a HID device")
         name = cfg.get("profile")
         if not isinstance(name, str) or not name.strip():
             raise fail("device.profile", "the name of a HID profile (e.g. \"spacemouse\") or a path to one", name)
@@ -396,31 +381,21 @@ class HidDevice:
                 raise fail("device.mode", f"one of {list(profile.modes)} (what profile {profile.name!r} supports)",
                            cfg["mode"])
             kwargs["mode"] = cfg["mode"]
-        if "workspace_scale" in cfg:
-            v = cfg["workspace_scale"]
-            if not (_finite(v) and v > 0):
-                raise fail("device.workspace_scale", "a finite number > 0", v)
-            kwargs["workspace_scale"] = float(v)
-        for key, positive in (("workspace_offset", False), ("workspace_half_m", True)):
-            if key in cfg:
-                v = cfg[key]
-                if not (isinstance(v, list) and len(v) == 3 and all(_finite(c) and (c > 0 or not positive) for c in v)):
-                    raise fail(f"device.{key}", f"3 finite numbers{' > 0' if positive else ''} [x, y, z] (m)", v)
-                kwargs[key] = tuple(float(c) for c in v)
-        for key, arg, lo_open in (("twist_limit_rad", "twist_limit_rad", True), ("stale_ms", "stale_ms", False)):
-            if key in cfg:
-                v = cfg[key]
-                if not (_finite(v) and (v > 0 if lo_open else v >= 0)):
-                    raise fail(f"device.{key}", f"a finite number {'> 0' if lo_open else '>= 0'}", v)
-                kwargs[arg] = float(v)
+        config.workspace_fields(cfg, source, kwargs, kinds=list)
+        half = config.vector3(cfg, source, "workspace_half_m", positive=True, kinds=list)
+        if half is not None:
+            kwargs["workspace_half_m"] = half
+        for key, expected, ok in (("twist_limit_rad", "a finite number > 0", lambda v: v > 0),
+                                  ("stale_ms", "a finite number >= 0", lambda v: v >= 0)):
+            v = config.number(cfg, source, key, expected, ok)
+            if v is not None:
+                kwargs[key] = v
         for key, arg, cap in (("max_force_N", "max_force", profile.max_force),
                               ("max_torque_Nm", "max_torque", profile.max_torque)):
-            if key in cfg:
-                v = cfg[key]
-                if not (_finite(v) and 0 <= v <= cap):
-                    raise fail(f"device.{key}", f"a finite number in [0, {cap:g}] (profile {profile.name!r}'s limit)",
-                               v)
-                kwargs[arg] = float(v)
+            v = config.number(cfg, source, key, f"a finite number in [0, {cap:g}] (profile {profile.name!r}'s limit)",
+                              lambda v, cap=cap: 0 <= v <= cap)
+            if v is not None:
+                kwargs[arg] = v
         if clock is not None:
             kwargs["clock"] = clock
         if transport is not None:
@@ -437,29 +412,11 @@ class HidDevice:
         overrides its fields; otherwise the scene's [device] (e.g. a scripted one) is ignored.
         """
         source = f"--device hid:{argument}"
-        device_cfg = getattr(scene, "device", None)
-        cfg = dict(device_cfg) if isinstance(device_cfg, dict) and device_cfg.get("type") == "hid" else {}
-        cfg["type"] = "hid"
-        parts = [p.strip() for p in str(argument).split(",") if p.strip()]
+        cfg, parts = config.argument_table(argument, scene, "hid")
         if parts and "=" not in parts[0]:
             cfg["profile"] = parts.pop(0)
-        for item in parts:
-            key, eq, value = item.partition("=")
-            key, value = key.strip(), value.strip()
-            if not eq or not key:
-                raise ValueError(f"{source}: expected PROFILE[,key=value...], got {item!r}")
-            if key in ("workspace_offset", "workspace_half_m"):
-                try:
-                    cfg[key] = [float(v) for v in value.split(":")]
-                except ValueError:
-                    raise ValueError(f"{source}: {key} must be 3 numbers separated by ':', got {value!r}") from None
-            elif key in ("profile", "path", "mode", "type"):
-                cfg[key] = value
-            else:
-                try:
-                    cfg[key] = float(value)
-                except ValueError:
-                    raise ValueError(f"{source}: {key} must be a number, got {value!r}") from None
+        config.argument_items(cfg, parts, source, usage="PROFILE[,key=value...]",
+                              vectors=("workspace_offset", "workspace_half_m"), strings=("profile", "path", "mode", "type"))
         return cls.from_config(cfg, source=source, transport=transport, hid_module=hid_module)
 
     # -- the Device protocol -------------------------------------------------------------------

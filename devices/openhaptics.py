@@ -77,6 +77,8 @@ import weakref
 
 from softproxy.device import DeviceError, DeviceSample
 
+from . import device_config as config
+
 NAME = "OpenHaptics"
 INSTALL_HINT = "pip install 'softproxy[openhaptics]'"
 SDK_HINT = ("install the OpenHaptics SDK for your platform and the Touch device driver from 3D Systems "
@@ -160,10 +162,6 @@ def availability(binding=None) -> dict:
     return row
 
 
-def _finite(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
 def _model_limits(model: str) -> tuple[float, float]:
     m = model.strip().lower()
     for name, limits in MODEL_LIMITS.items():  # "touch x" before "touch"
@@ -206,19 +204,14 @@ class OpenHapticsDevice:
         `sleep` is how `close()` waits for the scheduler (tests step a fake scheduler in it)."""
         if not isinstance(device_name, str) or not device_name.strip():
             raise ValueError(f"device_name must be the name of a device in Touch Setup, got {device_name!r}")
-        if not (_finite(workspace_scale) and workspace_scale > 0):
-            raise ValueError(f"workspace_scale must be a finite number > 0, got {workspace_scale!r}")
-        offset = tuple(workspace_offset)
-        if len(offset) != 3 or not all(_finite(v) for v in offset):
-            raise ValueError(f"workspace_offset must be 3 finite numbers (m), got {workspace_offset!r}")
+        scale, offset = config.check_workspace(workspace_scale, workspace_offset)
         for name, v in (("stale_ms", stale_ms), ("command_timeout_ms", command_timeout_ms)):
-            if not (_finite(v) and 0 < v <= 1000):
+            if not (config.finite(v) and 0 < v <= 1000):
                 raise ValueError(f"{name} must be a number of milliseconds in (0, 1000], got {v!r}")
         self._binding = load_binding() if binding is None else binding
         self._hd = self._binding.hd
         self.device_name = device_name
-        self.workspace_scale = float(workspace_scale)
-        self.workspace_offset = tuple(float(v) for v in offset)
+        self.workspace_scale, self.workspace_offset = scale, offset
         self.stale_s = stale_ms / 1000.0
         self.yield_gil = bool(yield_gil)
         self.command_timeout_s = command_timeout_ms / 1000.0
@@ -247,7 +240,7 @@ class OpenHapticsDevice:
         self._opened_at = self._clock()
         self.model = self._read_model()
         peak, continuous = self._read_limits()
-        if max_force is not None and not (_finite(max_force) and 0.0 <= max_force <= peak):
+        if max_force is not None and not (config.finite(max_force) and 0.0 <= max_force <= peak):
             self._shutdown()
             raise ValueError(f"max_force must be a finite number in [0, {peak:g}] ({self.model}'s peak force), "
                              f"got {max_force!r}")
@@ -533,45 +526,22 @@ class OpenHapticsDevice:
             stale_ms = 20                   # a sample older than this is invalid
             command_timeout_ms = 50         # a force older than this is not rendered
         """
-        def fail(field, expected, got):
-            return ValueError(f"{source}: {field} must be {expected}, got {got!r}")
-
-        if not isinstance(cfg, dict):
-            raise fail("device", "a table", cfg)
-        if cfg.get("type", "openhaptics") != "openhaptics":
-            raise fail("device.type", "\"openhaptics\" (this scene's [device] is for another device type)",
-                       cfg.get("type"))
-        unknown = set(cfg) - _CONFIG_KEYS
-        if unknown:
-            raise ValueError(f"{source}: device has unknown field(s) {sorted(unknown)}; "
-                             f"expected some of {sorted(_CONFIG_KEYS)}")
+        config.check_table(cfg, source)
+        config.check_type(cfg, source, "openhaptics")
+        config.check_keys(cfg, source, _CONFIG_KEYS)
         kwargs = {}
         if "device_name" in cfg:
             v = cfg["device_name"]
             if not isinstance(v, str) or not v.strip():
-                raise fail("device.device_name", "the device's name in Touch Setup (e.g. \"Default Device\")", v)
+                raise config.field_error(source, "device.device_name",
+                                         "the device's name in Touch Setup (e.g. \"Default Device\")", v)
             kwargs["device_name"] = v.strip()
-        if "workspace_scale" in cfg:
-            v = cfg["workspace_scale"]
-            if not (_finite(v) and v > 0):
-                raise fail("device.workspace_scale", "a finite number > 0", v)
-            kwargs["workspace_scale"] = float(v)
-        if "workspace_offset" in cfg:
-            v = cfg["workspace_offset"]
-            if not (isinstance(v, (list, tuple)) and len(v) == 3 and all(_finite(c) for c in v)):
-                raise fail("device.workspace_offset", "3 finite numbers [x, y, z] (m)", v)
-            kwargs["workspace_offset"] = tuple(float(c) for c in v)
-        if "max_force_N" in cfg:
-            v = cfg["max_force_N"]
-            if not (_finite(v) and v >= 0):
-                raise fail("device.max_force_N", "a finite number >= 0", v)
-            kwargs["max_force"] = float(v)
+        config.workspace_fields(cfg, source, kwargs)
+        config.limit_fields(cfg, source, kwargs, (("max_force_N", "max_force"),))
         for key in ("stale_ms", "command_timeout_ms"):
-            if key in cfg:
-                v = cfg[key]
-                if not (_finite(v) and 0 < v <= 1000):
-                    raise fail(f"device.{key}", "a number of milliseconds in (0, 1000]", v)
-                kwargs[key] = float(v)
+            v = config.number(cfg, source, key, "a number of milliseconds in (0, 1000]", lambda v: 0 < v <= 1000)
+            if v is not None:
+                kwargs[key] = v
         if clock is not None:
             kwargs["clock"] = clock
         if sleep is not None:
@@ -587,27 +557,9 @@ class OpenHapticsDevice:
         `default`), keys those of `from_config`, vectors separated by ':'. When the scene's own
         [device] is an OpenHaptics one, the argument overrides its fields."""
         source = f"--device openhaptics:{argument}"
-        device_cfg = getattr(scene, "device", None)
-        cfg = dict(device_cfg) if isinstance(device_cfg, dict) and device_cfg.get("type") == "openhaptics" else {}
-        cfg["type"] = "openhaptics"
-        parts = [p.strip() for p in str(argument).split(",") if p.strip()]
+        cfg, parts = config.argument_table(argument, scene, "openhaptics")
         if parts and "=" not in parts[0]:
             name = parts.pop(0)
             cfg["device_name"] = "Default Device" if name.lower() in ("default", "first", "auto") else name
-        for item in parts:
-            key, eq, value = (s.strip() for s in item.partition("="))
-            if not eq or not key:
-                raise ValueError(f"{source}: expected NAME[,key=value...], got {item!r}")
-            if key == "workspace_offset":
-                try:
-                    cfg[key] = [float(v) for v in value.split(":")]
-                except ValueError:
-                    raise ValueError(f"{source}: {key} must be 3 numbers separated by ':', got {value!r}") from None
-            elif key in ("device_name", "type"):
-                cfg[key] = value
-            else:
-                try:
-                    cfg[key] = float(value)
-                except ValueError:
-                    raise ValueError(f"{source}: {key} must be a number, got {value!r}") from None
+        config.argument_items(cfg, parts, source, usage="NAME[,key=value...]", strings=("device_name", "type"))
         return cls.from_config(cfg, source=source, binding=binding, clock=clock, sleep=sleep)
