@@ -435,18 +435,29 @@ def _slab_entry(p, u, lo, hi, t0, t1):
 
 
 @njit(cache=True, error_model="numpy")
-def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, grow, tmax):
+def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, tmax):
     """Where (fraction of the segment a + t u, t in [0, tmax], |u| = length (m)) it enters
     the node at C[at]'s boxes, each grown by `grow` (m) on every side; > tmax when it does
-    not, or when the boxes lie farther than `grow` plus half its length from its middle. A
-    sphere of radius r < grow touching a triangle of the node has its centre within r of
-    both boxes, so no touch on the segment comes before this. The second test is what keeps
+    not, or when the boxes lie farther than `grow` plus half its length from its middle, or
+    when a sphere of radius r (m) on it touches none of the node's triangles at the start and
+    stays r above the node's oriented box along its first axis. A sphere of radius r < grow
+    touching a triangle of the node has its centre within r of both boxes, so no touch on
+    the segment comes before this. The second test is what keeps
     a sphere sliding over a surface to the nodes right under it: grown per axis, the boxes
     of every patch within r beside it would hold its centre."""
     mx, my, mz = ax + 0.5 * tmax * ux, ay + 0.5 * tmax * uy, az + 0.5 * tmax * uz
     ball = grow + 0.5 * tmax * length
     if _node_gap2(C, at, mx, my, mz) > ball * ball:
         return 2.0 * tmax + 1.0
+    # a sphere touching none of the node's triangles at the start and never nearer to the
+    # plane of its first face's side it stays on than r (sliding over a flat patch, or
+    # lifting off it) never comes nearer to them than r: no touch in the node
+    n0 = C[at + N_AXES] * ax + C[at + N_AXES + 1] * ay + C[at + N_AXES + 2] * az
+    n1 = n0 + tmax * (C[at + N_AXES] * ux + C[at + N_AXES + 1] * uy + C[at + N_AXES + 2] * uz)
+    top, bottom = C[at + N_EXT + 3], C[at + N_EXT]
+    if (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r):
+        if _node_gap2(C, at, ax, ay, az) > grow * grow:
+            return 2.0 * tmax + 1.0
     t0, t1 = 0.0, tmax
     t0, t1 = _slab_entry(ax, ux, C[at + N_LO] - grow, C[at + N_HI] + grow, t0, t1)
     t0, t1 = _slab_entry(ay, uy, C[at + N_LO + 1] - grow, C[at + N_HI + 1] + grow, t0, t1)
@@ -734,26 +745,35 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
 def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
                best_lam, bnx, bny, bnz, bi, far2):
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
-    returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far²."""
+    returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far².
+    Only the part of the segment before the earliest hit so far (lam < best_lam) is tested."""
     for j in range(j0, j1, RECORD_WIDTH):
         # a segment that stays more than r off the plane, on one side, never reaches it
         h0 = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
-        h1 = h0 + C[j] * ux + C[j + 1] * uy + C[j + 2] * uz
+        hd = C[j] * ux + C[j + 1] * uy + C[j + 2] * uz
+        h1 = h0 + best_lam * hd
         if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
             continue
+        # nor one that stays r off it and does not touch the triangle at the start (sliding
+        # over a flat patch): the disc about its centre that holds it bounds its distance
+        if (h0 >= r and h1 >= r) or (h0 <= -r and h1 <= -r):
+            ex, ey, ez = C[j + 4] - ax, C[j + 5] - ay, C[j + 6] - az
+            beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h0 * h0, 0.0)) - C[j + 7]
+            if beyond > 0.0 and h0 * h0 + beyond * beyond > slab * slab:
+                continue
         # nor one that stays more than r off the disc about its centre that holds it in its
         # plane: at the segment's point p nearest that centre, the height over the plane and
         # the distance beyond the disc bound the distance, and no point of the segment is
-        # nearer than that less |p - p'| <= length (the distance is 1-Lipschitz)
+        # nearer than that less |p - p'| <= its length (the distance is 1-Lipschitz)
         ex, ey, ez = C[j + 4] - ax, C[j + 5] - ay, C[j + 6] - az
         s = (ex * ux + ey * uy + ez * uz) / dd
-        s = 0.0 if s < 0.0 else 1.0 if s > 1.0 else s
+        s = 0.0 if s < 0.0 else best_lam if s > best_lam else s
         ex, ey, ez = ex - s * ux, ey - s * uy, ez - s * uz
-        hs = h0 + s * (h1 - h0)
+        hs = h0 + s * hd
         beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - hs * hs, 0.0)) - C[j + 7]
         if beyond < 0.0:
             beyond = 0.0
-        bound = math.sqrt(hs * hs + beyond * beyond) - length
+        bound = math.sqrt(hs * hs + beyond * beyond) - best_lam * length
         if bound > slab:
             continue
         i = int(C[j + 8])
@@ -940,34 +960,39 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
         C[C_STAMPS + bi] = stamp
     nodes = np.empty(STACK, dtype=np.int64)
     entries = np.empty(STACK)
-    nodes[0], entries[0] = 1, _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, slab, best_lam)
+    asked = np.empty(STACK)  # the earliest touch when the node's entry was found
+    nodes[0], entries[0] = 1, _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, best_lam)
+    asked[0] = best_lam
     top = 1
     while top > 0:
         top -= 1
         node, entry = nodes[top], entries[top]
         if entry > best_lam:
             continue
+        if best_lam < asked[top]:  # a touch found since: the segment before it is shorter
+            if _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, best_lam) > best_lam:
+                continue
         if node >= size:
             j0, j1 = _leaf_records(C, tree, node, size, n)
             best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
                 T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
                 best_lam, bnx, bny, bnz, bi, far2)
             continue
-        e0 = _node_entry(C, base + NODE_WIDTH * 2 * node, ax, ay, az, ux, uy, uz, length, slab, best_lam)
-        e1 = _node_entry(C, base + NODE_WIDTH * (2 * node + 1), ax, ay, az, ux, uy, uz, length, slab, best_lam)
+        e0 = _node_entry(C, base + NODE_WIDTH * 2 * node, ax, ay, az, ux, uy, uz, length, r, slab, best_lam)
+        e1 = _node_entry(C, base + NODE_WIDTH * (2 * node + 1), ax, ay, az, ux, uy, uz, length, r, slab, best_lam)
         if e0 <= e1:  # the earlier entered on top of the stack, read first
             if e1 <= best_lam:
-                nodes[top], entries[top] = 2 * node + 1, e1
+                nodes[top], entries[top], asked[top] = 2 * node + 1, e1, best_lam
                 top += 1
             if e0 <= best_lam:
-                nodes[top], entries[top] = 2 * node, e0
+                nodes[top], entries[top], asked[top] = 2 * node, e0, best_lam
                 top += 1
         else:
             if e0 <= best_lam:
-                nodes[top], entries[top] = 2 * node, e0
+                nodes[top], entries[top], asked[top] = 2 * node, e0, best_lam
                 top += 1
             if e1 <= best_lam:
-                nodes[top], entries[top] = 2 * node + 1, e1
+                nodes[top], entries[top], asked[top] = 2 * node + 1, e1, best_lam
                 top += 1
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
