@@ -69,7 +69,6 @@ says what `softproxy devices` prints about the backend.
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import ctypes
 import functools
@@ -83,6 +82,7 @@ import weakref
 from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
+from .lifecycle import DeviceLifecycle, OpenDevices
 
 NAME = "Force Dimension"
 INSTALL_HINT = "pip install 'softproxy[forcedimension]'"
@@ -126,15 +126,8 @@ MODEL_LIMITS = {
 UNKNOWN_LIMITS = ("unknown model", 5.0, 0.0, 0.0)
 """A type id not in MODEL_LIMITS (a newer model, a custom controller): a conservative force, no torque."""
 
-_OPEN: "weakref.WeakSet[ForceDimensionDevice]" = weakref.WeakSet()
+_OPEN = OpenDevices()
 """Devices opened and not closed yet: closed (zero force, forces disabled) at interpreter exit."""
-
-
-@atexit.register
-def _close_open_devices() -> None:
-    """At exit, zero force on every device left open: nothing else would write it."""
-    for device in list(_OPEN):
-        device.close()
 
 
 _CONFIG_KEYS = {"type", "index", "serial", "gripper", "gripper_axis", "workspace_scale", "workspace_offset",
@@ -259,8 +252,11 @@ def quaternion_from_matrix(r) -> tuple[float, float, float, float] | None:
     return tuple(c / n for c in q)
 
 
-class ForceDimensionDevice:
+class ForceDimensionDevice(DeviceLifecycle):
     """One Force Dimension device: one finger, or two on a gripper (see the module docstring)."""
+
+    STATS = ("sends", "nan_sends", "saturated", "invalid_samples", "failures", "errors", "reopens", "recoveries",
+             "stall_zeroes")
 
     def __init__(self, dhd=None, *, index: int | None = None, serial: int | None = None, gripper: str = "auto",
                  gripper_axis: str = "y", workspace_scale: float = 1.0, workspace_offset=(0.0, 0.0, 0.0),
@@ -656,18 +652,6 @@ class ForceDimensionDevice:
         except Exception:
             pass
         self._release()
-
-    def __enter__(self) -> "ForceDimensionDevice":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def stats(self) -> dict:
-        """Counters of what the device did."""
-        return {name: getattr(self, name) for name in (
-            "sends", "nan_sends", "saturated", "invalid_samples", "failures", "errors", "reopens", "recoveries",
-            "stall_zeroes")}
 
     def __repr__(self) -> str:
         return (f"ForceDimensionDevice({self.label!r}, fingers={self.fingers}, max_force={self.max_force:g}, "

@@ -86,6 +86,7 @@ from pathlib import Path
 from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
+from .lifecycle import DeviceLifecycle
 from .hid_profile import (
     Profile,
     ProfileError,
@@ -200,10 +201,13 @@ class _NoTransport:
         pass
 
 
-class HidDevice:
+class HidDevice(DeviceLifecycle):
     """One finger read from (and, with an [output], rendered on) a HID device described by a profile."""
 
     fingers = 1
+    STATS = ("reports", "bad_reports", "ignored_reports", "status_faults", "sequence_errors", "dropped", "duplicates",
+             "out_of_order", "backlogs", "invalid_samples", "stale_samples", "sends", "nan_sends", "failures",
+             "transport_errors", "reopens", "recoveries")
 
     def __init__(self, profile, transport, *, mode: str | None = None, workspace_scale: float = 1.0,
                  workspace_offset=(0.0, 0.0, 0.0), workspace_half_m=(0.1, 0.1, 0.1),
@@ -684,19 +688,6 @@ class HidDevice:
             self._transport.close()
         except Exception:  # closing a vanished device must not mask what the caller is doing
             pass
-
-    def __enter__(self) -> "HidDevice":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def stats(self) -> dict:
-        """Counters of what the device did (reports, faults, sends)."""
-        return {name: getattr(self, name) for name in (
-            "reports", "bad_reports", "ignored_reports", "status_faults", "sequence_errors", "dropped",
-            "duplicates", "out_of_order", "backlogs", "invalid_samples", "stale_samples", "sends", "nan_sends",
-            "failures", "transport_errors", "reopens", "recoveries")}
 
     def __repr__(self) -> str:
         return f"HidDevice({self.label!r}, mode={self.mode!r}, max_force={self.max_force:g})"

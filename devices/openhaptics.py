@@ -65,7 +65,6 @@ id; both are reported as hdInitDevice failing, naming what to check.
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import ctypes
 import importlib
@@ -73,11 +72,11 @@ import io
 import math
 import time
 import types
-import weakref
 
 from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
+from .lifecycle import DeviceLifecycle, OpenDevices
 
 NAME = "OpenHaptics"
 INSTALL_HINT = "pip install 'softproxy[openhaptics]'"
@@ -111,16 +110,10 @@ MODEL_LIMITS = {
 UNKNOWN_LIMITS = (3.3, 0.88)
 """A model not in MODEL_LIMITS and no limit from the SDK: the Touch's, the smallest device."""
 
-_OPEN: "weakref.WeakSet[OpenHapticsDevice]" = weakref.WeakSet()
-"""Devices opened and not closed yet: closed at interpreter exit, while their scheduler still runs."""
-
-
-@atexit.register
-def _close_open_devices() -> None:
-    """At exit, zero force and stop the scheduler of every device left open: the scheduler
-    thread calls into Python, which must not happen in an interpreter being torn down."""
-    for device in list(_OPEN):
-        device.close()
+_OPEN = OpenDevices()
+"""Devices opened and not closed yet: closed at interpreter exit (zero force, scheduler stopped), while
+their scheduler still runs - its thread calls into Python, which must not happen in an interpreter
+being torn down."""
 
 
 _CONFIG_KEYS = {"type", "device_name", "workspace_scale", "workspace_offset", "max_force_N", "stale_ms",
@@ -189,11 +182,13 @@ def _quaternion(r) -> tuple | None:
     return (w / n, x / n, y / n, z / n)
 
 
-class OpenHapticsDevice:
+class OpenHapticsDevice(DeviceLifecycle):
     """One OpenHaptics device (Touch, Touch X): one finger, 3-DOF force (see the module docstring)."""
 
     fingers = 1
     max_torque = 0.0
+    STATS = ("sends", "nan_sends", "invalid_samples", "stale_samples", "failures", "reopens", "recoveries",
+             "callback_ticks", "callback_zeroed")
 
     def __init__(self, binding=None, *, device_name: str = "Default Device", workspace_scale: float = 1.0,
                  workspace_offset=(0.0, 0.0, 0.0), max_force: float | None = None, stale_ms: float = 20.0,
@@ -495,18 +490,6 @@ class OpenHapticsDevice:
         except Exception:
             pass
         self._stop(self._device)
-
-    def __enter__(self) -> "OpenHapticsDevice":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def stats(self) -> dict:
-        """Counters of what the device did."""
-        return {name: getattr(self, name) for name in (
-            "sends", "nan_sends", "invalid_samples", "stale_samples", "failures", "reopens", "recoveries",
-            "callback_ticks", "callback_zeroed")}
 
     def __repr__(self) -> str:
         return f"OpenHapticsDevice({self.label!r}, model={self.model!r}, max_force={self.max_force:g})"

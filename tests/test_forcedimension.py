@@ -538,7 +538,7 @@ def test_a_device_left_open_is_zeroed_at_exit():
     other, other_dhd, _, _ = make(OMEGA3)
     other.close()
     calls = len(other_dhd.calls)
-    fdmod._close_open_devices()
+    fdmod._OPEN.close_all()
     assert dev.closed
     assert_zero(hw.wire[-1])
     assert not hw.force_enabled and not dhd.handles and len(other_dhd.calls) == calls

@@ -465,7 +465,7 @@ def test_a_device_left_open_is_zeroed_and_stopped_at_exit():
     other, other_fake, _ = make()
     other.close()
     closes = len(other_fake.disabled)
-    ohmod._close_open_devices()
+    ohmod._OPEN.close_all()
     assert dev.closed and fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running and fake.disabled
     assert len(other_fake.disabled) == closes
 
