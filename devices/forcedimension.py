@@ -82,6 +82,7 @@ import weakref
 from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
+from .device_frame import frame_in_engine, is_rotation
 from .lifecycle import DeviceLifecycle, OpenDevices
 
 NAME = "Force Dimension"
@@ -226,14 +227,7 @@ def _to_device(v) -> list:
 def quaternion_from_matrix(r) -> tuple[float, float, float, float] | None:
     """(w, x, y, z) of a rotation matrix (rows), or None when `r` is no rotation (not orthonormal
     within 1e-3, or a reflection): garbage from a device must not become an orientation."""
-    for i in range(3):
-        for j in range(3):
-            d = sum(r[k][i] * r[k][j] for k in range(3)) - (1.0 if i == j else 0.0)
-            if not abs(d) < 1e-3:  # NaN fails too
-                return None
-    det = (r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-           + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]))
-    if not det > 0.0:
+    if not is_rotation(r):
         return None
     tr = r[0][0] + r[1][1] + r[2][2]
     if tr > 0.0:
@@ -508,9 +502,7 @@ class ForceDimensionDevice(DeviceLifecycle):
         q = (1.0, 0.0, 0.0, 0.0)
         mr = None
         if ok and r is not None:
-            m = DEVICE_TO_ENGINE  # the wrist's frame seen from the engine: M R Mᵀ
-            mr = [[sum(m[a][k] * r[k][b] for k in range(3)) for b in range(3)] for a in range(3)]
-            r_e = [[sum(mr[a][k] * m[b][k] for k in range(3)) for b in range(3)] for a in range(3)]
+            mr, r_e = frame_in_engine(DEVICE_TO_ENGINE, r)  # the wrist's frame seen from the engine
             q = quaternion_from_matrix(r_e)
             ok = q is not None
             q = q or (1.0, 0.0, 0.0, 0.0)

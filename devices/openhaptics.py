@@ -76,6 +76,7 @@ import types
 from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
+from .device_frame import frame_in_engine, is_rotation
 from .lifecycle import DeviceLifecycle, OpenDevices
 
 NAME = "OpenHaptics"
@@ -165,14 +166,7 @@ def _model_limits(model: str) -> tuple[float, float]:
 
 def _quaternion(r) -> tuple | None:
     """(w, x, y, z) of a rotation matrix (rows), None when it is no rotation (within 1e-3)."""
-    for i in range(3):
-        for j in range(3):
-            d = sum(r[k][i] * r[k][j] for k in range(3)) - (1.0 if i == j else 0.0)
-            if not abs(d) < 1e-3:
-                return None
-    det = (r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-           + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]))
-    if not det > 0.0:
+    if not is_rotation(r):
         return None
     w = math.sqrt(max(0.0, 1.0 + r[0][0] + r[1][1] + r[2][2])) / 2.0
     x = math.copysign(math.sqrt(max(0.0, 1.0 + r[0][0] - r[1][1] - r[2][2])) / 2.0, r[2][1] - r[1][2])
@@ -437,9 +431,7 @@ class OpenHapticsDevice(DeviceLifecycle):
             return False
         m = DEVICE_TO_ENGINE
         p = [v[0] / 1000.0, v[1] / 1000.0, v[2] / 1000.0]  # mm -> m
-        r = [v[3:6], v[6:9], v[9:12]]
-        mr = [[sum(m[a][k] * r[k][b] for k in range(3)) for b in range(3)] for a in range(3)]
-        q = _quaternion([[sum(mr[a][k] * m[b][k] for k in range(3)) for b in range(3)] for a in range(3)])
+        q = _quaternion(frame_in_engine(m, [v[3:6], v[6:9], v[9:12]])[1])
         if q is None:
             return False
         k, o = self.workspace_scale, self.workspace_offset
