@@ -99,6 +99,15 @@ def limit_fields(cfg: dict, source: str, kwargs: dict, fields) -> None:
             kwargs[arg] = v
 
 
+def construct(source: str, make, *args, **kwargs):
+    """make(*args, **kwargs), a device built from checked fields; a ValueError from its own checks
+    (a value beyond what this device can do) is the same one line with `source` in front."""
+    try:
+        return make(*args, **kwargs)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
+
+
 # --- the --device argument ---------------------------------------------------------------------
 
 def argument_table(argument: str, scene, type_name: str) -> tuple[dict, list[str]]:

@@ -699,10 +699,7 @@ class ForceDimensionDevice(DeviceLifecycle):
             kwargs["stall_ms"] = stall_ms
         if clock is not None:
             kwargs["clock"] = clock
-        try:
-            return cls(dhd, **kwargs)
-        except ValueError as exc:
-            raise ValueError(f"{source}: {exc}") from None
+        return config.construct(source, cls, dhd, **kwargs)
 
     @classmethod
     def from_argument(cls, argument: str, scene=None, *, dhd=None, clock=None) -> "ForceDimensionDevice":

@@ -521,10 +521,7 @@ class OpenHapticsDevice(DeviceLifecycle):
             kwargs["clock"] = clock
         if sleep is not None:
             kwargs["sleep"] = sleep
-        try:
-            return cls(binding, **kwargs)
-        except ValueError as exc:
-            raise ValueError(f"{source}: {exc}") from None
+        return config.construct(source, cls, binding, **kwargs)
 
     @classmethod
     def from_argument(cls, argument: str, scene=None, *, binding=None, clock=None, sleep=None) -> "OpenHapticsDevice":
