@@ -84,6 +84,7 @@ from softproxy.device import DeviceError, DeviceSample
 from . import device_config as config
 from .device_frame import frame_in_engine, is_rotation
 from .lifecycle import DeviceLifecycle, OpenDevices
+from .vendor_binding import availability_row, missing_binding
 
 NAME = "Force Dimension"
 INSTALL_HINT = "pip install 'softproxy[forcedimension]'"
@@ -147,9 +148,7 @@ def load_binding():
         with contextlib.redirect_stderr(said):
             return importlib.import_module("forcedimension_core.dhd")
     except ModuleNotFoundError as exc:
-        if exc.name and exc.name.split(".")[0] == "forcedimension_core":
-            raise DeviceError(f"the Force Dimension binding is not installed: {INSTALL_HINT}") from None
-        raise DeviceError(f"the Force Dimension binding cannot load ({exc}): {INSTALL_HINT}") from None
+        raise missing_binding(exc, "forcedimension_core", NAME, INSTALL_HINT) from None
     except (ImportError, OSError) as exc:
         # the binding raises the same ImportError whatever went wrong and writes the reason to
         # stderr: libdrd not found, found but not loadable (libusb), or older than it needs
@@ -160,15 +159,9 @@ def load_binding():
 
 def availability(dhd=None) -> dict:
     """What `softproxy devices` reports: binding installed, SDK found, devices seen (never raises)."""
-    row = {"backend": "forcedimension", "binding": False, "sdk": False, "devices": None, "message": ""}
+    row, dhd = availability_row("forcedimension", dhd, load_binding)
     if dhd is None:
-        try:
-            dhd = load_binding()
-        except DeviceError as exc:
-            row["binding"] = "not installed" not in str(exc)
-            row["message"] = str(exc)
-            return row
-    row["binding"] = row["sdk"] = True
+        return row
     try:
         version = dhd.getSDKVersion()
         row["sdk_version"] = ".".join(str(int(v)) for v in version)

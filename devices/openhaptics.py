@@ -78,6 +78,7 @@ from softproxy.device import DeviceError, DeviceSample
 from . import device_config as config
 from .device_frame import frame_in_engine, is_rotation
 from .lifecycle import DeviceLifecycle, OpenDevices
+from .vendor_binding import availability_row, missing_binding
 
 NAME = "OpenHaptics"
 INSTALL_HINT = "pip install 'softproxy[openhaptics]'"
@@ -130,9 +131,7 @@ def load_binding():
             device = importlib.import_module("pyOpenHaptics.hd_device")
             callback = importlib.import_module("pyOpenHaptics.hd_callback")
     except ModuleNotFoundError as exc:
-        if exc.name and exc.name.split(".")[0] == "pyOpenHaptics":
-            raise DeviceError(f"the OpenHaptics binding is not installed: {INSTALL_HINT}") from None
-        raise DeviceError(f"the OpenHaptics binding cannot load ({exc}): {INSTALL_HINT}") from None
+        raise missing_binding(exc, "pyOpenHaptics", NAME, INSTALL_HINT) from None
     except (ImportError, OSError, NameError) as exc:  # NameError: the binding knows no libHD for this platform
         raise DeviceError(f"the OpenHaptics SDK library was not found ({type(exc).__name__}: {exc}): "
                           f"{SDK_HINT}") from None
@@ -142,15 +141,9 @@ def load_binding():
 def availability(binding=None) -> dict:
     """What `softproxy devices` reports: binding installed, SDK found (never raises). OpenHaptics
     cannot enumerate devices without opening one: its devices are the names set in Touch Setup."""
-    row = {"backend": "openhaptics", "binding": False, "sdk": False, "devices": None, "message": ""}
+    row, binding = availability_row("openhaptics", binding, load_binding)
     if binding is None:
-        try:
-            binding = load_binding()
-        except DeviceError as exc:
-            row["binding"] = "not installed" not in str(exc)
-            row["message"] = str(exc)
-            return row
-    row["binding"] = row["sdk"] = True
+        return row
     row["message"] = ("devices are not listed (OpenHaptics opens them by the name set in Touch Setup, "
                       "\"Default Device\" unless renamed)")
     return row
