@@ -435,16 +435,25 @@ def _slab_entry(p, u, lo, hi, t0, t1):
 
 
 @njit(cache=True, error_model="numpy")
-def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, tmax):
+def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     """Where (fraction of the segment a + t u, t in [0, tmax], |u| = length (m)) it enters
     the node at C[at]'s boxes, each grown by `grow` (m) on every side; > tmax when it does
     not, or when the boxes lie farther than `grow` plus half its length from its middle, or
     when a sphere of radius r (m) on it touches none of the node's triangles at the start and
-    stays r above the node's oriented box along its first axis. A sphere of radius r < grow
+    stays r above the node's oriented box along its first axis (less `slack` (m), what the
+    box was grown by at packing: a sphere resting on a flat patch is r above it to a
+    rounding). A sphere of radius r < grow
     touching a triangle of the node has its centre within r of both boxes, so no touch on
-    the segment comes before this. The second test is what keeps
+    the segment comes before this, nor before the distance from a to the boxes less `grow`
+    is travelled. The second test is what keeps
     a sphere sliding over a surface to the nodes right under it: grown per axis, the boxes
     of every patch within r beside it would hold its centre."""
+    # no touch before the distance from a falls to r: the distance moves by `length` at most
+    # over the segment (1-Lipschitz)
+    g2 = _node_gap2(C, at, ax, ay, az)
+    lower = (math.sqrt(g2) - grow) / length
+    if lower > tmax:
+        return 2.0 * tmax + 1.0
     mx, my, mz = ax + 0.5 * tmax * ux, ay + 0.5 * tmax * uy, az + 0.5 * tmax * uz
     ball = grow + 0.5 * tmax * length
     if _node_gap2(C, at, mx, my, mz) > ball * ball:
@@ -454,9 +463,9 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, tmax):
     # lifting off it) never comes nearer to them than r: no touch in the node
     n0 = C[at + N_AXES] * ax + C[at + N_AXES + 1] * ay + C[at + N_AXES + 2] * az
     n1 = n0 + tmax * (C[at + N_AXES] * ux + C[at + N_AXES + 1] * uy + C[at + N_AXES + 2] * uz)
-    top, bottom = C[at + N_EXT + 3], C[at + N_EXT]
+    top, bottom = C[at + N_EXT + 3] - slack, C[at + N_EXT] + slack
     if (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r):
-        if _node_gap2(C, at, ax, ay, az) > grow * grow:
+        if g2 > grow * grow:
             return 2.0 * tmax + 1.0
     t0, t1 = 0.0, tmax
     t0, t1 = _slab_entry(ax, ux, C[at + N_LO] - grow, C[at + N_HI] + grow, t0, t1)
@@ -471,7 +480,7 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, tmax):
         t0, t1 = _slab_entry(p, v, C[at + N_EXT + a] - grow, C[at + N_EXT + 3 + a] + grow, t0, t1)
         if t0 > t1:
             return 2.0 * tmax + 1.0
-    return t0
+    return t0 if t0 > lower else lower
 
 
 @njit(cache=True, error_model="numpy")
@@ -951,6 +960,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
     # a node entered after the earliest touch found holds no earlier one
     slab = reach + 1e-12
+    slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
     tree = int(S[k].tree)
     size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
     base = tree + TREE_NODES - NODE_WIDTH
@@ -961,7 +971,8 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     nodes = np.empty(STACK, dtype=np.int64)
     entries = np.empty(STACK)
     asked = np.empty(STACK)  # the earliest touch when the node's entry was found
-    nodes[0], entries[0] = 1, _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, best_lam)
+    nodes[0] = 1
+    entries[0] = _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
     asked[0] = best_lam
     top = 1
     while top > 0:
@@ -970,7 +981,8 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
         if entry > best_lam:
             continue
         if best_lam < asked[top]:  # a touch found since: the segment before it is shorter
-            if _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, best_lam) > best_lam:
+            again = _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+            if again > best_lam:
                 continue
         if node >= size:
             j0, j1 = _leaf_records(C, tree, node, size, n)
@@ -978,8 +990,9 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
                 T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
                 best_lam, bnx, bny, bnz, bi, far2)
             continue
-        e0 = _node_entry(C, base + NODE_WIDTH * 2 * node, ax, ay, az, ux, uy, uz, length, r, slab, best_lam)
-        e1 = _node_entry(C, base + NODE_WIDTH * (2 * node + 1), ax, ay, az, ux, uy, uz, length, r, slab, best_lam)
+        at = base + NODE_WIDTH * 2 * node
+        e0 = _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+        e1 = _node_entry(C, at + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
         if e0 <= e1:  # the earlier entered on top of the stack, read first
             if e1 <= best_lam:
                 nodes[top], entries[top], asked[top] = 2 * node + 1, e1, best_lam
