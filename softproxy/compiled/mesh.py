@@ -435,6 +435,33 @@ def _slab_entry(p, u, lo, hi, t0, t1):
 
 
 @njit(cache=True, error_model="numpy")
+def _span_gap(p0, p1, lo, hi):
+    """The gap (m) between the span p0..p1 and lo..hi on one axis (0 where they overlap)."""
+    if p0 > p1:
+        p0, p1 = p1, p0
+    return lo - p1 if p1 < lo else p0 - hi if p0 > hi else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _span_gap2(C, at, ax, ay, az, ux, uy, uz, tmax):
+    """A lower bound on the squared distance (m²) from the segment a + t u (t in [0, tmax])
+    to the node at C[at]'s triangles: over either box, the sum over its axes of the squared
+    gap between the segment's span and the box's along the axis (the larger of the two)."""
+    ex = _span_gap(ax, ax + tmax * ux, C[at + N_LO], C[at + N_HI])
+    ey = _span_gap(ay, ay + tmax * uy, C[at + N_LO + 1], C[at + N_HI + 1])
+    ez = _span_gap(az, az + tmax * uz, C[at + N_LO + 2], C[at + N_HI + 2])
+    box = ex * ex + ey * ey + ez * ez
+    oriented = 0.0
+    for a in range(3):
+        c = at + N_AXES + 3 * a
+        p = C[c] * ax + C[c + 1] * ay + C[c + 2] * az
+        v = C[c] * ux + C[c + 1] * uy + C[c + 2] * uz
+        e = _span_gap(p, p + tmax * v, C[at + N_EXT + a], C[at + N_EXT + 3 + a])
+        oriented += e * e
+    return box if box > oriented else oriented
+
+
+@njit(cache=True, error_model="numpy")
 def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     """Where (fraction of the segment a + t u, t in [0, tmax], |u| = length (m)) it enters
     the node at C[at]'s boxes, each grown by `grow` (m) on every side; > tmax when it does
@@ -467,6 +494,11 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     if (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r):
         if g2 > grow * grow:
             return 2.0 * tmax + 1.0
+    # per axis of either box, the least gap (m) between the segment's span and the box's:
+    # together they bound the distance from every point of the segment (a tube about it,
+    # where the boxes grown per axis are a square one)
+    if _span_gap2(C, at, ax, ay, az, ux, uy, uz, tmax) > grow * grow:
+        return 2.0 * tmax + 1.0
     t0, t1 = 0.0, tmax
     t0, t1 = _slab_entry(ax, ux, C[at + N_LO] - grow, C[at + N_HI] + grow, t0, t1)
     t0, t1 = _slab_entry(ay, uy, C[at + N_LO + 1] - grow, C[at + N_HI + 1] + grow, t0, t1)
