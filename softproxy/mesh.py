@@ -18,7 +18,8 @@ those triangles ready, once, when a world is loaded (numpy; nothing here runs in
   the kept certificates: per face and side the few triangles near it rising above its plane
   (`_face_tables`), per vertex the vertices near it by how far below its cone they lie
   (`_vertex_tables`), built for every face and vertex at once over the reach of a
-  KEPT_RADIUS proxy at load, and of a larger one by `prepare`.
+  KEPT_RADIUS proxy at load, and of a larger one by `prepare`. And the box tree the
+  queries walk where no certificate holds (`softproxy.compiled.mesh.tree_nodes`).
 A watertight mesh has an inside (signed distance); an open or non-manifold one is a
 two-sided sheet (unsigned distance, both sides solid).
 """
@@ -50,7 +51,7 @@ from softproxy.geometry import Shape
 
 KEPT_RADIUS = 0.005
 """Proxy radius (m) the kept certificates are built for at load, for every face and vertex at
-once; `prepare` builds them for a larger proxy (a query beyond their reach scans the grid)."""
+once; `prepare` builds them for a larger proxy (a query beyond their reach walks the box tree)."""
 KEPT_STEP = 0.002
 """How far (m) a sweep may move and still be covered by the certificates built for its radius."""
 DEGENERATE = 1e-6
@@ -147,8 +148,8 @@ def validate_mesh(vertices, faces, name: str, warn: bool = True) -> tuple[np.nda
 
 class MeshTables:
     """The load-time tables of one set of triangles (geom frame, m), shared by every geom
-    that uses it (`tables_of`): the per-triangle and per-vertex tables and the kept
-    certificates (`reaching` a larger proxy's reach makes new ones). Arrays only (CSR runs for the
+    that uses it (`tables_of`): the per-triangle and per-vertex tables, the box tree
+    (`tree`: triangle order, leaves, nodes) and the kept certificates (`reaching` a larger proxy's reach makes new ones). Arrays only (CSR runs for the
     per-vertex lists), so that a million triangles build in numpy and compiled loops."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, defects: list[str], signed: bool, key: bytes) -> None:

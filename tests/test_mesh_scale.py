@@ -123,7 +123,7 @@ def test_sliver_heavy_tables_hold_what_the_queries_need():
     """On a sliver-heavy part (long side slivers, fans on the caps, four cylinders close
     enough to rise above each other's faces), for sampled faces: every triangle within the
     reach of the face (by points spread over both) rising above its plane is listed, or the
-    face is marked concave (which only sends its queries to the grid); for sampled vertices: every vertex of a triangle within the reach
+    face is marked concave (which only sends its queries to the box tree); for sampled vertices: every vertex of a triangle within the reach
     (exact point-triangle distance) but its ring is in the table no later than its sin β."""
     from mesh_oracle import Oracle
     from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ

@@ -20,7 +20,7 @@ that plane enter any of them. So a query reads only the triangles near q that re
 `softproxy.mesh.MeshShape` builds the lists and tables for every face and vertex at load
 (and for a larger proxy in `prepare`); `certificate_tables` packs them into the mesh tables T
 and C and `static_clear` asks them. Where they do not hold (a concave patch, a reach beyond
-the one they were built for), the caller scans its grid.
+the one they were built for), the caller walks its box tree.
 """
 
 from __future__ import annotations
@@ -42,10 +42,10 @@ distance may be overstated by at most this (m)."""
 STATIC_ABOVE = 8
 """Most triangles reaching above a face's plane that its kept certificate lists (and a query
 then reads: e.g. a vertex a rounding above a coplanar neighbour brings its fan of ~6); more,
-and the face is on a concave patch: no certificate, the grid serves it."""
+and the face is on a concave patch: no certificate, the box tree serves it."""
 VERTEX_READ = 64
 """Most vertices a kept vertex certificate tests against a tangent plane tilted from its cone's
-axis (those whose sin β is below the tilt's sine); more, and the grid serves it."""
+axis (those whose sin β is below the tilt's sine); more, and the box tree serves it."""
 
 assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' lists (an edge's certificate)"
 
@@ -228,7 +228,7 @@ SINE_GRID = 2.0 ** 40
 """Steps per unit a kept vertex table's sin β is rounded down to (≈1e-12), so that equal sines sort alike."""
 BUDGET = 512
 """Most tree leaves one face's or vertex's walk may open; beyond, it gets no certificate (a
-neighbourhood of more than ~4k vertices or triangles within reach: a query there scans the grid)."""
+neighbourhood of more than ~4k vertices or triangles within reach: a query there walks the box tree)."""
 DEAD_SINE = 1e-12
 """A full vertex table whose every sin β is below this certifies nothing: a query reads the
 entries below its tilt's sine (never less than 1e-12, `_vertex_few`), all of them, past
@@ -543,7 +543,7 @@ def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho,
     reach (the long tree). A walk nearest box first that, once the table is full, leaves out
     the boxes that cannot hold a lower sin β. A vertex whose walk opens more than BUDGET
     leaves, or whose full table is all below DEAD_SINE, gets a table that certifies nothing
-    (VERTEX_READ + 1 entries at sin β = -1: every query reads past VERTEX_READ, and the grid
+    (VERTEX_READ + 1 entries at sin β = -1: every query reads past VERTEX_READ, and the box tree
     serves it). `mark` (one int per vertex) is
     scratch, stamped from stamp0 + 1 on."""
     keep = sines.shape[1]
