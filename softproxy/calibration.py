@@ -1,9 +1,9 @@
 """Fingertip calibration: fit the engine's measured laws E1 and E2 to indentation data.
 
-Data: seed `004_281304bfebb18f9f.txt` (in vivo fingertip indented by a flat plate to 1, 2 and
+Data: the paper *A preliminary approach to study the behavior of human fingertip at contact via experimental test and numerical model* (in vivo fingertip indented by a flat plate to 1, 2 and
 3 mm; Table 1 contact area, Table 2 force, Table 3 pressure area, Table 6 the authors' FE model
 beside the measurements), shipped as `scenes/data/fingertip_004.csv` with a header citing the
-tables. Laws: seed `002_36b58acb2f958b03.txt` eq 22 (E1, `softproxy.fingertip.e1_force`)
+tables. Laws: the paper *Simulating human fingers: a Soft Finger Proxy Model and Algorithm* eq 22 (E1, `softproxy.fingertip.e1_force`)
 and eq 23 (E2, `softproxy.fingertip.e2_radius_ratio`):
 
     E1   P = b/m (e^{mδ} − 1)                 force P (N) against indentation δ

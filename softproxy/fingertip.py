@@ -1,7 +1,7 @@
 """Fingertip contact models: how much torque a soft fingertip resists about the contact normal.
 
-Source: seed `002_36b58acb2f958b03.txt` (Barbagli et al., "Simulating human fingers: a
-soft finger proxy model and algorithm"), §4–6 and Table 1. Every law here takes and
+Source: Barbagli et al., *Simulating human fingers: a Soft Finger Proxy Model and
+Algorithm*, §4–6 and Table 1. Every law here takes and
 returns SI units (N, m, N·m); the paper's mm and N·mm constants are converted once, in
 the block of seed constants below, through `softproxy.units`.
 

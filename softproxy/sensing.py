@@ -2,8 +2,8 @@
 skin to the contact point, normal, normal and friction force, local torque and skin
 deformation.
 
-Source: seed `003_dde046167b75cf18.txt` (Liu et al., "Finger contact sensing and the
-application in dexterous hand manipulation"), §2–3: the skin law (eq 1), the deformed
+Source: Liu et al., *Finger contact sensing and the application in dexterous hand
+manipulation*, §2–3: the skin law (eq 1), the deformed
 ellipsoid (eq 2), the sensor mounting (eqs 3–4), the equilibrium (eqs 5–6), the normal /
 tangential split (eqs 7–8), the system g(x) = 0 (eqs 9–10) and its Levenberg–Marquardt
 solution (eqs 11–13, Algorithm 1). Everything here is SI (N, m, N·m); the paper's mm and

@@ -1,8 +1,9 @@
 """Tactile output of a soft finger: the Inoue–Hirai virtual-spring pressure image.
 
-Source: seeds `000_0fe7994add68778f.txt` (Inoue & Hirai, "Rotational contact model of soft
-fingertip for tactile sensing": eqs 1–19 rotational contact, eqs 20–30 rolling contact, §III
-simulation) and `001_aa4b11196216a2cc.txt` (the same authors' earlier paper: the pose
+Source: Inoue & Hirai, *Rotational Contact Model of Soft Fingertip for Tactile Sensing*
+(eqs 1–19 rotational contact, eqs 20–30 rolling contact, §III
+simulation) and *Contact Model of 1 D.O.F. Finger Having Rotational Joint with Soft Tip*
+(the same authors' earlier paper: the pose
 transform ⁰T_k and eqs 2–8). A hemispherical soft fingertip of radius r sits on a sensing
 plane on a one-joint finger; the joint axis lies in the sensing plane at distance L from the
 fingertip's axis. Rotating the finger presses the fingertip into a rigid flat object; every

@@ -1,6 +1,6 @@
 """The fourth DOF of the soft-finger proxy: stick/slip torsional friction about the contact normal.
 
-Seed `002_36b58acb2f958b03.txt`, §7, eqs 38–42, with two errata fixed (../shared/DESIGN.md):
+The paper *Simulating human fingers: a Soft Finger Proxy Model and Algorithm*, §7, eqs 38–42, with two errata fixed (docs/physics.md):
 - eq 40 lacks sign(α_g - α_p): without it a slip in the negative direction overshoots the
   goal and flips the torque. Here a slip leaves the proxy exactly μ_d|P|^γ / k_τ from the goal
   on the side it came from, so after a slip |M| = μ_d|P|^γ with the sign of the twist;

@@ -1,4 +1,4 @@
-"""Fingertip calibration (E1, E2 of seed 002) against seed 004_281304bfebb18f9f.txt's measurements."""
+"""Fingertip calibration (E1, E2 of seed 002) against the paper *A preliminary approach to study the behavior of human fingertip at contact via experimental test and numerical model*'s measurements."""
 
 import json
 import math

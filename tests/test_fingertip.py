@@ -1,4 +1,4 @@
-"""Fingertip laws against seed 002_36b58acb2f958b03.txt (Barbagli et al.)."""
+"""Fingertip laws against the paper *Simulating human fingers: a Soft Finger Proxy Model and Algorithm* (Barbagli et al.)."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""Intrinsic contact sensing against seed 003_dde046167b75cf18.txt (Liu et al.).
+"""Intrinsic contact sensing against the paper *Finger contact sensing and the application in dexterous hand manipulation* (Liu et al.).
 
 Equation numbers are the seed's: eq 1 (skin law), eq 2 (deformed ellipsoid), eqs 3–4 (sensor
 mounting), eq 6 (equilibrium), eqs 7–8 (normal / tangential split), eqs 9–13 and Algorithm 1

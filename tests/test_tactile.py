@@ -1,4 +1,4 @@
-"""Inoue–Hirai virtual-spring tactile model against seeds 000_0fe7994add68778f.txt and 001_aa4b11196216a2cc.txt."""
+"""Inoue–Hirai virtual-spring tactile model against the paper *Rotational Contact Model of Soft Fingertip for Tactile Sensing* and *Contact Model of 1 D.O.F. Finger Having Rotational Joint with Soft Tip*."""
 
 import json
 import math

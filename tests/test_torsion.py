@@ -1,5 +1,5 @@
 """The torsional DOF of the soft-finger proxy (`TorsionalFriction`, and inside `SoftFingerProxy`)
-against `SeedLaw`, seed 002_36b58acb2f958b03.txt §7 eqs 38–42 written out here with DESIGN's
+against `SeedLaw`, the paper *Simulating human fingers: a Soft Finger Proxy Model and Algorithm* §7 eqs 38–42 written out here with DESIGN's
 errata, and the seed's Table 1 and eqs 26–27 for the limits."""
 
 import math
