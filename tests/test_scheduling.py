@@ -58,3 +58,23 @@ def test_a_cpu_the_machine_lacks_is_reported_not_raised():
     with realtime_thread(None, 10_000) as granted:
         pass
     assert granted.cpus is None and "CPU 10000 refused" in str(granted)
+
+
+@linux
+def test_a_servo_thread_runs_where_it_was_asked_and_reports_it():
+    """`run_in_thread(cpu=…)` pins the servo thread (not the caller) and keeps what was granted;
+    the run itself is the same run."""
+    from softproxy.run import build, open_device
+    from softproxy.scene import load_scene
+
+    scene = load_scene("two_finger_grasp")
+    before = os.sched_getaffinity(0)
+    cpu = max(before)
+    with build(scene, open_device("sim", scene), realtime=False) as loop:
+        thread = loop.run_in_thread(200, realtime=False, cpu=cpu)
+        thread.join(60)
+        assert not thread.is_alive() and loop.error is None and loop.ticks == 200
+        assert loop.scheduling.cpus == {cpu} and loop.scheduling.priority is None
+    assert os.sched_getaffinity(0) == before
+    with pytest.raises(ValueError, match="priority"):
+        loop.run_in_thread(10, priority=0)
