@@ -82,6 +82,13 @@ def refusal(path, seconds=5.0, peak_bytes=16 << 20):
 
 # --- a lockstep replay reproduces the run --------------------------------------------------
 
+def _sigint_by_default() -> None:
+    """In the child before exec: SIGINT at its default, as a terminal's Ctrl-C finds it. A
+    shell that runs the tests in the background ignores SIGINT, children inherit that, and
+    Python then never raises KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 
 def test_replay_reproduces_the_recorded_run(recorded):
     """Replaying the streamed recording in lockstep gives the recorded run's result exactly."""
@@ -158,6 +165,7 @@ def test_a_killed_run_leaves_a_recording_that_replays(recorded, tmp_path, sig):
     path = tmp_path / "killed.rec"
     stderr = open(tmp_path / "stderr.txt", "w+")
     proc = subprocess.Popen([sys.executable, str(script), str(path)], stdout=subprocess.PIPE,
+                            preexec_fn=_sigint_by_default,
                             stderr=stderr, text=True, cwd=tmp_path)
     try:
         deadline = time.monotonic() + 30.0

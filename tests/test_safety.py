@@ -76,6 +76,13 @@ def assert_sends_safe(device, fmax, tmax):
     return w
 
 
+def _sigint_by_default() -> None:
+    """In the child before exec: SIGINT at its default, as a terminal's Ctrl-C finds it. A
+    shell that runs the tests in the background ignores SIGINT, children inherit that, and
+    Python then never raises KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("field", ["damping", "torsion_damping"])
 def test_broken_gains_render_zero_and_count_a_fault(field):
     """Gains past what validation admits (set on a live finger: 1e308) make the wrench Inf/NaN:
@@ -286,6 +293,7 @@ def test_every_way_out_of_a_run_sends_zero_force(tmp_path, how, sig):
     its application raises: the last thing each finger was sent is zero, and the device was closed."""
     log = tmp_path / "sends.log"
     proc = subprocess.Popen([sys.executable, "-c", CHILD, str(log), how], stdout=subprocess.DEVNULL,
+                            preexec_fn=_sigint_by_default,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         deadline = time.monotonic() + 120
