@@ -4,6 +4,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 
 def run_cli(*args):
     out = subprocess.run([sys.executable, "-m", "softproxy.cli", *args], capture_output=True, text=True, check=True)
@@ -34,6 +36,7 @@ def test_sense_recovers_a_pushing_contact():
     assert abs(out["normal_force_N"] - 1.0) < 1e-9
 
 
+@pytest.mark.slow  # two commands, each in its own process, writing charts
 def test_tactile_and_calibrate_print_json(tmp_path):
     tactile = json.loads(run_cli("tactile", "inoue-hirai", "--json", "--out", str(tmp_path)))
     assert {"rotation", "rolling", "frame"} <= set(tactile)

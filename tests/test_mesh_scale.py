@@ -119,6 +119,7 @@ def test_sliver_heavy_mesh_builds_within_bounded_memory():
     assert tables_of(v.copy(), f.copy(), "the same part again") is tables
 
 
+@pytest.mark.slow  # a long property run
 def test_sliver_heavy_tables_hold_what_the_queries_need():
     """On a sliver-heavy part (long side slivers, fans on the caps, four cylinders close
     enough to rise above each other's faces), for sampled faces: every triangle within the

@@ -459,6 +459,7 @@ def test_distance_matches_the_closed_forms(scene, seed, points):
             distance_cases(scene, shape, points)
 
 
+@pytest.mark.slow  # a long property run
 @settings(max_examples=15, deadline=None)
 @given(seeds, st.lists(st.tuples(local_points, scales), min_size=1, max_size=3))
 def test_ellipsoid_distance_matches_the_brute_force_nearest_point(scene, seed, points):
@@ -780,6 +781,7 @@ def sweep_cases(scene, shape, u, s, v, length, r, inward):
     return [hit for hit in hits if hit is not None]
 
 
+@pytest.mark.slow  # a long property run
 @settings(max_examples=40, deadline=None)
 @given(seeds, local_points, st.sampled_from([0.3, 1.0, 2.0, 3.0]), local_points,
        st.sampled_from([0.0, 1e-6, 0.1, 1.0, 3.0, 100.0]), radii,
