@@ -61,6 +61,18 @@ def point_triangle(p, a, b, c):
     return best, q
 
 
+
+def triangles_near(o, samples: np.ndarray, i: int, radius: float) -> np.ndarray:
+    """Indices of the triangles of `o` within `radius` (m) of triangle i, judged on `samples`
+    (points spread over each triangle, (triangles, k, 3)): a triangle with a sample that close
+    to triangle i, or close to one of triangle i's samples, is within the reach (a subset of
+    the triangles truly within it, which the engine's tables must cover)."""
+    maybe = np.flatnonzero(np.linalg.norm(o.centre - o.centre[i], axis=1) - o.rho - o.rho[i] <= radius)
+    gap = np.minimum(
+        point_triangle(samples[maybe], o.a[i], o.b[i], o.c[i])[0].min(axis=1),
+        point_triangle(samples[i][None], o.a[maybe][:, None], o.b[maybe][:, None], o.c[maybe][:, None])[0].min(axis=1))
+    return maybe[gap <= radius]
+
 class Oracle:
     """A mesh's triangles (world frame, m) and brute-force answers about them."""
 

@@ -19,7 +19,7 @@ from hypothesis import example, given, settings, strategies as st
 
 from mesh_oracle import (
     EXACT, MESHES, Oracle, bowl, geodesic_sphere, mesh_model, mesh_of, oracle, peak_in_a_wall, point_triangle, prism,
-    sheet, small_tetra, sphere10k, tilted_ball, uv_sphere,
+    sheet, small_tetra, sphere10k, tilted_ball, triangles_near, uv_sphere,
 )
 from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
 from softproxy.compiled.layout import EDGE_WIDTH, T_COLUMNS, T_EDGES
@@ -595,11 +595,7 @@ def test_kept_tables_built_at_load_match_brute_force():
     weights = np.array([(a, b, 6 - a - b) for a in range(7) for b in range(7 - a)], float) / 6.0
     samples = np.einsum("sk,tkx->tsx", weights, abc)
     for i in range(len(f)):
-        maybe = np.flatnonzero(np.linalg.norm(o.centre - o.centre[i], axis=1) - o.rho - o.rho[i] <= radius)
-        gap = np.minimum(
-            point_triangle(samples[maybe], o.a[i], o.b[i], o.c[i])[0].min(axis=1),
-            point_triangle(samples[i][None], o.a[maybe][:, None], o.b[maybe][:, None], o.c[maybe][:, None])[0].min(axis=1))
-        near = maybe[gap <= radius]
+        near = triangles_near(o, samples, i, radius)
         height = abc[near] @ o.n[i] - o.off[i]
         for side, key in ((1.0, i), (-1.0, -1 - i)):
             rising = set(near[(side * height > ABOVE_TOL).any(axis=1)].tolist())

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from mesh_oracle import EXACT, Oracle, l_prism, mesh_model, mesh_of, point_triangle
+from mesh_oracle import EXACT, Oracle, l_prism, mesh_model, mesh_of, point_triangle, triangles_near
 from softproxy.geometry import ShapeSet
 from softproxy.mesh import MeshShape
 
@@ -143,11 +143,7 @@ def test_sliver_heavy_tables_hold_what_the_queries_need():
     rng = np.random.default_rng(4)
     certified = concave = 0
     for i in rng.choice(len(f), 100, replace=False):
-        maybe = np.flatnonzero(np.linalg.norm(o.centre - o.centre[i], axis=1) - o.rho - o.rho[i] <= radius)
-        gap = np.minimum(
-            point_triangle(samples[maybe], o.a[i], o.b[i], o.c[i])[0].min(axis=1),
-            point_triangle(samples[i][None], o.a[maybe][:, None], o.b[maybe][:, None], o.c[maybe][:, None])[0].min(axis=1))
-        near = maybe[gap <= radius]
+        near = triangles_near(o, samples, i, radius)
         height = abc[near] @ o.n[i] - o.off[i]
         for side, key in ((1.0, i), (-1.0, -1 - i)):
             rising = set(near[(side * height > ABOVE_TOL).any(axis=1)].tolist()) - {i}
