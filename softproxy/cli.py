@@ -126,8 +126,12 @@ def _check_run_flags(args: argparse.Namespace) -> dict | None:
     if args.rate is not None and not (math.isfinite(args.rate) and MIN_RATE_HZ <= args.rate <= MAX_RATE_HZ):
         raise ValueError(f"--rate must be a servo rate between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got {args.rate!r}")
     if args.rt_priority is not None:
-        if not 1 <= args.rt_priority <= 99:
-            raise ValueError(f"--rt-priority must be a SCHED_FIFO priority from 1 to 99, got {args.rt_priority}")
+        from softproxy.scheduling import check_priority
+
+        try:
+            check_priority(args.rt_priority)
+        except ValueError as exc:
+            raise ValueError(f"--rt-priority: {exc}") from None
         if args.headless and not args.realtime:
             raise ValueError("--rt-priority schedules a real-time run: add --realtime (a lockstep run is not paced)")
     name, colon, argument = args.device.partition(":")

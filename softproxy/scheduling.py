@@ -38,13 +38,19 @@ class Granted:
         return text + ("" if not self.refused else f" ({'; '.join(self.refused)})")
 
 
+def check_priority(priority) -> None:
+    """ValueError unless `priority` is a SCHED_FIFO priority (an integer from 1 to 99)."""
+    if isinstance(priority, bool) or not (isinstance(priority, int) and 1 <= priority <= 99):
+        raise ValueError(f"real-time priority must be an integer from 1 to 99, got {priority!r}")
+
+
 @contextmanager
 def realtime_thread(priority: int | None = DEFAULT_PRIORITY, cpu: int | None = None):
     """Run the calling thread under SCHED_FIFO at `priority` (None: leave the policy) and pinned
     to `cpu` (None: leave the affinity) until the block ends, then restore both. Yields a
     `Granted`; a request the OS refuses is reported there, never raised."""
-    if priority is not None and not (isinstance(priority, int) and 1 <= priority <= 99):
-        raise ValueError(f"real-time priority must be an integer from 1 to 99, got {priority!r}")
+    if priority is not None:
+        check_priority(priority)
     granted = Granted()
     policy = param = affinity = None
     if not hasattr(os, "sched_setscheduler"):

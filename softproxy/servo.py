@@ -45,7 +45,7 @@ from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
 from softproxy.finger_rows import FingerRows
-from softproxy.scheduling import realtime_thread
+from softproxy.scheduling import check_priority, realtime_thread
 from softproxy.world import World
 
 MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
@@ -441,8 +441,8 @@ class ServoLoop:
         granted is kept in `scheduling`."""
         self.error = None
         self.scheduling = None
-        if priority is not None and not (isinstance(priority, int) and 1 <= priority <= 99):
-            raise ValueError(f"real-time priority must be an integer from 1 to 99, got {priority!r}")
+        if priority is not None:
+            check_priority(priority)  # here, in the caller's thread, not in the servo thread
 
         def servo() -> None:
             try:
