@@ -45,7 +45,7 @@ from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
 from softproxy.finger_rows import FingerRows
-from softproxy.scheduling import check_priority, realtime_thread
+from softproxy.scheduling import check_priority, realtime_thread, spin_time
 from softproxy.world import World
 
 MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
@@ -373,13 +373,16 @@ class ServoLoop:
         self.state[0].send_error += 1
         self.last_send_error = str(exc) or type(exc).__name__
 
-    def run(self, ticks: int, realtime: bool = False, on_tick=None, spin_s: float = 1.5e-3, every: int = 1) -> None:
+    def run(self, ticks: int, realtime: bool = False, on_tick=None, spin_s: float | None = None,
+            every: int = 1) -> None:
         """Run `ticks` ticks: lockstep (as fast as possible, deterministic) or paced in real time.
 
         Paced: a tick sleeps only when more than `spin_s` remains before its deadline and
-        spins for the rest (a sleep can overshoot by a millisecond on a busy machine), and
-        Python's cyclic garbage collector is paused for the run (a collection is a pause of
-        its own). At 1 kHz that means one core spinning, as a haptic servo thread does.
+        spins for the rest, and Python's cyclic garbage collector is paused for the run (a
+        collection is a pause of its own). `spin_s` None: chosen for the calling thread
+        (`softproxy.scheduling.spin_time`): an ordinary thread spins up to 1.5 ms (a sleep
+        can overshoot by a millisecond on a busy machine; at 1 kHz one core spinning, as a
+        haptic servo thread does), a SCHED_FIFO one at most 0.2 ms (RT throttling).
         `on_tick(loop)` is called after every `every` ticks (and after the last), outside
         the timed region; with compiled blocks a larger `every` leaves more of the run
         compiled. `request_stop()` (from another thread) ends the run after the current
@@ -396,7 +399,7 @@ class ServoLoop:
             if realtime:
                 self.paced = True
                 st.watching = self.overrun_watchdog is not False
-                st.spin_ns = int(spin_s * 1e9)
+                st.spin_ns = int((spin_time(self.rate_hz) if spin_s is None else spin_s) * 1e9)
                 st.next_ns = native.monotonic_ns()
                 gc.disable()
             block = every if on_tick is not None else max(1, int(BLOCK_S * self.rate_hz))

@@ -632,3 +632,51 @@ def test_kept_tables_built_at_load_match_brute_force():
         for w, sine in zip(others, beta):
             if sine < cut:
                 assert kept[ids[tuple(v[w].tolist())]] <= sine + 1e-12, (vertex, w)
+
+
+def patches(shape) -> list[tuple[float, int]]:
+    """(radius (m), count) of each hint slot's patch of a mesh shape (count -1: too full)."""
+    from softproxy.compiled.layout import HINT_SLOTS, P_COUNT, P_RADIUS, PATCH_WIDTH
+
+    at, C = int(shape.set.S[shape.row].patch), shape.set.C
+    return [(C[at + PATCH_WIDTH * k + P_RADIUS], int(C[at + PATCH_WIDTH * k + P_COUNT])) for k in range(HINT_SLOTS)]
+
+
+def test_patch_answers_match_the_brute_force():
+    """On the bowl's concave floor and wall no certificate holds, so a query reads the
+    triangles its hint slot's patch gathered (a ball a little larger than the query needs):
+    a 5 mm sphere pressed there, sliding and stepping about asks many queries of one patch.
+    A long sweep gathers a ball too full to keep (the box tree answers it), and the next short
+    query gathers a small one again. Every distance and sweep is the brute force's."""
+    m, d, shapes = bowl()
+    o = oracle(m, d, shapes)
+    s = mesh_of(shapes)
+    rng = np.random.default_rng(21)
+    r = 0.005
+    floor = np.array([0.0, 0.0, 0.04 - 0.035 + r])  # the inner sphere's bottom, r above it
+    p = floor.copy()
+    kept = full = 0
+    for i in range(120):
+        step = rng.normal(size=3) * [1e-5, 2e-4, 1e-3][i % 3]
+        p = p + step
+        dist, nx, ny, nz = check_distance(o, s, [p], i)[0]
+        n = np.array((nx, ny, nz))
+        p = p - n * (dist - r - rng.uniform(-2e-4, 5e-4))  # back near touching, either side
+        check_distance(o, s, [p], i)
+        long = i % 10 == 9
+        for u in (-n * 1e-3, np.cross(n, rng.normal(size=3)) * 2e-3,
+                  rng.normal(size=3) * (0.06 if long else 3e-4)):
+            o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=i)
+        counts = [c for radius, c in patches(s) if radius > 0.0]
+        kept += any(c > 0 for c in counts)
+        full += any(c < 0 for c in counts)
+    assert kept > 100 and full > 0
+    # a long sweep from the floor: too full; a short one after it gathers a small patch again
+    u = np.array([0.03, 0.02, 0.04])
+    o.check_sweep(p, u, r, s.sweep(*p, *u, r))
+    slot = [k for k, (_, c) in enumerate(patches(s)) if c < 0]
+    assert slot
+    u = np.array([2e-4, 0.0, -1e-4])
+    o.check_sweep(p, u, r, s.sweep(*p, *u, r))
+    radius, count = patches(s)[slot[0]]
+    assert 0 < count <= 128 and radius < r + 0.003

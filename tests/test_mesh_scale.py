@@ -334,10 +334,12 @@ def tree_shape(v, f):
 
 def from_tree(shape, hint: int = -1) -> None:
     """The next query of `shape` starts from triangle `hint` (-1: none, so it goes straight to
-    the box tree), its kept answers forgotten."""
+    the box tree), its kept answers forgotten, and it keeps no patches (the tree answers
+    what the hint does not)."""
     record = shape.set.S[shape.row]
     record.hint = -1 if hint < 0 else int(record.t0) + hint
     record.key[:, :] = math.nan
+    record.patch = -1
 
 
 def noisy_ball(triangles: int):

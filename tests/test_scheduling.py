@@ -78,3 +78,47 @@ def test_a_servo_thread_runs_where_it_was_asked_and_reports_it():
     assert os.sched_getaffinity(0) == before
     with pytest.raises(ValueError, match="priority"):
         loop.run_in_thread(10, priority=0)
+
+
+def test_a_real_time_thread_sleeps_most_of_each_period(monkeypatch):
+    """A paced tick spins up to 1.5 ms in an ordinary thread (at 1 kHz it never sleeps) but at
+    most 0.2 ms, and half the period at 10 kHz, under SCHED_FIFO: a real-time thread spinning
+    its whole core is throttled by Linux (stopped 50 ms every second), unless throttling is off."""
+    from softproxy import scheduling
+    from softproxy.run import build, open_device
+    from softproxy.scene import load_scene
+
+    assert scheduling.spin_time(1000.0) == scheduling.SPIN_ORDINARY_S or scheduling.realtime_policy()
+    monkeypatch.setattr(scheduling, "realtime_policy", lambda: True)
+    monkeypatch.setattr(scheduling, "rt_throttled", lambda: False)
+    assert scheduling.spin_time(10_000.0) == scheduling.SPIN_ORDINARY_S  # nothing stops it: spin
+    monkeypatch.setattr(scheduling, "rt_throttled", lambda: True)
+    assert scheduling.spin_time(1000.0) == pytest.approx(2e-4)
+    assert scheduling.spin_time(10_000.0) == pytest.approx(5e-5)
+    scene = load_scene("two_finger_grasp")
+    with build(scene, open_device("sim", scene), rate_hz=10_000.0, realtime=False) as loop:
+        loop.run(20, realtime=True)
+        assert loop.state[0].spin_ns == 50_000 and loop.ticks == 20
+        loop.run(20, realtime=True, spin_s=1e-3)
+        assert loop.state[0].spin_ns == 1_000_000
+
+
+@linux
+def test_a_fifo_thread_is_seen_as_real_time():
+    from softproxy.scheduling import realtime_policy
+
+    with realtime_thread(10) as granted:
+        assert realtime_policy() == (granted.priority is not None)
+    assert not realtime_policy()
+
+
+def test_rt_throttling_is_read_from_the_kernel(tmp_path, monkeypatch):
+    from softproxy import scheduling
+
+    setting = tmp_path / "sched_rt_runtime_us"
+    monkeypatch.setattr(scheduling, "RT_RUNTIME", str(setting))
+    assert scheduling.rt_throttled()  # unknown: assume throttled
+    setting.write_text("950000\n")
+    assert scheduling.rt_throttled()
+    setting.write_text("-1\n")
+    assert not scheduling.rt_throttled()

@@ -54,6 +54,7 @@ SHAPE = np.dtype([
     # (m), outward normal (geom frame)
     ("key", np.float64, (HINT_SLOTS, SLOT_WIDTH)),
     ("verts", np.int64),      # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
+    ("patch", np.int64),      # where its patches begin in C: one per hint slot, PATCH_WIDTH floats each (-1: none)
     ("kept", np.float64),     # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
 ], align=True)
 """A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
@@ -109,6 +110,14 @@ V_FAN = 9        # where its fan starts and how many: the rows of T around it
 V_SINES = 11     # where its sin β table starts and how many: (sin β ascending, vertex id)
 V_THRESHOLD = 13  # 1 - (least sin β - margin)² (2.0: nothing certified by angle alone)
 VERTEX_WIDTH = 14
+
+# a patch (one per hint slot of a mesh shape, from C[S.patch + PATCH_WIDTH slot]): a ball
+# (centre (3, geom frame), radius; m), how many records it holds (-1: more than PATCH_RECORDS,
+# the ball is left to the box tree), then copies of the tree records of every triangle that
+# may lie within the ball, so a query inside it reads them in one pass
+P_RADIUS, P_COUNT, PATCH_HEAD = 3, 4, 5
+PATCH_RECORDS = 128
+PATCH_WIDTH = PATCH_HEAD + PATCH_RECORDS * RECORD_WIDTH
 
 # -- finger state: one record per finger ----------------------------------------------------
 FINGER = np.dtype([

@@ -36,7 +36,12 @@ Cost per query is bounded on large meshes:
    vertex reached holds more often. A point at distance d needs the certificates to hold over a
    reach of 2d, a sphere of radius r sliding by L over 2r + L: they are built at load for a
    5 mm proxy, and for a larger one by `MeshShape.prepare` when a proxy is made;
-2. where they do not hold (a concave patch, a reach beyond theirs, no hint yet), the box
+2. where they do not hold (a concave patch, a reach beyond theirs, no hint yet), the
+   query's hint slot keeps a patch: the records of every triangle within a ball a little
+   (PATCH_MARGIN) larger than the query needs, gathered from the box tree, so a finger
+   pressed into a bowl (ten sweeps a tick about one point) or sliding in it reads a few
+   dozen records a query and walks the tree once per millimetre; where such a ball holds
+   more than PATCH_RECORDS triangles (a dense mesh, a long sweep), the box
    tree built at load (`softproxy.mesh.MeshTables`: triangles in Morton order, 8 a leaf, per
    node an axis-aligned box and a box oriented by its first triangle, tight about a run of
    slivers): walked nearest node first, leaving out nodes farther than the best distance
@@ -65,8 +70,9 @@ from numba import njit
 from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, static_clear
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO, NODE_WIDTH,
-    RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES,
-    TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
+    P_COUNT, P_RADIUS, PATCH_HEAD, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ,
+    T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS,
+    V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 
@@ -85,6 +91,9 @@ TREE_MARGIN = 1e-12
 radius) beyond their triangles, so that no rounding of a box test leaves a triangle out."""
 STACK = 256
 """Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
+PATCH_MARGIN = 0.001
+"""A slot's patch gathers the triangles this much (m) beyond the ball the query gathering it
+needs, so the next queries of a finger that moved less than that read it again."""
 
 
 # ---------------------------------------------------------------------------------------
@@ -189,6 +198,11 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         S[k].key[:, :] = math.nan  # no hint slot used, none kept
         S[k].verts = verts
         S[k].kept = reach
+        S[k].patch = c0
+        patches = np.zeros((HINT_SLOTS, PATCH_WIDTH))
+        patches[:, P_RADIUS] = -1.0  # holds nothing yet
+        parts.append(patches.ravel())
+        c0 += patches.size
     T = np.concatenate(rows) if len(rows) != 1 else rows[0]
     if not rows:
         T = np.zeros((0, T_COLUMNS))
@@ -578,13 +592,103 @@ def _from_hint(S, T, C, k, hint0, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _nearest(S, T, C, k, x, y, z):
-    """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame).
+def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
+    """The nearest so far to p among the triangles of the records C[j0:j1] and the one found
+    before (best2 (m²), q, feature bf, row bi; bi itself is not read again)."""
+    best = math.sqrt(best2)
+    for j in range(j0, j1, RECORD_WIDTH):
+        h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
+        if h >= best or -h >= best:
+            continue  # its plane is already farther than the best
+        # or the disc about its centre that holds it in its plane: the height over the plane
+        # and the distance beyond the disc bound it
+        ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
+        beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
+        if beyond > 0.0 and h * h + beyond * beyond >= best2:
+            continue
+        i = int(C[j + 8])
+        if i == bi:
+            continue
+        d2, rx, ry, rz, f = _closest(T, i, x, y, z)
+        if d2 < best2:
+            best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
+            best = math.sqrt(d2)
+    return best2, qx, qy, qz, bf, bi
+
+
+@njit(cache=True, error_model="numpy")
+def _patch(S, C, k, sl, x, y, z, need):
+    """Where the patch of mesh k's hint slot sl is in C when it holds every triangle within
+    `need` (m) of p (geom frame), gathered now if its ball does not hold that ball; -1 when
+    that many triangles are there that the box tree serves the query instead (or the shape
+    keeps no patches: S.patch -1)."""
+    if S[k].patch < 0:
+        return -1
+    at = int(S[k].patch) + PATCH_WIDTH * sl
+    ex, ey, ez = x - C[at], y - C[at + 1], z - C[at + 2]
+    radius = C[at + P_RADIUS]
+    # gathered again when its ball does not hold the query's, or when it was too full for a
+    # ball much larger than this query's (a long sweep's) and a smaller one may not be
+    if not math.sqrt(ex * ex + ey * ey + ez * ez) + need <= radius \
+            or (C[at + P_COUNT] < 0.0 and radius > need + 2.0 * PATCH_MARGIN):
+        _gather(S, C, k, at, x, y, z, need + PATCH_MARGIN)
+    return at if C[at + P_COUNT] >= 0.0 else -1
+
+
+@njit(cache=True, error_model="numpy")
+def _gather(S, C, k, at, x, y, z, radius):
+    """Fill the patch at C[at] with the records of mesh k's triangles that may lie within
+    `radius` (m) of p (geom frame): a walk of the box tree, leaving out the nodes and the
+    records whose bounds lie farther. More than PATCH_RECORDS: the walk stops, the patch
+    holds none (count -1) and its ball says where the tree serves the queries."""
+    C[at], C[at + 1], C[at + 2], C[at + P_RADIUS] = x, y, z, radius
+    r2 = radius * radius
+    tree = int(S[k].tree)
+    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
+    base = tree + TREE_NODES - NODE_WIDTH
+    nodes = np.empty(STACK, dtype=np.int64)
+    nodes[0] = 1
+    top = 1
+    m = 0
+    out = at + PATCH_HEAD
+    while top > 0:
+        top -= 1
+        node = nodes[top]
+        if _node_gap2(C, base + NODE_WIDTH * node, x, y, z) > r2:
+            continue
+        if node < size:
+            nodes[top], nodes[top + 1] = 2 * node, 2 * node + 1
+            top += 2
+            continue
+        j0, j1 = _leaf_records(C, tree, node, size, n)
+        for j in range(j0, j1, RECORD_WIDTH):
+            h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
+            if h > radius or -h > radius:
+                continue
+            ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
+            beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
+            if beyond > 0.0 and h * h + beyond * beyond > r2:
+                continue
+            if m == PATCH_RECORDS:
+                C[at + P_COUNT] = -1.0
+                return
+            for c in range(RECORD_WIDTH):
+                C[out + c] = C[j + c]
+            out += RECORD_WIDTH
+            m += 1
+    C[at + P_COUNT] = m
+
+
+@njit(cache=True, error_model="numpy")
+def _nearest(S, T, C, k, sl, x, y, z):
+    """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame),
+    for a query of hint slot sl.
 
     From the hint (`_from_hint`): when the kept certificates hold at its nearest point, the
     few triangles they name (none on a convex patch) are all that may be nearer; else the
-    box tree is walked nearest node first, leaving out every node farther than the best
-    found (the hint's, to begin with)."""
+    slot's patch when it holds the ball of the hint's distance, or the box tree walked
+    nearest node first, leaving out every node farther than the best found (the hint's, to
+    begin with)."""
     best2 = math.inf
     qx = qy = qz = 0.0
     bf = 0
@@ -604,6 +708,13 @@ def _nearest(S, T, C, k, x, y, z):
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
                 S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
+        at = _patch(S, C, k, sl, x, y, z, math.sqrt(best2))
+        if at >= 0:
+            j0 = at + PATCH_HEAD
+            best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j0 + int(C[at + P_COUNT]) * RECORD_WIDTH, x, y, z,
+                                                     best2, qx, qy, qz, bf, bi)
+            S[k].hint = bi
+            return math.sqrt(best2), qx, qy, qz, bf, bi
     # the box tree, nearest node first; a node whose boxes lie farther than the best found
     # holds nothing nearer
     tree = int(S[k].tree)
@@ -613,7 +724,6 @@ def _nearest(S, T, C, k, x, y, z):
     gaps = np.empty(STACK)
     nodes[0], gaps[0] = 1, _node_gap2(C, base + NODE_WIDTH, x, y, z)
     top = 1
-    best = math.sqrt(best2)
     while top > 0:
         top -= 1
         node, gap = nodes[top], gaps[top]
@@ -621,23 +731,7 @@ def _nearest(S, T, C, k, x, y, z):
             continue
         if node >= size:
             j0, j1 = _leaf_records(C, tree, node, size, n)
-            for j in range(j0, j1, RECORD_WIDTH):
-                h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
-                if h >= best or -h >= best:
-                    continue  # its plane is already farther than the best
-                # or the disc about its centre that holds it in its plane: the height over
-                # the plane and the distance beyond the disc bound it
-                ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
-                beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
-                if beyond > 0.0 and h * h + beyond * beyond >= best2:
-                    continue
-                i = int(C[j + 8])
-                if i == bi:
-                    continue
-                d2, rx, ry, rz, f = _closest(T, i, x, y, z)
-                if d2 < best2:
-                    best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
-                    best = math.sqrt(d2)
+            best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi)
             continue
         g0 = _node_gap2(C, base + NODE_WIDTH * 2 * node, x, y, z)
         g1 = _node_gap2(C, base + NODE_WIDTH * (2 * node + 1), x, y, z)
@@ -656,9 +750,8 @@ def _nearest(S, T, C, k, x, y, z):
             if g1 <= best2:
                 nodes[top], gaps[top] = 2 * node + 1, g1
                 top += 1
-    best = math.sqrt(best2)
     S[k].hint = bi
-    return best, qx, qy, qz, bf, bi
+    return math.sqrt(best2), qx, qy, qz, bf, bi
 
 
 @njit(cache=True, error_model="numpy")
@@ -691,9 +784,9 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
 
 
 @njit(cache=True, error_model="numpy")
-def _local_distance(S, T, C, k, x, y, z):
-    """Signed distance (m) and outward normal at p, geom frame."""
-    best, qx, qy, qz, feature, i = _nearest(S, T, C, k, x, y, z)
+def _local_distance(S, T, C, k, sl, x, y, z):
+    """Signed distance (m) and outward normal at p, geom frame, for a query of hint slot sl."""
+    best, qx, qy, qz, feature, i = _nearest(S, T, C, k, sl, x, y, z)
     return _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i)
 
 
@@ -772,7 +865,7 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
                 key[sl, a + c], key[sl, b + c] = key[sl, b + c], key[sl, a + c]
         else:
             S[k].hint = hint
-            d, nx, ny, nz = _local_distance(S, T, C, k, lx, ly, lz)
+            d, nx, ny, nz = _local_distance(S, T, C, k, sl, lx, ly, lz)
             _keep(S, k, sl, lx, ly, lz, d, nx, ny, nz)
             _touch(S, k, sl, lx, ly, lz, S[k].hint)
     nx, ny, nz = key[sl, a + 4], key[sl, a + 5], key[sl, a + 6]
@@ -989,17 +1082,29 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
                     if m >= 0:
                         return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
                                           uz, r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
-    # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
-    # a node entered after the earliest touch found holds no earlier one
     slab = reach + 1e-12
-    slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
-    tree = int(S[k].tree)
-    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
-    base = tree + TREE_NODES - NODE_WIDTH
     C[C_STAMP] += 1.0
     stamp = C[C_STAMP]
     if bi >= 0:
         C[C_STAMPS + bi] = stamp
+    # the slot's patch, when it holds every triangle within the slab of the segment before
+    # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
+    # about one point)
+    at = _patch(S, C, k, sl, ax, ay, az, slab + best_lam * length)
+    if at >= 0:
+        j0 = at + PATCH_HEAD
+        best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
+            T, C, j0, j0 + int(C[at + P_COUNT]) * RECORD_WIDTH, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab,
+            reach, length, best_lam, bnx, bny, bnz, bi, far2)
+        if bi < 0:
+            return (-1.0, 0.0, 0.0, 0.0)
+        return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, ax, ay, az, ux, uy, uz, r, graze)
+    # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
+    # a node entered after the earliest touch found holds no earlier one
+    slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
+    tree = int(S[k].tree)
+    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
+    base = tree + TREE_NODES - NODE_WIDTH
     nodes = np.empty(STACK, dtype=np.int64)
     entries = np.empty(STACK)
     asked = np.empty(STACK)  # the earliest touch when the node's entry was found
