@@ -414,3 +414,48 @@ def test_tree_finds_the_nearest_triangle_in_a_far_leaf():
         o.check_sweep(start, u, 0.001, hit, context=k)
         hits += hit is not None
     assert hits == 12
+
+
+def fine_dish(spacing: float = 5e-4, half: float = 0.012):
+    """An open dish z = (x² + y²) / 0.2 m (concave: no certificate holds on it) of triangles
+    `spacing` (m) apart: dense enough that a 5 mm sphere resting on it has hundreds of
+    triangles within 1 mm of its reach."""
+    n = int(round(2 * half / spacing)) + 1
+    x, y = np.meshgrid(np.linspace(-half, half, n), np.linspace(-half, half, n), indexing="ij")
+    v = np.column_stack([x.ravel(), y.ravel(), (x.ravel() ** 2 + y.ravel() ** 2) / 0.2])
+    k = np.arange(n * n).reshape(n, n)[:-1, :-1].ravel()
+    f = np.vstack([np.column_stack([k, k + n, k + 1]), np.column_stack([k + 1, k + n, k + n + 1])])
+    return v, f
+
+
+def test_a_dense_patch_gathers_a_thinner_shell():
+    """On a dense concave sheet the patch a query gathers (its ball grown by 1 mm) would hold
+    too many triangles, so the slot gathers a ball grown by 0.1 mm: a sphere pressed at the
+    bottom, trembling and creeping, reads it. Every answer is the brute force's."""
+    import warnings
+
+    from softproxy.compiled.layout import PATCH_RECORDS
+    from test_mesh_queries import check_distance, patches
+
+    v, f = fine_dish()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an open mesh
+        s, o = tree_shape(v, f)
+    r = 0.005
+    bottom = len(v) // 2  # (0, 0, 0), where the faces (k, k + n, k + 1) of vertex k begin
+    a, b, c = o.v[f[f[:, 0] == bottom][0]]
+    n = np.cross(b - a, c - a)
+    p = a + r * n / np.linalg.norm(n)
+    rng = np.random.default_rng(4)
+    thin = 0
+    for i in range(40):
+        p = p + rng.normal(size=3) * [2e-6, 3e-5][i % 2]
+        dist, nx, ny, nz = check_distance(o, s, [p], i)[0]
+        n = np.array((nx, ny, nz))
+        p = p - n * (dist - r)
+        for u in (-n * 1e-4, np.cross(n, rng.normal(size=3)) * 5e-5):
+            o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=i)
+        used = [(radius, count) for radius, count in patches(s) if count > 0]
+        assert all(count <= PATCH_RECORDS for _, count in used)
+        thin += any(radius < r + 3e-4 for radius, _ in used)
+    assert thin >= 30

@@ -94,6 +94,10 @@ STACK = 256
 PATCH_MARGIN = 0.001
 """A slot's patch gathers the triangles this much (m) beyond the ball the query gathering it
 needs, so the next queries of a finger that moved less than that read it again."""
+PATCH_THIN = 1e-4
+"""Where the PATCH_MARGIN ball holds too many triangles (a dense mesh), the patch gathers this
+much (m) beyond the query's ball instead: a finger pressed in place, or sliding, still asks
+its next few queries inside it."""
 
 
 # ---------------------------------------------------------------------------------------
@@ -632,6 +636,8 @@ def _patch(S, C, k, sl, x, y, z, need):
     if not math.sqrt(ex * ex + ey * ey + ez * ez) + need <= radius \
             or (C[at + P_COUNT] < 0.0 and radius > need + 2.0 * PATCH_MARGIN):
         _gather(S, C, k, at, x, y, z, need + PATCH_MARGIN)
+        if C[at + P_COUNT] < 0.0:  # a dense mesh: a thinner shell about the query's ball
+            _gather(S, C, k, at, x, y, z, need + PATCH_THIN)
     return at if C[at + P_COUNT] >= 0.0 else -1
 
 
