@@ -7,7 +7,10 @@ its stages too: `softproxy.compiled.servo.STAGES`), and after each tick a bare `
 timed the same way, from compiled code, on a copy of the very same MuJoCo state, so the
 ratio compares like with like on a shared, noisy machine. Paced runs at the scene's rate and
 at 10 kHz, each with ordinary and with real-time scheduling (SCHED_FIFO on a CPU of its own,
-where the OS grants it), give the deadline-miss rates. Prints a table, writes latency.json and latency.png.
+where the OS grants it), give the deadline-miss rates; each is followed by the pacer alone
+(the same sleep-and-spin and miss count around an empty tick) for as long, under the same
+scheduling, so a miss rate can be read against what the machine gives a loop that does
+nothing. Prints a table, writes latency.json and latency.png.
 """
 
 from __future__ import annotations
@@ -21,9 +24,9 @@ from numba import njit
 
 from .report import Progress, figure, save
 from softproxy.compiled import native
-from softproxy.compiled.servo import STAGES
+from softproxy.compiled.servo import LOOP, STAGES, pace, paced_done
 from softproxy.run import build, open_device
-from softproxy.scheduling import DEFAULT_PRIORITY, realtime_thread
+from softproxy.scheduling import DEFAULT_PRIORITY, realtime_thread, spin_time
 from softproxy.scene import load_scene
 
 
@@ -40,16 +43,43 @@ def _percentiles(us: np.ndarray) -> dict:
             "max": round(float(us.max()), 2)}
 
 
+@njit(nogil=True)  # not cached, like _bare_step_ns
+def _pacer_alone(loop, counters, n):
+    """n paced ticks that do nothing: the servo loop's own pacing and miss count (`pace`,
+    `paced_done`) around an empty tick."""
+    for _ in range(n):
+        pace(loop)
+        paced_done(loop, counters)
+
+
+def _empty_misses(rate_hz: float, ticks: int) -> int:
+    """Deadline misses of `ticks` empty ticks paced at `rate_hz` in the calling thread, spinning
+    as a servo loop in this thread would (`spin_time`)."""
+    loop = np.zeros(1, dtype=LOOP)
+    loop["period_ns"] = int(round(1e9 / rate_hz))
+    loop["spin_ns"] = int(spin_time(rate_hz) * 1e9)
+    counters = np.zeros(2, dtype=np.int64)
+    _pacer_alone(loop, counters, 10)  # compiled outside the count
+    counters[:] = 0
+    loop["next_ns"] = native.monotonic_ns()
+    _pacer_alone(loop, counters, ticks)
+    return int(counters[1])
+
+
 def _paced(scene, seconds: float, rate_hz: float, fifo: bool = False) -> dict:
-    """Deadline misses of a loop paced in real time at `rate_hz`; with `fifo`, the loop's
-    thread under SCHED_FIFO pinned to the last CPU (`softproxy.scheduling`) where the OS grants it."""
+    """Deadline misses of a loop paced in real time at `rate_hz`, then of the pacer alone for as
+    long; with `fifo`, the thread under SCHED_FIFO pinned to the last CPU
+    (`softproxy.scheduling`) where the OS grants it."""
     paced = build(scene, open_device("sim", scene), rate_hz=rate_hz, audit=False)
     cpu = max(os.sched_getaffinity(0)) if fifo and hasattr(os, "sched_getaffinity") else None
+    ticks = int(seconds * paced.rate_hz)
     with realtime_thread(DEFAULT_PRIORITY if fifo else None, cpu) as granted:
-        paced.run(int(seconds * paced.rate_hz), realtime=True)
+        paced.run(ticks, realtime=True)
+        empty = _empty_misses(paced.rate_hz, ticks)
     paced.close()
     return {"rate_hz": rate_hz, "scheduling": str(granted), "ticks": paced.ticks, "misses": paced.stats.misses,
-            "miss_rate": paced.stats.misses / max(paced.ticks, 1), "tick_us": paced.stats.summary_us()}
+            "miss_rate": paced.stats.misses / max(paced.ticks, 1), "tick_us": paced.stats.summary_us(),
+            "pacer_alone_misses": empty, "pacer_alone_miss_rate": empty / max(ticks, 1)}
 
 
 def _timed_pass(loop, ticks: int, progress):
@@ -154,7 +184,8 @@ def main(args) -> int:
           f"deadline misses < {tg['deadline_miss_rate']:g}")
     for paced in result["paced"]:
         print(f"  deadline misses paced at {paced['rate_hz']:g} Hz, {paced['scheduling']}: {paced['misses']} of "
-              f"{paced['ticks']} ({paced['miss_rate']:.2e}), tick p99 {paced['tick_us']['p99']} µs")
+              f"{paced['ticks']} ({paced['miss_rate']:.2e}), tick p99 {paced['tick_us']['p99']} µs; "
+              f"the pacer alone: {paced['pacer_alone_misses']} ({paced['pacer_alone_miss_rate']:.2e})")
     print("  stages (µs, median): " + ", ".join(f"{k} {v}" for k, v in result["stages_us_p50"].items()))
     print(f"  wrote {json_path} and {png_path}")
     return 0

@@ -56,7 +56,12 @@ unsafe_output: a finger computed a wrench that is not finite (parameters at thei
 or the device's limits were not numbers it can be clamped to (`softproxy.device_guard`)."""
 BLOCK_S = 0.1
 """Longest block of compiled ticks `run` runs between two returns to Python (s of loop time):
-how long Ctrl-C or a stop request may wait."""
+how long Ctrl-C may wait (a `request_stop` is read every tick)."""
+FAST_BLOCK_S = 1.0
+"""The same above FAST_RATE_HZ. A return to Python costs ~50 µs (p99 ~100 µs), unboxing the
+kernel's arguments: at 10 kHz half a period, so a paced run with 0.1 s blocks missed 2-9×
+the deadlines of its pacer alone, with 1 s blocks 2-3× (`softproxy bench latency`)."""
+FAST_RATE_HZ = 2000.0
 
 
 class TickStats:
@@ -402,7 +407,8 @@ class ServoLoop:
                 st.spin_ns = int((spin_time(self.rate_hz) if spin_s is None else spin_s) * 1e9)
                 st.next_ns = native.monotonic_ns()
                 gc.disable()
-            block = every if on_tick is not None else max(1, int(BLOCK_S * self.rate_hz))
+            block_s = FAST_BLOCK_S if self.rate_hz > FAST_RATE_HZ else BLOCK_S
+            block = every if on_tick is not None else max(1, int(block_s * self.rate_hz))
             left = ticks
             while left > 0 and not st.stop:
                 n = min(block, left)

@@ -29,10 +29,32 @@ def test_latency_bench(tmp_path):
     assert [p["rate_hz"] for p in data["paced"]] == [1000.0, 1000.0, 10000.0, 10000.0]
     assert "SCHED_FIFO" not in data["paced"][0]["scheduling"] and "SCHED_FIFO" in data["paced"][1]["scheduling"]
     assert all(0 <= p["miss_rate"] <= 1 and p["ticks"] > 0 for p in data["paced"])
+    assert all(0 <= p["pacer_alone_misses"] <= p["ticks"] for p in data["paced"])
     stages = data["stages_us_p50"]
     assert list(STAGES) == list(stages)
     assert all(v > 0 for v in stages.values())
     assert "/ mj_step" in text and "stages" in text
+
+
+def test_the_pacer_alone_counts_what_it_misses():
+    """The empty paced loop the latency bench compares with counts a tick that ends after the
+    next deadline: started ten periods late it misses, paced from now it keeps up."""
+    import numpy as np
+
+    from softproxy.benchmarks.latency import _pacer_alone
+    from softproxy.compiled import native
+    from softproxy.compiled.servo import LOOP
+
+    loop = np.zeros(1, dtype=LOOP)
+    loop["period_ns"], loop["spin_ns"] = 1_000_000, 1_500_000
+    counters = np.zeros(2, dtype=np.int64)
+    loop["next_ns"] = native.monotonic_ns() - 10_000_000
+    _pacer_alone(loop, counters, 20)
+    assert 8 <= counters[1] <= 20
+    counters[:] = 0
+    loop["next_ns"] = native.monotonic_ns() + 1_000_000
+    _pacer_alone(loop, counters, 5)
+    assert counters[1] <= 1  # a shared machine may take one
 
 
 def test_peer_bench(tmp_path):
