@@ -496,6 +496,10 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     # no touch before the distance from a falls to r: the distance moves by `length` at most
     # over the segment (1-Lipschitz)
     g2 = _node_gap2(C, at, ax, ay, az)
+    if g2 <= grow * grow:
+        # the start lies within `grow` of both boxes, so within them grown on every axis:
+        # entered at once (what every test below would find, for less)
+        return 0.0
     lower = (math.sqrt(g2) - grow) / length
     if lower > tmax:
         return 2.0 * tmax + 1.0
