@@ -22,7 +22,9 @@ from mesh_oracle import (
     sheet, small_tetra, sphere10k, tilted_ball, triangles_near, uv_sphere,
 )
 from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
-from softproxy.compiled.layout import EDGE_WIDTH, T_COLUMNS, T_EDGES
+from softproxy.compiled.layout import (
+    EDGE_WIDTH, HINT_SLOTS, P_COUNT, P_RADIUS, PATCH_RECORDS, PATCH_WIDTH, T_COLUMNS, T_EDGES,
+)
 from softproxy.compiled.mesh import _sweep_triangle
 from softproxy.compiled.tolerances import GRAZE
 from softproxy.proxy import GodObject
@@ -636,7 +638,6 @@ def test_kept_tables_built_at_load_match_brute_force():
 
 def patches(shape) -> list[tuple[float, int]]:
     """(radius (m), count) of each hint slot's patch of a mesh shape (count -1: too full)."""
-    from softproxy.compiled.layout import HINT_SLOTS, P_COUNT, P_RADIUS, PATCH_WIDTH
 
     at, C = int(shape.set.S[shape.row].patch), shape.set.C
     return [(C[at + PATCH_WIDTH * k + P_RADIUS], int(C[at + PATCH_WIDTH * k + P_COUNT])) for k in range(HINT_SLOTS)]
@@ -653,8 +654,7 @@ def test_patch_answers_match_the_brute_force():
     s = mesh_of(shapes)
     rng = np.random.default_rng(21)
     r = 0.005
-    floor = np.array([0.0, 0.0, 0.04 - 0.035 + r])  # the inner sphere's bottom, r above it
-    p = floor.copy()
+    p = np.array([0.0, 0.0, 0.04 - 0.035 + r])  # the inner sphere's bottom, r above it
     kept = full = 0
     for i in range(120):
         step = rng.normal(size=3) * [1e-5, 2e-4, 1e-3][i % 3]
@@ -679,4 +679,4 @@ def test_patch_answers_match_the_brute_force():
     u = np.array([2e-4, 0.0, -1e-4])
     o.check_sweep(p, u, r, s.sweep(*p, *u, r))
     radius, count = patches(s)[slot[0]]
-    assert 0 < count <= 128 and radius < r + 0.003
+    assert 0 < count <= PATCH_RECORDS and radius < r + 0.003
