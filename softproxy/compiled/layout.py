@@ -111,11 +111,11 @@ V_SINES = 11     # where its sin β table starts and how many: (sin β ascending
 V_THRESHOLD = 13  # 1 - (least sin β - margin)² (2.0: nothing certified by angle alone)
 VERTEX_WIDTH = 14
 
-# a patch (one per hint slot of a mesh shape, from C[S.patch + PATCH_WIDTH slot]): a ball
-# (centre (3, geom frame), radius; m), how many records it holds (-1: more than PATCH_RECORDS,
-# the ball is left to the box tree), then copies of the tree records of every triangle that
-# may lie within the ball, so a query inside it reads them in one pass
-P_RADIUS, P_COUNT, PATCH_HEAD = 3, 4, 5
+# a patch (one per hint slot of a mesh shape, from C[S.patch + PATCH_WIDTH slot]): a capsule
+# (its segment's ends (2 × 3, geom frame), radius; m), how many records it holds (-1: more
+# than PATCH_RECORDS, the capsule is left to the box tree), then copies of the tree records
+# of every triangle that may lie within it, so a query inside it reads them in one pass
+P_END, P_RADIUS, P_COUNT, PATCH_HEAD = 3, 6, 7, 8
 PATCH_RECORDS = 128
 PATCH_WIDTH = PATCH_HEAD + PATCH_RECORDS * RECORD_WIDTH
 

@@ -70,9 +70,9 @@ from numba import njit
 from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, static_clear
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO, NODE_WIDTH,
-    P_COUNT, P_RADIUS, PATCH_HEAD, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ,
-    T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS,
-    V_RING,
+    P_COUNT, P_END, P_RADIUS, PATCH_HEAD, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT,
+    T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS,
+    V_COS, V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 
@@ -625,33 +625,54 @@ def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
 
 
 @njit(cache=True, error_model="numpy")
-def _patch(S, C, k, sl, x, y, z, need):
+def _segment_gap(ax, ay, az, bx, by, bz, px, py, pz):
+    """The distance (m) from p to the segment a..b."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    wx, wy, wz = px - ax, py - ay, pz - az
+    uu = ux * ux + uy * uy + uz * uz
+    t = 0.0 if uu == 0.0 else (wx * ux + wy * uy + wz * uz) / uu
+    t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
+    ex, ey, ez = wx - t * ux, wy - t * uy, wz - t * uz
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit(cache=True, error_model="numpy")
+def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     """Where the patch of mesh k's hint slot sl is in C when it holds every triangle within
-    `need` (m) of p (geom frame), gathered now if its ball does not hold that ball; -1 when
-    that many triangles are there that the box tree serves the query instead (or the shape
-    keeps no patches: S.patch -1)."""
+    `need` (m) of the segment a..b (geom frame; a point when a = b), gathered now if its
+    capsule does not hold the query's; -1 when so many triangles are there that the box tree
+    serves the query instead (or the shape keeps no patches: S.patch -1)."""
     if S[k].patch < 0:
         return -1
     at = int(S[k].patch) + PATCH_WIDTH * sl
-    ex, ey, ez = x - C[at], y - C[at + 1], z - C[at + 2]
+    e = at + P_END
     radius = C[at + P_RADIUS]
-    # gathered again when its ball does not hold the query's, or when it was too full for a
-    # ball much larger than this query's (a long sweep's) and a smaller one may not be
-    if not math.sqrt(ex * ex + ey * ey + ez * ez) + need <= radius \
-            or (C[at + P_COUNT] < 0.0 and radius > need + 2.0 * PATCH_MARGIN):
-        _gather(S, C, k, at, x, y, z, need + PATCH_MARGIN)
-        if C[at + P_COUNT] < 0.0:  # a dense mesh: a thinner shell about the query's ball
-            _gather(S, C, k, at, x, y, z, need + PATCH_THIN)
+    # the query's capsule lies in the patch's when both its ends lie within `radius - need`
+    # of the patch's segment (the distance to a segment is convex along a segment)
+    lx, ly, lz = C[e] - C[at], C[e + 1] - C[at + 1], C[e + 2] - C[at + 2]
+    qx, qy, qz = bx - ax, by - ay, bz - az
+    inside = _segment_gap(C[at], C[at + 1], C[at + 2], C[e], C[e + 1], C[e + 2], ax, ay, az) + need <= radius \
+        and _segment_gap(C[at], C[at + 1], C[at + 2], C[e], C[e + 1], C[e + 2], bx, by, bz) + need <= radius
+    # gathered again when it does not hold the query's, or when it was too full for a capsule
+    # much wider or longer than this query's (a long sweep's) and a smaller one may not be
+    if not inside or (C[at + P_COUNT] < 0.0 and (
+            radius > need + 2.0 * PATCH_MARGIN
+            or math.sqrt(lx * lx + ly * ly + lz * lz) > math.sqrt(qx * qx + qy * qy + qz * qz) + 2.0 * PATCH_MARGIN)):
+        _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
+        if C[at + P_COUNT] < 0.0:  # a dense mesh: a thinner shell about the query's capsule
+            _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_THIN)
     return at if C[at + P_COUNT] >= 0.0 else -1
 
 
 @njit(cache=True, error_model="numpy")
-def _gather(S, C, k, at, x, y, z, radius):
+def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius):
     """Fill the patch at C[at] with the records of mesh k's triangles that may lie within
-    `radius` (m) of p (geom frame): a walk of the box tree, leaving out the nodes and the
-    records whose bounds lie farther. More than PATCH_RECORDS: the walk stops, the patch
-    holds none (count -1) and its ball says where the tree serves the queries."""
-    C[at], C[at + 1], C[at + 2], C[at + P_RADIUS] = x, y, z, radius
+    `radius` (m) of the segment a..b (geom frame): a walk of the box tree, leaving out the
+    nodes and the records whose bounds lie farther. More than PATCH_RECORDS: the walk stops,
+    the patch holds none (count -1) and its capsule says where the tree serves the queries."""
+    C[at], C[at + 1], C[at + 2], C[at + P_RADIUS] = ax, ay, az, radius
+    C[at + P_END], C[at + P_END + 1], C[at + P_END + 2] = bx, by, bz
+    ux, uy, uz = bx - ax, by - ay, bz - az
     r2 = radius * radius
     tree = int(S[k].tree)
     size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
@@ -664,7 +685,7 @@ def _gather(S, C, k, at, x, y, z, radius):
     while top > 0:
         top -= 1
         node = nodes[top]
-        if _node_gap2(C, base + NODE_WIDTH * node, x, y, z) > r2:
+        if _span_gap2(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, 1.0) > r2:
             continue
         if node < size:
             nodes[top], nodes[top + 1] = 2 * node, 2 * node + 1
@@ -672,12 +693,19 @@ def _gather(S, C, k, at, x, y, z, radius):
             continue
         j0, j1 = _leaf_records(C, tree, node, size, n)
         for j in range(j0, j1, RECORD_WIDTH):
-            h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
-            if h > radius or -h > radius:
+            # at every point of the segment, its height over the triangle's plane and how far
+            # its foot lies beyond the disc that holds the triangle bound its distance: the
+            # least height along the segment and the least distance from the disc's centre
+            # to the segment's feet bound them all
+            ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
+            hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
+            if (ha > radius and hb > radius) or (ha < -radius and hb < -radius):
                 continue
-            ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
-            beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
-            if beyond > 0.0 and h * h + beyond * beyond > r2:
+            low = 0.0 if ha * hb <= 0.0 else min(abs(ha), abs(hb))
+            beyond = _segment_gap(ax - ha * C[j], ay - ha * C[j + 1], az - ha * C[j + 2],
+                                  bx - hb * C[j], by - hb * C[j + 1], bz - hb * C[j + 2],
+                                  C[j + 4], C[j + 5], C[j + 6]) - C[j + 7]
+            if beyond > 0.0 and low * low + beyond * beyond > r2:
                 continue
             if m == PATCH_RECORDS:
                 C[at + P_COUNT] = -1.0
@@ -718,7 +746,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
                 S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
-        at = _patch(S, C, k, sl, x, y, z, math.sqrt(best2))
+        at = _patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
         if at >= 0:
             j0 = at + PATCH_HEAD
             best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j0 + int(C[at + P_COUNT]) * RECORD_WIDTH, x, y, z,
@@ -1100,7 +1128,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     # the slot's patch, when it holds every triangle within the slab of the segment before
     # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
     # about one point)
-    at = _patch(S, C, k, sl, ax, ay, az, slab + best_lam * length)
+    at = _patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
     if at >= 0:
         j0 = at + PATCH_HEAD
         best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
