@@ -37,11 +37,11 @@ Cost per query is bounded on large meshes:
    reach of 2d, a sphere of radius r sliding by L over 2r + L: they are built at load for a
    5 mm proxy, and for a larger one by `MeshShape.prepare` when a proxy is made;
 2. where they do not hold (a concave patch, a reach beyond theirs, no hint yet), the
-   query's hint slot keeps a patch: the records of every triangle within a ball a little
-   (PATCH_MARGIN) larger than the query needs, gathered from the box tree, so a finger
-   pressed into a bowl (ten sweeps a tick about one point) or sliding in it reads a few
-   dozen records a query and walks the tree once per millimetre; where such a ball holds
-   more than PATCH_RECORDS triangles (a dense mesh, a long sweep), the box
+   query's hint slot keeps a patch: the records of every triangle within a capsule about
+   a segment a little (PATCH_MARGIN) wider than the query needs, gathered from the box
+   tree, so a finger pressed into a bowl (ten sweeps a tick about one point) or sliding in
+   it reads a few dozen records a query and walks the tree once per millimetre; where such
+   a capsule holds more than PATCH_RECORDS triangles (a dense mesh, a long sweep), the box
    tree built at load (`softproxy.mesh.MeshTables`: triangles in Morton order, 8 a leaf, per
    node an axis-aligned box and a box oriented by its first triangle, tight about a run of
    slivers): walked nearest node first, leaving out nodes farther than the best distance
@@ -92,12 +92,12 @@ radius) beyond their triangles, so that no rounding of a box test leaves a trian
 STACK = 256
 """Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
 PATCH_MARGIN = 0.001
-"""A slot's patch gathers the triangles this much (m) beyond the ball the query gathering it
-needs, so the next queries of a finger that moved less than that read it again."""
+"""A slot's patch gathers the triangles this much (m) beyond the capsule the query gathering
+it needs, so the next queries of a finger that moved less than that read it again."""
 PATCH_THIN = 1e-4
-"""Where the PATCH_MARGIN ball holds too many triangles (a dense mesh), the patch gathers this
-much (m) beyond the query's ball instead: a finger pressed in place, or sliding, still asks
-its next few queries inside it."""
+"""Where the PATCH_MARGIN capsule holds too many triangles (a dense mesh), the patch gathers
+this much (m) beyond the query's capsule instead: a finger pressed in place, or sliding,
+still asks its next few queries inside it."""
 
 
 # ---------------------------------------------------------------------------------------
