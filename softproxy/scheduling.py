@@ -15,7 +15,7 @@ deadlines (50 ms every second); its sleeps wake within tens of µs, so it spins 
 0.2 ms, and never more than half the period. Where RT throttling is off
 (`sysctl kernel.sched_rt_runtime_us=-1`, as on a machine whose servo core is its own) it
 spins like an ordinary thread: at 10 kHz a wake-up from a 50 µs sleep comes late more often
-than a spinning thread is interrupted (docs/performance.md).
+than a spinning thread is interrupted (docs/engine-log.md).
 """
 
 from __future__ import annotations
