@@ -538,6 +538,14 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
 
 
 @njit(cache=True, error_model="numpy")
+def _tree(S, C, k):
+    """Mesh k's box tree: where it begins in C, its number of leaves, the mesh's number of
+    triangles, and `base`, from which node j's record is at base + NODE_WIDTH j."""
+    tree = int(S[k].tree)
+    return tree, int(C[tree + TREE_SIZE]), int(S[k].nt), tree + TREE_NODES - NODE_WIDTH
+
+
+@njit(cache=True, error_model="numpy")
 def _leaf_records(C, tree, node, size, n):
     """The records (C[j0:j1]) of the triangles of leaf node `node` of a tree at C[tree]."""
     first = (node - size) * LEAF
@@ -649,15 +657,17 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     radius = C[at + P_RADIUS]
     # the query's capsule lies in the patch's when both its ends lie within `radius - need`
     # of the patch's segment (the distance to a segment is convex along a segment)
-    lx, ly, lz = C[e] - C[at], C[e + 1] - C[at + 1], C[e + 2] - C[at + 2]
-    qx, qy, qz = bx - ax, by - ay, bz - az
     inside = _segment_gap(C[at], C[at + 1], C[at + 2], C[e], C[e + 1], C[e + 2], ax, ay, az) + need <= radius \
         and _segment_gap(C[at], C[at + 1], C[at + 2], C[e], C[e + 1], C[e + 2], bx, by, bz) + need <= radius
-    # gathered again when it does not hold the query's, or when it was too full for a capsule
-    # much wider or longer than this query's (a long sweep's) and a smaller one may not be
-    if not inside or (C[at + P_COUNT] < 0.0 and (
-            radius > need + 2.0 * PATCH_MARGIN
-            or math.sqrt(lx * lx + ly * ly + lz * lz) > math.sqrt(qx * qx + qy * qy + qz * qz) + 2.0 * PATCH_MARGIN)):
+    again = not inside
+    if inside and C[at + P_COUNT] < 0.0:
+        # too full: gathered again when it is much wider or longer than this query's (a long
+        # sweep's), as a smaller one may not be
+        lx, ly, lz = C[e] - C[at], C[e + 1] - C[at + 1], C[e + 2] - C[at + 2]
+        qx, qy, qz = bx - ax, by - ay, bz - az
+        again = radius > need + 2.0 * PATCH_MARGIN \
+            or math.sqrt(lx * lx + ly * ly + lz * lz) > math.sqrt(qx * qx + qy * qy + qz * qz) + 2.0 * PATCH_MARGIN
+    if again:
         _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
         if C[at + P_COUNT] < 0.0:  # a dense mesh: a thinner shell about the query's capsule
             _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_THIN)
@@ -674,9 +684,7 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius):
     C[at + P_END], C[at + P_END + 1], C[at + P_END + 2] = bx, by, bz
     ux, uy, uz = bx - ax, by - ay, bz - az
     r2 = radius * radius
-    tree = int(S[k].tree)
-    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
-    base = tree + TREE_NODES - NODE_WIDTH
+    tree, size, n, base = _tree(S, C, k)
     nodes = np.empty(STACK, dtype=np.int64)
     nodes[0] = 1
     top = 1
@@ -755,9 +763,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
             return math.sqrt(best2), qx, qy, qz, bf, bi
     # the box tree, nearest node first; a node whose boxes lie farther than the best found
     # holds nothing nearer
-    tree = int(S[k].tree)
-    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
-    base = tree + TREE_NODES - NODE_WIDTH
+    tree, size, n, base = _tree(S, C, k)
     nodes = np.empty(STACK, dtype=np.int64)
     gaps = np.empty(STACK)
     nodes[0], gaps[0] = 1, _node_gap2(C, base + NODE_WIDTH, x, y, z)
@@ -1140,9 +1146,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
     # a node entered after the earliest touch found holds no earlier one
     slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
-    tree = int(S[k].tree)
-    size, n = int(C[tree + TREE_SIZE]), int(S[k].nt)
-    base = tree + TREE_NODES - NODE_WIDTH
+    tree, size, n, base = _tree(S, C, k)
     nodes = np.empty(STACK, dtype=np.int64)
     entries = np.empty(STACK)
     asked = np.empty(STACK)  # the earliest touch when the node's entry was found
