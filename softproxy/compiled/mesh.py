@@ -645,6 +645,22 @@ def _segment_gap(ax, ay, az, bx, by, bz, px, py, pz):
 
 
 @njit(cache=True, error_model="numpy")
+def _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
+    """A lower bound on the squared distance (m²) from the segment a..b to the triangle of
+    the record at C[j], whose plane a and b lie ha and hb (m) over: at every point of the
+    segment its height over the plane and how far its foot lies beyond the disc that holds
+    the triangle bound its distance, so the least height along the segment and the least
+    distance from the disc's centre to the segment's feet bound them all."""
+    low = 0.0 if ha * hb <= 0.0 else min(abs(ha), abs(hb))
+    beyond = _segment_gap(ax - ha * C[j], ay - ha * C[j + 1], az - ha * C[j + 2],
+                          bx - hb * C[j], by - hb * C[j + 1], bz - hb * C[j + 2],
+                          C[j + 4], C[j + 5], C[j + 6]) - C[j + 7]
+    if beyond < 0.0:
+        beyond = 0.0
+    return low * low + beyond * beyond
+
+
+@njit(cache=True, error_model="numpy")
 def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     """Where the patch of mesh k's hint slot sl is in C when it holds every triangle within
     `need` (m) of the segment a..b (geom frame; a point when a = b), gathered now if its
@@ -701,19 +717,11 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius):
             continue
         j0, j1 = _leaf_records(C, tree, node, size, n)
         for j in range(j0, j1, RECORD_WIDTH):
-            # at every point of the segment, its height over the triangle's plane and how far
-            # its foot lies beyond the disc that holds the triangle bound its distance: the
-            # least height along the segment and the least distance from the disc's centre
-            # to the segment's feet bound them all
             ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
             hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
             if (ha > radius and hb > radius) or (ha < -radius and hb < -radius):
                 continue
-            low = 0.0 if ha * hb <= 0.0 else min(abs(ha), abs(hb))
-            beyond = _segment_gap(ax - ha * C[j], ay - ha * C[j + 1], az - ha * C[j + 2],
-                                  bx - hb * C[j], by - hb * C[j + 1], bz - hb * C[j + 2],
-                                  C[j + 4], C[j + 5], C[j + 6]) - C[j + 7]
-            if beyond > 0.0 and low * low + beyond * beyond > r2:
+            if _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb) > r2:
                 continue
             if m == PATCH_RECORDS:
                 C[at + P_COUNT] = -1.0
@@ -940,19 +948,8 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
             if beyond > 0.0 and h0 * h0 + beyond * beyond > slab * slab:
                 continue
         # nor one that stays more than r off the disc about its centre that holds it in its
-        # plane: at the segment's point p nearest that centre, the height over the plane and
-        # the distance beyond the disc bound the distance, and no point of the segment is
-        # nearer than that less |p - p'| <= its length (the distance is 1-Lipschitz)
-        ex, ey, ez = C[j + 4] - ax, C[j + 5] - ay, C[j + 6] - az
-        s = (ex * ux + ey * uy + ez * uz) / dd
-        s = 0.0 if s < 0.0 else best_lam if s > best_lam else s
-        ex, ey, ez = ex - s * ux, ey - s * uy, ez - s * uz
-        hs = h0 + s * hd
-        beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - hs * hs, 0.0)) - C[j + 7]
-        if beyond < 0.0:
-            beyond = 0.0
-        bound = math.sqrt(hs * hs + beyond * beyond) - best_lam * length
-        if bound > slab:
+        # plane along the part of the segment before the earliest touch found
+        if _disc_gap2(C, j, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, h0, h1) > slab * slab:
             continue
         i = int(C[j + 8])
         if C[C_STAMPS + i] == stamp:
