@@ -23,7 +23,7 @@ from mesh_oracle import (
 )
 from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
 from softproxy.compiled.layout import (
-    EDGE_WIDTH, HINT_SLOTS, P_COUNT, P_RADIUS, PATCH_RECORDS, PATCH_WIDTH, T_COLUMNS, T_EDGES,
+    EDGE_WIDTH, HINT_SLOTS, P_COUNT, P_FULL, P_RADIUS, PATCH_RECORDS, PATCH_WIDTH, T_COLUMNS, T_EDGES,
 )
 from softproxy.compiled.mesh import _sweep_triangle
 from softproxy.compiled.tolerances import GRAZE
@@ -636,19 +636,23 @@ def test_kept_tables_built_at_load_match_brute_force():
                 assert kept[ids[tuple(v[w].tolist())]] <= sine + 1e-12, (vertex, w)
 
 
-def patches(shape) -> list[tuple[float, int]]:
-    """(radius (m), count) of each hint slot's patch of a mesh shape (count -1: too full)."""
+def patches(shape) -> list[tuple[float, int, tuple]]:
+    """(radius (m), count, the capsule found too full: its ends (geom frame) and radius (m),
+    -1: none) of each hint slot's patch of a mesh shape."""
 
     at, C = int(shape.set.S[shape.row].patch), shape.set.C
-    return [(C[at + PATCH_WIDTH * k + P_RADIUS], int(C[at + PATCH_WIDTH * k + P_COUNT])) for k in range(HINT_SLOTS)]
+    return [(C[at + PATCH_WIDTH * k + P_RADIUS], int(C[at + PATCH_WIDTH * k + P_COUNT]),
+             tuple(C[at + PATCH_WIDTH * k + P_FULL:at + PATCH_WIDTH * k + P_FULL + 7].tolist()))
+            for k in range(HINT_SLOTS)]
 
 
 def test_patch_answers_match_the_brute_force():
     """On the bowl's concave floor and wall no certificate holds, so a query reads the
     triangles its hint slot's patch gathered (a ball a little larger than the query needs):
     a 5 mm sphere pressed there, sliding and stepping about asks many queries of one patch.
-    A long sweep gathers a ball too full to keep (the box tree answers it), and the next short
-    query gathers a small one again. Every distance and sweep is the brute force's."""
+    A long sweep finds its capsule too full to keep (the box tree answers it, the patch held
+    is kept), and the next short query reads a small one. Every distance and sweep is the
+    brute force's."""
     m, d, shapes = bowl()
     o = oracle(m, d, shapes)
     s = mesh_of(shapes)
@@ -667,16 +671,18 @@ def test_patch_answers_match_the_brute_force():
         for u in (-n * 1e-3, np.cross(n, rng.normal(size=3)) * 2e-3,
                   rng.normal(size=3) * (0.06 if long else 3e-4)):
             o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=i)
-        counts = [c for radius, c in patches(s) if radius > 0.0]
-        kept += any(c > 0 for c in counts)
-        full += any(c < 0 for c in counts)
+        kept += any(c > 0 for _, c, _ in patches(s))
+        full += any(f[6] > 0.0 for _, _, f in patches(s))
     assert kept > 100 and full > 0
-    # a long sweep from the floor: too full; a short one after it gathers a small patch again
+    # a long sweep from the floor: too full, its capsule noted and the patch held kept; a
+    # short one after it reads a small patch
+    before = patches(s)
     u = np.array([0.03, 0.02, 0.04])
     o.check_sweep(p, u, r, s.sweep(*p, *u, r))
-    slot = [k for k, (_, c) in enumerate(patches(s)) if c < 0]
-    assert slot
+    after = patches(s)
+    slot = [k for k in range(HINT_SLOTS) if after[k][2] != before[k][2]]
+    assert slot and all(after[k][:2] == before[k][:2] for k in range(HINT_SLOTS))
     u = np.array([2e-4, 0.0, -1e-4])
     o.check_sweep(p, u, r, s.sweep(*p, *u, r))
-    radius, count = patches(s)[slot[0]]
+    radius, count, _ = patches(s)[slot[0]]
     assert 0 < count <= PATCH_RECORDS and radius < r + 0.003

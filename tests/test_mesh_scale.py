@@ -428,16 +428,92 @@ def fine_dish(spacing: float = 5e-4, half: float = 0.012):
     return v, f
 
 
-def test_a_dense_patch_gathers_a_thinner_shell():
-    """On a dense concave sheet the patch a query gathers (its ball grown by 1 mm) would hold
-    too many triangles, so the slot gathers a ball grown by 0.1 mm: a sphere pressed at the
-    bottom, trembling and creeping, reads it. Every answer is the brute force's."""
+def segment_triangles(a, b, A, B, C) -> np.ndarray:
+    """Distance (m) from the segment a..b to each triangle (A[k], B[k], C[k]): the least of
+    the point-to-triangle distance along the segment, which is convex in the position along
+    it, by golden-section search (brute force; a little above the least, never below)."""
+    lo, hi = np.zeros(len(A)), np.ones(len(A))
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+
+    def at(t):
+        return point_triangle(a + t[:, None] * (b - a), A, B, C)[0]
+
+    for _ in range(80):
+        t1, t2 = hi - g * (hi - lo), lo + g * (hi - lo)
+        left = at(t1) <= at(t2)
+        hi, lo = np.where(left, t2, hi), np.where(left, lo, t1)
+    return np.minimum(at((lo + hi) / 2.0), np.minimum(at(np.zeros(len(A))), at(np.ones(len(A)))))
+
+
+def test_a_patch_holds_every_triangle_nearer_than_its_radius():
+    """A hint slot's patch (`_gather`) against brute force on a dense dish: it holds every
+    triangle within its capsule's radius of its segment, nearest first by a lower bound on
+    the distance that never exceeds it; where more than PATCH_RECORDS lie within the radius
+    asked, the capsule shrinks to what it holds; and where even that falls below the least
+    asked for, the patch is left as it was and the capsule is kept as too full."""
+    import warnings
+
+    from softproxy.compiled.layout import (
+        P_COUNT, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, RECORD_WIDTH,
+    )
+    from softproxy.compiled.mesh import _gather
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an open mesh
+        s, _ = tree_shape(*fine_dish(2.5e-4))
+    t = s.tables
+    A, B, Cv = (t.vpos[t.tv[:, k]] for k in range(3))
+    centre = (A + B + Cv) / 3.0
+    circum = np.max([np.linalg.norm(X - centre, axis=1) for X in (A, B, Cv)], axis=0)
+    S, C, k = s.set.S, s.set.C, s.row
+    at, t0 = int(S[k].patch), int(S[k].t0)
+    rng = np.random.default_rng(7)
+    shrunk = whole = 0
+    for i in range(24):
+        x, y = rng.uniform(-0.006, 0.006, 2)
+        a = np.array([x, y, (x * x + y * y) / 0.2 + rng.uniform(0.0, 0.006)])
+        b = a + rng.normal(size=3) * [0.0, 1e-4, 2e-3][i % 3]
+        radius = rng.uniform(0.0005, 0.004)
+        assert _gather(S, C, k, at, *a, *b, radius, 0.0)
+        m, held = int(C[at + P_COUNT]), C[at + P_RADIUS]
+        keys = C[at + P_KEYS:at + P_KEYS + m]
+        rows = C[at + P_RECORDS + 8:at + P_RECORDS + RECORD_WIDTH * m:RECORD_WIDTH].astype(np.int64) - t0
+        # the brute force, on the triangles a ball about a may hold (a bound, not the engine's)
+        near = np.flatnonzero(np.linalg.norm(centre - a, axis=1) - circum <= radius + np.linalg.norm(b - a))
+        d = np.full(len(A), np.inf)
+        d[near] = segment_triangles(a, b, A[near], B[near], Cv[near])
+        assert len(set(rows.tolist())) == m, i
+        assert np.all(np.diff(keys) >= 0.0), i
+        assert np.all(keys <= d[rows] ** 2 * (1.0 + 1e-9) + 1e-18), i
+        assert set(np.flatnonzero(d <= held - 1e-9).tolist()) <= set(rows.tolist()), i
+        if m == PATCH_RECORDS and held < radius:
+            shrunk += 1
+            assert np.count_nonzero(d <= radius) > PATCH_RECORDS, i
+        else:
+            whole += 1
+            assert held == radius and np.all(keys <= radius * radius), i
+    assert shrunk >= 4 and whole >= 4
+    # asked to hold at least more than it can: left as it was, the capsule kept as too full
+    before = C[at:at + P_RECORDS + RECORD_WIDTH * PATCH_RECORDS].copy()
+    a = np.array([0.0, 0.0, 0.005])
+    assert not _gather(S, C, k, at, *a, *a, 0.006, 0.0055)
+    assert np.array_equal(C[at:at + P_FULL], before[:P_FULL])
+    assert np.array_equal(C[at + P_KEYS:at + P_RECORDS + RECORD_WIDTH * PATCH_RECORDS], before[P_KEYS:])
+    assert C[at + P_FULL + 6] == 0.006 and np.array_equal(C[at + P_FULL:at + P_FULL + 3], a)
+
+
+def test_a_dense_patch_shrinks_to_what_it_holds():
+    """On a dense concave sheet the patch a query gathers (its capsule grown by 1 mm) would
+    hold too many triangles, so the slot keeps the nearest PATCH_RECORDS and a thinner
+    capsule: a sphere pressed at the bottom, trembling and creeping, reads it. Every answer is
+    the brute force's."""
     import warnings
 
     from softproxy.compiled.layout import PATCH_RECORDS
+    from softproxy.compiled.mesh import PATCH_MARGIN
     from test_mesh_queries import check_distance, patches
 
-    v, f = fine_dish()
+    v, f = fine_dish(3.5e-4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # an open mesh
         s, o = tree_shape(v, f)
@@ -455,7 +531,6 @@ def test_a_dense_patch_gathers_a_thinner_shell():
         p = p - n * (dist - r)
         for u in (-n * 1e-4, np.cross(n, rng.normal(size=3)) * 5e-5):
             o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=i)
-        used = [(radius, count) for radius, count in patches(s) if count > 0]
-        assert all(count <= PATCH_RECORDS for _, count in used)
-        thin += any(radius < r + 3e-4 for radius, _ in used)
+        used = [(radius, count) for radius, count, _ in patches(s) if count > 0]
+        thin += any(count == PATCH_RECORDS and radius < r + PATCH_MARGIN / 2 for radius, count in used)
     assert thin >= 30

@@ -112,12 +112,15 @@ V_THRESHOLD = 13  # 1 - (least sin β - margin)² (2.0: nothing certified by ang
 VERTEX_WIDTH = 14
 
 # a patch (one per hint slot of a mesh shape, from C[S.patch + PATCH_WIDTH slot]): a capsule
-# (its segment's ends (2 × 3, geom frame), radius; m), how many records it holds (-1: more
-# than PATCH_RECORDS, the capsule is left to the box tree), then copies of the tree records
-# of every triangle that may lie within it, so a query inside it reads them in one pass
-P_END, P_RADIUS, P_COUNT, PATCH_HEAD = 3, 6, 7, 8
+# (its segment's ends (2 × 3, geom frame), radius; m) and how many records it holds; a
+# capsule found too full (ends, radius), where the box tree serves the queries; then a lower
+# bound on each record's distance from the first capsule's segment (m², ascending) and
+# copies of the tree records of every triangle within that capsule, nearest first, so a
+# query inside it reads those that may lie within its own capsule in one pass
+P_END, P_RADIUS, P_COUNT, P_FULL, P_KEYS = 3, 6, 7, 8, 15
 PATCH_RECORDS = 128
-PATCH_WIDTH = PATCH_HEAD + PATCH_RECORDS * RECORD_WIDTH
+P_RECORDS = P_KEYS + PATCH_RECORDS
+PATCH_WIDTH = P_RECORDS + PATCH_RECORDS * RECORD_WIDTH
 
 # -- finger state: one record per finger ----------------------------------------------------
 FINGER = np.dtype([

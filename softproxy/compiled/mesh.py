@@ -70,7 +70,7 @@ from numba import njit
 from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, static_clear
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO, NODE_WIDTH,
-    P_COUNT, P_END, P_RADIUS, PATCH_HEAD, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT,
+    P_COUNT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT,
     T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS,
     V_COS, V_RING,
 )
@@ -94,10 +94,11 @@ STACK = 256
 PATCH_MARGIN = 0.001
 """A slot's patch gathers the triangles this much (m) beyond the capsule the query gathering
 it needs, so the next queries of a finger that moved less than that read it again."""
-PATCH_THIN = 1e-4
-"""Where the PATCH_MARGIN capsule holds too many triangles (a dense mesh), the patch gathers
-this much (m) beyond the query's capsule instead: a finger pressed in place, or sliding,
-still asks its next few queries inside it."""
+PATCH_KEEP = 1e-4
+"""A patch must hold at least this much (m) beyond the capsule of the query gathering it: one
+holding less (a million triangles under a 5 mm proxy) would serve next to no other query, and
+be gathered again and again as the finger trembles: the box tree answers the queries about it
+instead."""
 
 
 # ---------------------------------------------------------------------------------------
@@ -205,6 +206,7 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         S[k].patch = c0
         patches = np.zeros((HINT_SLOTS, PATCH_WIDTH))
         patches[:, P_RADIUS] = -1.0  # holds nothing yet
+        patches[:, P_FULL + 6] = -1.0  # nor was found too full
         parts.append(patches.ravel())
         c0 += patches.size
     T = np.concatenate(rows) if len(rows) != 1 else rows[0]
@@ -661,76 +663,143 @@ def _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
 
 
 @njit(cache=True, error_model="numpy")
-def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
-    """Where the patch of mesh k's hint slot sl is in C when it holds every triangle within
-    `need` (m) of the segment a..b (geom frame; a point when a = b), gathered now if its
-    capsule does not hold the query's; -1 when so many triangles are there that the box tree
-    serves the query instead (or the shape keeps no patches: S.patch -1)."""
-    if S[k].patch < 0:
-        return -1
-    at = int(S[k].patch) + PATCH_WIDTH * sl
-    e = at + P_END
-    radius = C[at + P_RADIUS]
-    # the query's capsule lies in the patch's when both its ends lie within `radius - need`
-    # of the patch's segment (the distance to a segment is convex along a segment)
-    inside = _segment_gap(C[at], C[at + 1], C[at + 2], C[e], C[e + 1], C[e + 2], ax, ay, az) + need <= radius \
-        and _segment_gap(C[at], C[at + 1], C[at + 2], C[e], C[e + 1], C[e + 2], bx, by, bz) + need <= radius
-    again = not inside
-    if inside and C[at + P_COUNT] < 0.0:
-        # too full: gathered again when it is much wider or longer than this query's (a long
-        # sweep's), as a smaller one may not be
-        lx, ly, lz = C[e] - C[at], C[e + 1] - C[at + 1], C[e + 2] - C[at + 2]
-        qx, qy, qz = bx - ax, by - ay, bz - az
-        again = radius > need + 2.0 * PATCH_MARGIN \
-            or math.sqrt(lx * lx + ly * ly + lz * lz) > math.sqrt(qx * qx + qy * qy + qz * qz) + 2.0 * PATCH_MARGIN
-    if again:
-        _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
-        if C[at + P_COUNT] < 0.0:  # a dense mesh: a thinner shell about the query's capsule
-            _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_THIN)
-    return at if C[at + P_COUNT] >= 0.0 else -1
+def _capsule_gap(C, at, ax, ay, az, bx, by, bz):
+    """How far (m) the segment a..b strays from the segment whose ends are at C[at:at + 6]:
+    the larger of its ends' distances (the distance to a segment is convex along a segment)."""
+    return max(_segment_gap(C[at], C[at + 1], C[at + 2], C[at + 3], C[at + 4], C[at + 5], ax, ay, az),
+               _segment_gap(C[at], C[at + 1], C[at + 2], C[at + 3], C[at + 4], C[at + 5], bx, by, bz))
 
 
 @njit(cache=True, error_model="numpy")
-def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius):
-    """Fill the patch at C[at] with the records of mesh k's triangles that may lie within
-    `radius` (m) of the segment a..b (geom frame): a walk of the box tree, leaving out the
-    nodes and the records whose bounds lie farther. More than PATCH_RECORDS: the walk stops,
-    the patch holds none (count -1) and its capsule says where the tree serves the queries."""
-    C[at], C[at + 1], C[at + 2], C[at + P_RADIUS] = ax, ay, az, radius
-    C[at + P_END], C[at + P_END + 1], C[at + P_END + 2] = bx, by, bz
+def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
+    """Where the patch of mesh k's hint slot sl is in C, and how many of its records (the
+    first ones) may lie within `need` (m) of the segment a..b (geom frame; a point when
+    a = b), gathered now if its capsule does not hold the query's; (-1, 0) when so many
+    triangles are there that the box tree serves the query instead (or the shape keeps no
+    patches: S.patch -1)."""
+    if S[k].patch < 0:
+        return -1, 0
+    at = int(S[k].patch) + PATCH_WIDTH * sl
+    gap = _capsule_gap(C, at, ax, ay, az, bx, by, bz)
+    if gap + need > C[at + P_RADIUS]:
+        f = at + P_FULL
+        radius = C[f + 6]
+        if _capsule_gap(C, f, ax, ay, az, bx, by, bz) + need <= radius:
+            # inside a capsule found too full: the tree serves the query, unless that capsule
+            # is much wider or longer than the query's (a long sweep's), as a smaller one may
+            # not be too full
+            lx, ly, lz = C[f + 3] - C[f], C[f + 4] - C[f + 1], C[f + 5] - C[f + 2]
+            qx, qy, qz = bx - ax, by - ay, bz - az
+            if radius <= need + 2.0 * PATCH_MARGIN and \
+                    math.sqrt(lx * lx + ly * ly + lz * lz) <= math.sqrt(qx * qx + qy * qy + qz * qz) + 2.0 * PATCH_MARGIN:
+                return -1, 0
+        if not _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN, need + PATCH_KEEP):
+            return -1, 0
+        gap = 0.0
+    m = int(C[at + P_COUNT])
+    # a triangle within `need` of the query's segment is within gap + need of the patch's, so
+    # its key is no more: the keys ascend, the first ones up to that are read
+    limit = (gap + need) * (gap + need)
+    lo, hi = 0, m
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if C[at + P_KEYS + mid] <= limit:
+            lo = mid + 1
+        else:
+            hi = mid
+    return at, lo
+
+
+@njit(cache=True, error_model="numpy")
+def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
+    """Fill the patch at C[at] with the records of mesh k's triangles nearest the segment a..b
+    (geom frame), out to `radius` (m) from it, or to less where more than PATCH_RECORDS lie
+    that near: then those whose lower bound on the distance is least are kept, and the
+    capsule's radius becomes the least bound of those left out, so the patch holds every
+    triangle within it. A walk of the box tree, the nearer child first, leaving out the nodes
+    and records whose bounds lie beyond the radius found so far. Where that radius falls below
+    `least` (m), the walk stops and the patch is left as it was, but for its capsule found too
+    full, now this one (radius `radius`): returns whether the patch was gathered."""
     ux, uy, uz = bx - ax, by - ay, bz - az
     r2 = radius * radius
     tree, size, n, base = _tree(S, C, k)
     nodes = np.empty(STACK, dtype=np.int64)
+    # a max-heap of the kept records' bounds (m²) and their rows in `kept`
+    keys = np.empty(PATCH_RECORDS)
+    rows = np.empty(PATCH_RECORDS, dtype=np.int64)
+    kept = np.empty((PATCH_RECORDS, RECORD_WIDTH))
     nodes[0] = 1
     top = 1
     m = 0
-    out = at + PATCH_HEAD
     while top > 0:
         top -= 1
         node = nodes[top]
         if _span_gap2(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, 1.0) > r2:
             continue
         if node < size:
-            nodes[top], nodes[top + 1] = 2 * node, 2 * node + 1
+            g0 = _span_gap2(C, base + NODE_WIDTH * 2 * node, ax, ay, az, ux, uy, uz, 1.0)
+            g1 = _span_gap2(C, base + NODE_WIDTH * (2 * node + 1), ax, ay, az, ux, uy, uz, 1.0)
+            near, far = (2 * node, 2 * node + 1) if g0 <= g1 else (2 * node + 1, 2 * node)
+            nodes[top], nodes[top + 1] = far, near
             top += 2
             continue
         j0, j1 = _leaf_records(C, tree, node, size, n)
         for j in range(j0, j1, RECORD_WIDTH):
             ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
             hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
-            if (ha > radius and hb > radius) or (ha < -radius and hb < -radius):
+            if (ha * ha > r2 and hb * hb > r2 and ha * hb > 0.0):
                 continue
-            if _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb) > r2:
+            g2 = _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb)
+            if g2 > r2:
                 continue
-            if m == PATCH_RECORDS:
-                C[at + P_COUNT] = -1.0
-                return
+            if m < PATCH_RECORDS:
+                row = m
+                m += 1
+                c = m - 1  # sift up
+                while c > 0 and keys[(c - 1) // 2] < g2:
+                    keys[c], rows[c] = keys[(c - 1) // 2], rows[(c - 1) // 2]
+                    c = (c - 1) // 2
+                keys[c], rows[c] = g2, row
+            else:
+                # full: the farthest kept (or this one) is left out, and the patch holds only
+                # what lies nearer than it
+                r2 = g2 if g2 >= keys[0] else keys[0]
+                if r2 < least * least:
+                    f = at + P_FULL
+                    C[f], C[f + 1], C[f + 2], C[f + 3], C[f + 4], C[f + 5] = ax, ay, az, bx, by, bz
+                    C[f + 6] = radius
+                    return False
+                if g2 >= keys[0]:
+                    continue
+                row = rows[0]
+                c = 0  # sift down from the root
+                while True:
+                    child = 2 * c + 1
+                    if child >= m:
+                        break
+                    if child + 1 < m and keys[child + 1] > keys[child]:
+                        child += 1
+                    if keys[child] <= g2:
+                        break
+                    keys[c], rows[c] = keys[child], rows[child]
+                    c = child
+                keys[c], rows[c] = g2, row
             for c in range(RECORD_WIDTH):
-                C[out + c] = C[j + c]
-            out += RECORD_WIDTH
-            m += 1
+                kept[row, c] = C[j + c]
+    order = np.argsort(keys[:m])
+    for q in range(m):
+        h = order[q]
+        C[at + P_KEYS + q] = keys[h]
+        w = at + P_RECORDS + RECORD_WIDTH * q
+        for c in range(RECORD_WIDTH):
+            C[w + c] = kept[rows[h], c]
+    C[at], C[at + 1], C[at + 2] = ax, ay, az
+    C[at + P_END], C[at + P_END + 1], C[at + P_END + 2] = bx, by, bz
+    # just under the least bound left out, so that a triangle at exactly that bound is not
+    # taken for held
+    C[at + P_RADIUS] = math.sqrt(r2) * (1.0 - 1e-12) if m == PATCH_RECORDS else radius
     C[at + P_COUNT] = m
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -762,10 +831,10 @@ def _nearest(S, T, C, k, sl, x, y, z):
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
                 S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
-        at = _patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
+        at, m = _patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
         if at >= 0:
-            j0 = at + PATCH_HEAD
-            best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j0 + int(C[at + P_COUNT]) * RECORD_WIDTH, x, y, z,
+            j0 = at + P_RECORDS
+            best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j0 + m * RECORD_WIDTH, x, y, z,
                                                      best2, qx, qy, qz, bf, bi)
             S[k].hint = bi
             return math.sqrt(best2), qx, qy, qz, bf, bi
@@ -1131,11 +1200,11 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     # the slot's patch, when it holds every triangle within the slab of the segment before
     # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
     # about one point)
-    at = _patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
+    at, m = _patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
     if at >= 0:
-        j0 = at + PATCH_HEAD
+        j0 = at + P_RECORDS
         best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
-            T, C, j0, j0 + int(C[at + P_COUNT]) * RECORD_WIDTH, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab,
+            T, C, j0, j0 + m * RECORD_WIDTH, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab,
             reach, length, best_lam, bnx, bny, bnz, bi, far2)
         if bi < 0:
             return (-1.0, 0.0, 0.0, 0.0)
