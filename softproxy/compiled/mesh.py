@@ -69,8 +69,8 @@ from numba import njit
 
 from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, static_clear
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO, NODE_WIDTH,
-    P_COUNT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT,
+    C_FEW, C_STAMP, C_STAMPS, CUT_NODES, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO, NODE_WIDTH,
+    P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT,
     T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS,
     V_COS, V_RING,
 )
@@ -674,11 +674,12 @@ def _capsule_gap(C, at, ax, ay, az, bx, by, bz):
 def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     """Where the patch of mesh k's hint slot sl is in C, and how many of its records (the
     first ones) may lie within `need` (m) of the segment a..b (geom frame; a point when
-    a = b), gathered now if its capsule does not hold the query's; (-1, 0) when so many
-    triangles are there that the box tree serves the query instead (or the shape keeps no
-    patches: S.patch -1)."""
+    a = b), gathered now if its capsule does not hold the query's, and -1; or (-1, 0, cut)
+    when so many triangles are there that the box tree serves the query instead, from the
+    nodes of the cut at C[cut] (-1: from the root, as when the shape keeps no patches:
+    S.patch -1)."""
     if S[k].patch < 0:
-        return -1, 0
+        return -1, 0, -1
     at = int(S[k].patch) + PATCH_WIDTH * sl
     gap = _capsule_gap(C, at, ax, ay, az, bx, by, bz)
     if gap + need > C[at + P_RADIUS]:
@@ -692,9 +693,10 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
             qx, qy, qz = bx - ax, by - ay, bz - az
             if radius <= need + 2.0 * PATCH_MARGIN and \
                     math.sqrt(lx * lx + ly * ly + lz * lz) <= math.sqrt(qx * qx + qy * qy + qz * qz) + 2.0 * PATCH_MARGIN:
-                return -1, 0
+                return -1, 0, at + P_CUT
         if not _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN, need + PATCH_KEEP):
-            return -1, 0
+            _cut(S, C, k, at + P_CUT, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
+            return -1, 0, at + P_CUT
         gap = 0.0
     m = int(C[at + P_COUNT])
     # a triangle within `need` of the query's segment is within gap + need of the patch's, so
@@ -707,7 +709,53 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
             lo = mid + 1
         else:
             hi = mid
-    return at, lo
+    return at, lo, -1
+
+
+@njit(cache=True, error_model="numpy")
+def _cut(S, C, k, at, ax, ay, az, bx, by, bz, radius):
+    """Fill the cut at C[at] with the nodes of mesh k's box tree, at the deepest level where at
+    most CUT_NODES come within `radius` (m) of the segment a..b (geom frame; a leaf counted
+    at every level below its own): every triangle within the capsule lies in one of them, so
+    a walk for a query inside it starts there, not at the root (a million triangles make
+    seventeen levels, and the sphere lies within reach of two or three nodes of each)."""
+    tree, size, n, base = _tree(S, C, k)
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    r2 = radius * radius
+    level = np.empty(CUT_NODES, dtype=np.int64)
+    below = np.empty(CUT_NODES, dtype=np.int64)
+    level[0] = 1
+    m = 1
+    while True:
+        q = 0
+        deeper = True
+        split = False
+        for i in range(m):
+            node = level[i]
+            if node >= size:
+                if q == CUT_NODES:
+                    deeper = False
+                    break
+                below[q] = node
+                q += 1
+                continue
+            for child in range(2 * node, 2 * node + 2):
+                if _span_gap2(C, base + NODE_WIDTH * child, ax, ay, az, ux, uy, uz, 1.0) <= r2:
+                    if q == CUT_NODES:
+                        deeper = False
+                        break
+                    below[q] = child
+                    q += 1
+            split = True
+            if not deeper:
+                break
+        if not deeper or not split or q == 0:
+            break
+        level, below = below, level
+        m = q
+    C[at] = m
+    for i in range(m):
+        C[at + 1 + i] = level[i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -816,6 +864,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
     qx = qy = qz = 0.0
     bf = 0
     bi = int(S[k].hint)
+    cut = -1
     if bi >= 0:
         best2, qx, qy, qz, bf, bi = _from_hint(S, T, C, k, bi, x, y, z)
         if best2 > 0.0:
@@ -831,7 +880,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
                 S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
-        at, m = _patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
+        at, m, cut = _patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
         if at >= 0:
             j0 = at + P_RECORDS
             best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j0 + m * RECORD_WIDTH, x, y, z,
@@ -843,8 +892,22 @@ def _nearest(S, T, C, k, sl, x, y, z):
     tree, size, n, base = _tree(S, C, k)
     nodes = np.empty(STACK, dtype=np.int64)
     gaps = np.empty(STACK)
-    nodes[0], gaps[0] = 1, _node_gap2(C, base + NODE_WIDTH, x, y, z)
-    top = 1
+    if cut >= 0:
+        # from the cut, the nearest node on top
+        top = 0
+        for i in range(int(C[cut])):
+            node = int(C[cut + 1 + i])
+            g = _node_gap2(C, base + NODE_WIDTH * node, x, y, z)
+            if g <= best2:
+                j = top
+                while j > 0 and gaps[j - 1] < g:
+                    nodes[j], gaps[j] = nodes[j - 1], gaps[j - 1]
+                    j -= 1
+                nodes[j], gaps[j] = node, g
+                top += 1
+    else:
+        nodes[0], gaps[0] = 1, _node_gap2(C, base + NODE_WIDTH, x, y, z)
+        top = 1
     while top > 0:
         top -= 1
         node, gap = nodes[top], gaps[top]
@@ -1200,7 +1263,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     # the slot's patch, when it holds every triangle within the slab of the segment before
     # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
     # about one point)
-    at, m = _patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
+    at, m, cut = _patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
     if at >= 0:
         j0 = at + P_RECORDS
         best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
@@ -1216,10 +1279,24 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     nodes = np.empty(STACK, dtype=np.int64)
     entries = np.empty(STACK)
     asked = np.empty(STACK)  # the earliest touch when the node's entry was found
-    nodes[0] = 1
-    entries[0] = _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
-    asked[0] = best_lam
-    top = 1
+    if cut >= 0:
+        # from the cut, the earliest entered on top
+        top = 0
+        for i in range(int(C[cut])):
+            node = int(C[cut + 1 + i])
+            e = _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+            if e <= best_lam:
+                j = top
+                while j > 0 and entries[j - 1] < e:
+                    nodes[j], entries[j], asked[j] = nodes[j - 1], entries[j - 1], asked[j - 1]
+                    j -= 1
+                nodes[j], entries[j], asked[j] = node, e, best_lam
+                top += 1
+    else:
+        nodes[0] = 1
+        entries[0] = _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+        asked[0] = best_lam
+        top = 1
     while top > 0:
         top -= 1
         node, entry = nodes[top], entries[top]
