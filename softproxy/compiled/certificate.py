@@ -467,6 +467,27 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
 
 
 @njit(cache=True, error_model="numpy")
+def heap_offer(hs, hw, m, keep, s, w):
+    """Offer (s, w) to the max-heap (by hs) of hs[:m], hw[:m] of at most `keep` entries: added
+    while there is room, else in place of the top when s is below it; returns the new m."""
+    if m < keep:
+        c = m
+        hs[c], hw[c] = s, w
+        m += 1
+        while c > 0:  # sift up
+            parent = (c - 1) // 2
+            if hs[parent] >= hs[c]:
+                break
+            hs[parent], hs[c] = hs[c], hs[parent]
+            hw[parent], hw[c] = hw[c], hw[parent]
+            c = parent
+    elif s < hs[0]:
+        hs[0], hw[0] = s, w
+        _sift_down(hs, hw, m)
+    return m
+
+
+@njit(cache=True, error_model="numpy")
 def _sift_down(hs, hw, m):
     """Restore the max-heap (by hs) of hs[:m], hw[:m] after its top was replaced."""
     j = 0
@@ -514,21 +535,7 @@ def _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep):
     ux, uy, uz = V[w, 0] - px, V[w, 1] - py, V[w, 2] - pz
     s = -(ux * ax + uy * ay + uz * az) / math.sqrt(ux * ux + uy * uy + uz * uz)
     s = math.floor((s + 1.0) * SINE_GRID) / SINE_GRID - 1.0
-    if m < keep:
-        c = m
-        hs[c], hw[c] = s, w
-        m += 1
-        while c > 0:  # sift up
-            parent = (c - 1) // 2
-            if hs[parent] >= hs[c]:
-                break
-            hs[parent], hs[c] = hs[c], hs[parent]
-            hw[parent], hw[c] = hw[c], hw[parent]
-            c = parent
-    elif s < hs[0]:
-        hs[0], hw[0] = s, w
-        _sift_down(hs, hw, m)
-    return m
+    return heap_offer(hs, hw, m, keep, s, w)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

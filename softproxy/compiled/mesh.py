@@ -38,12 +38,14 @@ Cost per query is bounded on large meshes:
    5 mm proxy, and for a larger one by `MeshShape.prepare` when a proxy is made;
 2. where they do not hold (a concave patch, a reach beyond theirs, no hint yet), the
    query's hint slot keeps a patch: the records of every triangle within a capsule about
-   a segment a little (PATCH_MARGIN) wider than the query needs, gathered from the box
-   tree, so a finger pressed into a bowl (ten sweeps a tick about one point) or sliding in
-   it reads a few dozen records a query and walks the tree once per millimetre; where such
-   a capsule holds more than PATCH_RECORDS triangles (a dense mesh, a long sweep), the box
-   tree built at load (`softproxy.mesh.MeshTables`: triangles in Morton order, 8 a leaf, per
-   node an axis-aligned box and a box oriented by its first triangle, tight about a run of
+   a segment a little (PATCH_MARGIN) wider than the query needs, or of the PATCH_RECORDS
+   nearest and a thinner capsule, sorted by distance and gathered from the box tree, so a
+   finger pressed into a bowl (ten sweeps a tick about one point) or sliding in it reads
+   the few records near its own capsule and walks the tree once per millimetre; where even
+   a capsule PATCH_KEEP wider than the query's holds more (a dense mesh, a long sweep), the
+   box tree, from the cut of nodes noted under that capsule: the tree built at load
+   (`softproxy.mesh.MeshTables`: triangles in Morton order, 8 a leaf, per node an
+   axis-aligned box and a box oriented by its first triangle, tight about a run of
    slivers): walked nearest node first, leaving out nodes farther than the best distance
    found (distance), or the nodes the segment enters, grown by the reach, before the earliest
    touch found, earliest first (sweep); a leaf's records carry each triangle's plane and
@@ -67,12 +69,12 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, static_clear
+from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, heap_offer, static_clear
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, CUT_NODES, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO, NODE_WIDTH,
-    P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT,
-    T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS,
-    V_COS, V_RING,
+    C_FEW, C_STAMP, C_STAMPS, CUT_NODES, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO,
+    NODE_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH,
+    SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS,
+    TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 
@@ -691,8 +693,8 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
             # not be too full
             lx, ly, lz = C[f + 3] - C[f], C[f + 4] - C[f + 1], C[f + 5] - C[f + 2]
             qx, qy, qz = bx - ax, by - ay, bz - az
-            if radius <= need + 2.0 * PATCH_MARGIN and \
-                    math.sqrt(lx * lx + ly * ly + lz * lz) <= math.sqrt(qx * qx + qy * qy + qz * qz) + 2.0 * PATCH_MARGIN:
+            longer = math.sqrt(lx * lx + ly * ly + lz * lz) - math.sqrt(qx * qx + qy * qy + qz * qz)
+            if radius <= need + 2.0 * PATCH_MARGIN and longer <= 2.0 * PATCH_MARGIN:
                 return -1, 0, at + P_CUT
         if not _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN, need + PATCH_KEEP):
             _cut(S, C, k, at + P_CUT, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
@@ -795,20 +797,12 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
         for j in range(j0, j1, RECORD_WIDTH):
             ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
             hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
-            if (ha * ha > r2 and hb * hb > r2 and ha * hb > 0.0):
+            if ha * ha > r2 and hb * hb > r2 and ha * hb > 0.0:
                 continue
             g2 = _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb)
             if g2 > r2:
                 continue
-            if m < PATCH_RECORDS:
-                row = m
-                m += 1
-                c = m - 1  # sift up
-                while c > 0 and keys[(c - 1) // 2] < g2:
-                    keys[c], rows[c] = keys[(c - 1) // 2], rows[(c - 1) // 2]
-                    c = (c - 1) // 2
-                keys[c], rows[c] = g2, row
-            else:
+            if m == PATCH_RECORDS:
                 # full: the farthest kept (or this one) is left out, and the patch holds only
                 # what lies nearer than it
                 r2 = g2 if g2 >= keys[0] else keys[0]
@@ -819,19 +813,8 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
                     return False
                 if g2 >= keys[0]:
                     continue
-                row = rows[0]
-                c = 0  # sift down from the root
-                while True:
-                    child = 2 * c + 1
-                    if child >= m:
-                        break
-                    if child + 1 < m and keys[child + 1] > keys[child]:
-                        child += 1
-                    if keys[child] <= g2:
-                        break
-                    keys[c], rows[c] = keys[child], rows[child]
-                    c = child
-                keys[c], rows[c] = g2, row
+            row = m if m < PATCH_RECORDS else rows[0]  # the row of the one it displaces
+            m = heap_offer(keys, rows, m, PATCH_RECORDS, g2, row)
             for c in range(RECORD_WIDTH):
                 kept[row, c] = C[j + c]
     order = np.argsort(keys[:m])
@@ -1065,6 +1048,7 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
     returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far².
     Only the part of the segment before the earliest hit so far (lam < best_lam) is tested."""
+    bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz  # where that part ends
     for j in range(j0, j1, RECORD_WIDTH):
         # a segment that stays more than r off the plane, on one side, never reaches it
         h0 = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
@@ -1081,7 +1065,7 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
                 continue
         # nor one that stays more than r off the disc about its centre that holds it in its
         # plane along the part of the segment before the earliest touch found
-        if _disc_gap2(C, j, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, h0, h1) > slab * slab:
+        if _disc_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
             continue
         i = int(C[j + 8])
         if C[C_STAMPS + i] == stamp:
@@ -1092,6 +1076,7 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
             best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, i
             far = reach + best_lam * length  # only the segment before this hit matters now
             far2 = far * far
+            bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz
     return best_lam, bnx, bny, bnz, bi, far2
 
 
