@@ -450,11 +450,11 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
     triangle within its capsule's radius of its segment, nearest first by a lower bound on
     the distance that never exceeds it; where more than PATCH_RECORDS lie within the radius
     asked, the capsule shrinks to what it holds; and where even that falls below the least
-    asked for, the patch is left as it was and the capsule is kept as too full."""
+    asked for, the patch is left as it was."""
     import warnings
 
     from softproxy.compiled.layout import (
-        P_COUNT, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, RECORD_WIDTH,
+        P_COUNT, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH,
     )
     from softproxy.compiled.mesh import _gather
 
@@ -493,13 +493,43 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
             whole += 1
             assert held == radius and np.all(keys <= radius * radius), i
     assert shrunk >= 4 and whole >= 4
-    # asked to hold at least more than it can: left as it was, the capsule kept as too full
-    before = C[at:at + P_RECORDS + RECORD_WIDTH * PATCH_RECORDS].copy()
+    # asked to hold at least more than it can: the patch is left as it was
+    before = C[at:at + PATCH_WIDTH].copy()
     a = np.array([0.0, 0.0, 0.005])
     assert not _gather(S, C, k, at, *a, *a, 0.006, 0.0055)
-    assert np.array_equal(C[at:at + P_FULL], before[:P_FULL])
-    assert np.array_equal(C[at + P_KEYS:at + P_RECORDS + RECORD_WIDTH * PATCH_RECORDS], before[P_KEYS:])
-    assert C[at + P_FULL + 6] == 0.006 and np.array_equal(C[at + P_FULL:at + P_FULL + 3], a)
+    assert np.array_equal(C[at:at + PATCH_WIDTH], before)
+
+
+def test_a_query_inside_a_too_full_capsule_keeps_it():
+    """On a dish so dense that every query past the certificates is too full for a patch, a
+    long sweep notes its capsule as too full; a distance query at its start (a ball inside
+    it, much shorter) is found too full as well and noted in it rather than replacing it, so
+    the next long sweep is served by the tree at once instead of gathering again. Every
+    answer is the brute force's."""
+    import warnings
+
+    from test_mesh_queries import check_distance, patches
+
+    v, f = fine_dish(1.5e-4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an open mesh
+        s, o = tree_shape(v, f)
+    r = 0.005
+    bottom = len(v) // 2
+    a, b, c = o.v[f[f[:, 0] == bottom][0]]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n)
+    p = a + (r + 2e-6) * n
+    t = np.cross(n, [1.0, 0.0, 0.0])
+    u = 0.004 * t / np.linalg.norm(t)  # along the floor, into the rising dish
+    o.check_sweep(p, u, r, s.sweep(*p, *u, r))
+    full = [f for _, count, f in patches(s) if f[6] > 0.0]
+    assert len(full) == 1 and all(count == 0 for _, count, _ in patches(s))
+    assert np.linalg.norm(np.subtract(full[0][3:6], full[0][:3])) > 0.002  # a long one
+    check_distance(o, s, [p])
+    assert [f for _, _, f in patches(s) if f[6] > 0.0] == full  # the same capsule
+    o.check_sweep(p, u, r, s.sweep(*p, *u, r))
+    assert [f for _, _, f in patches(s) if f[6] > 0.0] == full
 
 
 def test_a_dense_patch_shrinks_to_what_it_holds():

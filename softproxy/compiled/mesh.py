@@ -686,18 +686,21 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     gap = _capsule_gap(C, at, ax, ay, az, bx, by, bz)
     if gap + need > C[at + P_RADIUS]:
         f = at + P_FULL
-        radius = C[f + 6]
-        if _capsule_gap(C, f, ax, ay, az, bx, by, bz) + need <= radius:
-            # inside a capsule found too full: the tree serves the query, unless that capsule
-            # is much wider or longer than the query's (a long sweep's), as a smaller one may
-            # not be too full
-            lx, ly, lz = C[f + 3] - C[f], C[f + 4] - C[f + 1], C[f + 5] - C[f + 2]
-            qx, qy, qz = bx - ax, by - ay, bz - az
-            longer = math.sqrt(lx * lx + ly * ly + lz * lz) - math.sqrt(qx * qx + qy * qy + qz * qz)
-            if radius <= need + 2.0 * PATCH_MARGIN and longer <= 2.0 * PATCH_MARGIN:
-                return -1, 0, at + P_CUT
+        qx, qy, qz = bx - ax, by - ay, bz - az
+        length = math.sqrt(qx * qx + qy * qy + qz * qz)
+        inside = _capsule_gap(C, f, ax, ay, az, bx, by, bz) + need <= C[f + 6]
+        # inside a capsule found too full, the tree serves the query, unless every query
+        # found too full in it was much wider or longer than this one (a long sweep's), as
+        # a smaller capsule may not be too full
+        if inside and need + 2.0 * PATCH_MARGIN >= C[f + 8] and length + 2.0 * PATCH_MARGIN >= C[f + 7]:
+            return -1, 0, at + P_CUT
         if not _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN, need + PATCH_KEEP):
-            _cut(S, C, k, at + P_CUT, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
+            if inside:  # noted in it (its cut holds this capsule's triangles too)
+                C[f + 7], C[f + 8] = min(C[f + 7], length), min(C[f + 8], need)
+            else:
+                C[f], C[f + 1], C[f + 2], C[f + 3], C[f + 4], C[f + 5] = ax, ay, az, bx, by, bz
+                C[f + 6], C[f + 7], C[f + 8] = need + PATCH_MARGIN, length, need
+                _cut(S, C, k, at + P_CUT, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
             return -1, 0, at + P_CUT
         gap = 0.0
     m = int(C[at + P_COUNT])
@@ -768,8 +771,8 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
     capsule's radius becomes the least bound of those left out, so the patch holds every
     triangle within it. A walk of the box tree, the nearer child first, leaving out the nodes
     and records whose bounds lie beyond the radius found so far. Where that radius falls below
-    `least` (m), the walk stops and the patch is left as it was, but for its capsule found too
-    full, now this one (radius `radius`): returns whether the patch was gathered."""
+    `least` (m), the walk stops and the patch is left as it was: returns whether the patch
+    was gathered."""
     ux, uy, uz = bx - ax, by - ay, bz - az
     r2 = radius * radius
     tree, size, n, base = _tree(S, C, k)
@@ -807,9 +810,6 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
                 # what lies nearer than it
                 r2 = g2 if g2 >= keys[0] else keys[0]
                 if r2 < least * least:
-                    f = at + P_FULL
-                    C[f], C[f + 1], C[f + 2], C[f + 3], C[f + 4], C[f + 5] = ax, ay, az, bx, by, bz
-                    C[f + 6] = radius
                     return False
                 if g2 >= keys[0]:
                     continue
