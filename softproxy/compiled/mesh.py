@@ -550,6 +550,19 @@ def _tree(S, C, k):
 
 
 @njit(cache=True, error_model="numpy")
+def _push_ordered(nodes, keys, top, node, key):
+    """Push `node` with `key` onto a walk's stack nodes[:top], keys[:top] kept in descending
+    key order, so the least (the nearest, the earliest entered) is read first; returns the
+    new top."""
+    j = top
+    while j > 0 and keys[j - 1] < key:
+        nodes[j], keys[j] = nodes[j - 1], keys[j - 1]
+        j -= 1
+    nodes[j], keys[j] = node, key
+    return top + 1
+
+
+@njit(cache=True, error_model="numpy")
 def _leaf_records(C, tree, node, size, n):
     """The records (C[j0:j1]) of the triangles of leaf node `node` of a tree at C[tree]."""
     first = (node - size) * LEAF
@@ -882,12 +895,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
             node = int(C[cut + 1 + i])
             g = _node_gap2(C, base + NODE_WIDTH * node, x, y, z)
             if g <= best2:
-                j = top
-                while j > 0 and gaps[j - 1] < g:
-                    nodes[j], gaps[j] = nodes[j - 1], gaps[j - 1]
-                    j -= 1
-                nodes[j], gaps[j] = node, g
-                top += 1
+                top = _push_ordered(nodes, gaps, top, node, g)
     else:
         nodes[0], gaps[0] = 1, _node_gap2(C, base + NODE_WIDTH, x, y, z)
         top = 1
@@ -1271,12 +1279,8 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
             node = int(C[cut + 1 + i])
             e = _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
             if e <= best_lam:
-                j = top
-                while j > 0 and entries[j - 1] < e:
-                    nodes[j], entries[j], asked[j] = nodes[j - 1], entries[j - 1], asked[j - 1]
-                    j -= 1
-                nodes[j], entries[j], asked[j] = node, e, best_lam
-                top += 1
+                top = _push_ordered(nodes, entries, top, node, e)
+        asked[:top] = best_lam
     else:
         nodes[0] = 1
         entries[0] = _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
