@@ -88,10 +88,13 @@ Then per mesh its box tree (`softproxy.compiled.mesh`): from C[S.tree] the numbe
 NODE_WIDTH floats each (node j of 1 .. 2 size - 1 at TREE_NODES + NODE_WIDTH (j - 1); node
 j's children 2j and 2j + 1, leaf j node size + j holding the records of the LEAF
 (`softproxy.compiled.certificate`) triangles from j LEAF on), then its records, RECORD_WIDTH floats per triangle in
-the tree's order: the triangle's plane (nx, ny, nz, offset), its bounding ball (centre,
-radius; m) and its row of T, so that a leaf's bounds are read in one sequential pass and
-only the triangles they cannot rule out are opened."""
-RECORD_WIDTH = 9
+the tree's order: the triangle's plane (nx, ny, nz, offset), the rectangle in that plane
+that holds it (centre, unit axis along its longest edge, half-length along that axis and
+half-width across it; m) and its row of T, so that a leaf's bounds are read in one
+sequential pass and only the triangles they cannot rule out are opened. A rectangle, not a
+ball: a CAD sliver 7 mm long and 50 µm wide is as wide as its ball only along itself."""
+RECORD_WIDTH = 13
+R_CENTRE, R_AXIS, R_HALF, R_ROW = 4, 7, 10, 12
 TREE_SIZE, TREE_RECORDS, TREE_NODES = 0, 1, 2
 # a node: its axis-aligned box (lower, upper corner; m), the three axes of its oriented box
 # (the first triangle's normal, its longest edge, their cross product) and its extents

@@ -49,7 +49,8 @@ Cost per query is bounded on large meshes:
    slivers): walked nearest node first, leaving out nodes farther than the best distance
    found (distance), or the nodes the segment enters, grown by the reach, before the earliest
    touch found, earliest first (sweep); a leaf's records carry each triangle's plane and
-   bounding ball, so most of its triangles are ruled out without opening them. The walk
+   the rectangle in it that holds it (along its longest edge: a sliver's is as thin as the
+   sliver), so most of its triangles are ruled out without opening them. The walk
    reads the nodes near the query, O(log n) of them where the boxes are tight, not a
    region's worth of triangles;
 3. the last two distance answers are kept, and a sweep keeps its start point's answer when a
@@ -72,9 +73,9 @@ from numba import njit
 from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, heap_offer, static_clear
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, CUT_NODES, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO,
-    NODE_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, RECORD_WIDTH,
-    SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES, TREE_RECORDS,
-    TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
+    NODE_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, R_CENTRE, R_ROW,
+    RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES,
+    TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 
@@ -157,6 +158,27 @@ def tree_nodes(order, nlo, nhi, size, V, F, plane):
     return out
 
 
+def _rectangles(tri: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """The rectangle in each triangle's plane that holds it, as its record's columns
+    R_CENTRE..R_ROW: its centre, its axis (the longest edge's direction) and its half-length
+    and half-width (m), grown by a part in 10¹² and 1 fm so that rounding never leaves a
+    corner out."""
+    a, b, c, n = tri[:, 0:3], tri[:, 3:6], tri[:, 6:9], tri[:, T_N:T_N + 3]
+    longest = np.argmax(edges[:, :, 6], axis=1)
+    u = edges[np.arange(len(tri)), longest, 3:6]
+    w = np.cross(n, u)
+    su = np.stack([(v * u).sum(1) for v in (a, b, c)], axis=1)
+    sw = np.stack([(v * w).sum(1) for v in (a, b, c)], axis=1)
+    mu, mw = (su.max(1) + su.min(1)) / 2.0, (sw.max(1) + sw.min(1)) / 2.0
+    # the centre: in the plane, at the middle of both spans
+    out = np.empty((len(tri), R_ROW - R_CENTRE))
+    out[:, 0:3] = a + (mu - su[:, 0])[:, None] * u + (mw - sw[:, 0])[:, None] * w
+    out[:, 3:6] = u
+    out[:, 6] = (su.max(1) - su.min(1)) / 2.0 * (1.0 + 1e-12) + 1e-15
+    out[:, 7] = (sw.max(1) - sw.min(1)) / 2.0 * (1.0 + 1e-12) + 1e-15
+    return out
+
+
 def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
     rows of the shape table S filled in (where their triangles and box tree live). Geoms of
@@ -179,12 +201,10 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         nodes[:, N_EXT:N_EXT + 3] -= grow
         nodes[:, N_EXT + 3:N_EXT + 6] += grow
         first = c0 + TREE_NODES + nodes.size  # where this asset's records begin in C
-        rho = a.rhos * (1.0 + 1e-12) + 1e-15
         records = np.empty((n, RECORD_WIDTH))
         records[:, 0:4] = a.plane[order]
-        records[:, 4:7] = a.centre[order]
-        records[:, 7] = rho[order]
-        records[:, 8] = order + t0
+        records[:, R_CENTRE:R_ROW] = _rectangles(a.tri, a.edges)[order]
+        records[:, R_ROW] = order + t0
         parts += [np.array([size, first], dtype=np.float64), nodes.ravel(), records.ravel()]
         del records, nodes
         tree = c0
@@ -633,13 +653,11 @@ def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
         h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
         if h >= best or -h >= best:
             continue  # its plane is already farther than the best
-        # or the disc about its centre that holds it in its plane: the height over the plane
-        # and the distance beyond the disc bound it
-        ex, ey, ez = x - C[j + 4], y - C[j + 5], z - C[j + 6]
-        beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h * h, 0.0)) - C[j + 7]
-        if beyond > 0.0 and h * h + beyond * beyond >= best2:
+        # or the rectangle in its plane that holds it: the height over the plane and how far
+        # the foot lies beyond the rectangle bound it
+        if h * h + _beyond2(C, j, x - C[j + 4], y - C[j + 5], z - C[j + 6]) >= best2:
             continue
-        i = int(C[j + 8])
+        i = int(C[j + R_ROW])
         if i == bi:
             continue
         d2, rx, ry, rz, f = _closest(T, i, x, y, z)
@@ -662,19 +680,44 @@ def _segment_gap(ax, ay, az, bx, by, bz, px, py, pz):
 
 
 @njit(cache=True, error_model="numpy")
-def _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
+def _beyond2(C, j, ex, ey, ez):
+    """How far (m², squared) the foot of a point at e (m) from the centre of the record at
+    C[j] lies beyond its rectangle, in the triangle's plane."""
+    nx, ny, nz = C[j], C[j + 1], C[j + 2]
+    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
+    along = abs(ex * ux + ey * uy + ez * uz) - C[j + 10]
+    across = abs(ex * (ny * uz - nz * uy) + ey * (nz * ux - nx * uz) + ez * (nx * uy - ny * ux)) - C[j + 11]
+    out = 0.0
+    if along > 0.0:
+        out += along * along
+    if across > 0.0:
+        out += across * across
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _span_beyond(s0, s1, half):
+    """How far (m) the span s0..s1 lies from the span -half..half."""
+    lo, hi = (s0, s1) if s0 <= s1 else (s1, s0)
+    return lo - half if lo > half else -half - hi if hi < -half else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
     """A lower bound on the squared distance (m²) from the segment a..b to the triangle of
     the record at C[j], whose plane a and b lie ha and hb (m) over: at every point of the
-    segment its height over the plane and how far its foot lies beyond the disc that holds
-    the triangle bound its distance, so the least height along the segment and the least
-    distance from the disc's centre to the segment's feet bound them all."""
+    segment its height over the plane and how far its foot lies beyond the rectangle that
+    holds the triangle, along the rectangle's axis and across it, bound its distance, so
+    the least of each along the segment bound them all."""
     low = 0.0 if ha * hb <= 0.0 else min(abs(ha), abs(hb))
-    beyond = _segment_gap(ax - ha * C[j], ay - ha * C[j + 1], az - ha * C[j + 2],
-                          bx - hb * C[j], by - hb * C[j + 1], bz - hb * C[j + 2],
-                          C[j + 4], C[j + 5], C[j + 6]) - C[j + 7]
-    if beyond < 0.0:
-        beyond = 0.0
-    return low * low + beyond * beyond
+    nx, ny, nz = C[j], C[j + 1], C[j + 2]
+    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
+    wx, wy, wz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+    ex, ey, ez = ax - C[j + 4], ay - C[j + 5], az - C[j + 6]
+    fx, fy, fz = bx - C[j + 4], by - C[j + 5], bz - C[j + 6]
+    along = _span_beyond(ex * ux + ey * uy + ez * uz, fx * ux + fy * uy + fz * uz, C[j + 10])
+    across = _span_beyond(ex * wx + ey * wy + ez * wz, fx * wx + fy * wy + fz * wz, C[j + 11])
+    return low * low + along * along + across * across
 
 
 @njit(cache=True, error_model="numpy")
@@ -815,7 +858,7 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
             hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
             if ha * ha > r2 and hb * hb > r2 and ha * hb > 0.0:
                 continue
-            g2 = _disc_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb)
+            g2 = _record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb)
             if g2 > r2:
                 continue
             if m == PATCH_RECORDS:
@@ -1065,17 +1108,16 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
         if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
             continue
         # nor one that stays r off it and does not touch the triangle at the start (sliding
-        # over a flat patch): the disc about its centre that holds it bounds its distance
+        # over a flat patch): the rectangle in its plane that holds it bounds its distance
         if (h0 >= r and h1 >= r) or (h0 <= -r and h1 <= -r):
-            ex, ey, ez = C[j + 4] - ax, C[j + 5] - ay, C[j + 6] - az
-            beyond = math.sqrt(max(ex * ex + ey * ey + ez * ez - h0 * h0, 0.0)) - C[j + 7]
-            if beyond > 0.0 and h0 * h0 + beyond * beyond > slab * slab:
+            beyond2 = _beyond2(C, j, ax - C[j + 4], ay - C[j + 5], az - C[j + 6])
+            if beyond2 > 0.0 and h0 * h0 + beyond2 > slab * slab:
                 continue
-        # nor one that stays more than r off the disc about its centre that holds it in its
-        # plane along the part of the segment before the earliest touch found
-        if _disc_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
+        # nor one that stays more than r off the rectangle in its plane that holds it along
+        # the part of the segment before the earliest touch found
+        if _record_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
             continue
-        i = int(C[j + 8])
+        i = int(C[j + R_ROW])
         if C[C_STAMPS + i] == stamp:
             continue
         C[C_STAMPS + i] = stamp
