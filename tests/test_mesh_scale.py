@@ -603,3 +603,36 @@ def test_record_bounds_hold_and_are_as_thin_as_a_sliver():
             reach = d[fan].min() + 5e-4
             near = np.count_nonzero(d[fan] <= reach)
             assert np.count_nonzero(bound[fan] <= reach * reach) <= 2 * near + 4, (i, near)
+
+
+@pytest.mark.parametrize("jump", [0.001, 0.003])
+def test_a_proxy_slid_across_fine_facets_ends_nearest_the_device(jump):
+    """A god-object ends at the free position nearest the device (no free position is
+    nearer it than r less its distance to the surface). On a dish of 0.25 mm facets
+    (concave, curvature radius 0.1 m, far above the 5 mm proxy's) a frictionless proxy
+    pressed 2 mm in and pulled 1 or 3 mm sideways in one tick crosses a dozen facets, a sweep
+    each: it ends r off the surface point nearest the device (brute force), overlapping
+    nothing, not short of it where its budget of sweeps ran out."""
+    import warnings
+
+    from softproxy.proxy import GodObject
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an open mesh
+        s, o = tree_shape(*fine_dish(2.5e-4))
+    r = 0.005
+    local = s.tables.vpos
+    turn = np.linalg.lstsq(local - local.mean(0), o.v - o.v.mean(0), rcond=None)[0]  # geom to world, row vectors
+    bottom = o.v[np.argmin(np.linalg.norm(local, axis=1))]  # the dish's lowest point, (0, 0, 0) in its frame
+    n, side = np.array([0.0, 0.0, 1.0]) @ turn, np.array([0.6, 0.8, 0.0]) @ turn
+    god = GodObject([s], r, 0.0, 0.0, tuple(bottom + 3.0 * r * n))
+    device = bottom + (r - 0.002) * n
+    for _ in range(5):
+        god.update(*device)
+    device = device + jump * side
+    god.update(*device)
+    d, q, _ = o.nearest([device])
+    best = device + (r - d[0]) * (device - q[0]) / d[0]
+    at = np.array([god.x, god.y, god.z])
+    assert o.nearest([at])[0][0] >= r - 1e-7
+    assert np.linalg.norm(at - best) <= 1e-6, np.linalg.norm(at - best)
