@@ -379,6 +379,35 @@ def test_tree_queries_match_the_brute_force(make):
         o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=k)
 
 
+def test_tree_sweeps_sliding_over_a_fan_of_slivers_match_the_brute_force():
+    """A sphere resting on a cap of a CAD part (a fan of 300 slivers meeting at its centre,
+    every one within its reach) and sliding along it, into it or off it, swept by the box
+    tree alone: the nodes it stays r above are left out though its start lies within reach
+    of them, the nodes it moves into are not. Every answer is the brute force's."""
+    s, o = tree_shape(*sliver_part())
+    hub = np.bincount(o.f.ravel()).argmax()  # the centre of a cap's fan
+    fan = np.flatnonzero((o.f == hub).any(axis=1))
+    rng = np.random.default_rng(5)
+    hits = 0
+    for k in range(60):
+        t = fan[rng.integers(len(fan))]
+        n = np.cross(o.b[t] - o.a[t], o.c[t] - o.a[t])
+        n /= np.linalg.norm(n)
+        w = rng.dirichlet([1.0, 1.0, 1.0])
+        foot = w[0] * o.a[t] + w[1] * o.b[t] + w[2] * o.c[t]
+        if o.distance([foot + 1e-4 * n])[0] < 0.0:
+            n = -n  # outward
+        r = [0.002, 0.005][k % 2]
+        along = np.cross(n, rng.normal(size=3))
+        along *= rng.choice([1e-4, 1e-3, 5e-3]) / np.linalg.norm(along)
+        u = along + n * np.linalg.norm(along) * [-0.05, 0.0, 0.05][k % 3]
+        from_tree(s)
+        got = s.sweep(*(foot + r * n), *u, r)
+        o.check_sweep(foot + r * n, u, r, got, context=k)
+        hits += got is not None
+    assert 10 <= hits < 60
+
+
 def test_tree_finds_the_nearest_triangle_in_a_far_leaf():
     """Where the nearest triangle lies in a part of the tree far from the hint (a small
     tetrahedron 2.5 cm off a noisy sphere, the hint on the sphere's far side), the walk

@@ -522,7 +522,14 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     g2 = _node_gap2(C, at, ax, ay, az)
     if g2 <= grow * grow:
         # the start lies within `grow` of both boxes, so within them grown on every axis:
-        # entered at once (what every test below would find, for less)
+        # entered at once (what every test below would find, for less), unless the sphere
+        # stays r above the node's oriented box along its first axis: sliding over a flat
+        # cap of 10⁴ slivers, it is within reach of every one, and clear of all
+        n0 = C[at + N_AXES] * ax + C[at + N_AXES + 1] * ay + C[at + N_AXES + 2] * az
+        n1 = n0 + tmax * (C[at + N_AXES] * ux + C[at + N_AXES + 1] * uy + C[at + N_AXES + 2] * uz)
+        top, bottom = C[at + N_EXT + 3] - slack, C[at + N_EXT] + slack
+        if (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r):
+            return 2.0 * tmax + 1.0
         return 0.0
     lower = (math.sqrt(g2) - grow) / length
     if lower > tmax:
