@@ -206,7 +206,8 @@ class Oracle:
         pressed = touching & (rate < -graze) & (d0 + rate < r - CONTACT_TOL)
         slid = touching & ~pressed
         floor = np.where(rate >= -graze, d0 - graze, np.minimum(d0, r - CONTACT_TOL))[slid]
-        facts = {"into": bool(pressed.any()), "ids": ids[~touching], "slid": ids[slid], "floor": floor, "r": r}
+        facts = {"into": bool(pressed.any()), "ids": ids[~touching], "slid": ids[slid], "floor": floor, "r": r,
+                 "pressed": ids[pressed]}
         ids = facts["ids"]
         if not first:
             return {**facts, "first": None}
@@ -226,7 +227,8 @@ class Oracle:
 
     def check_sweep(self, a, dvec, r, hit, normal_check=True, context=()):
         """Asserts a sweep's answer (None or (lam, nx, ny, nz)) against the brute force: pressed
-        into a triangle it touches, it stops at once; else it stops where the sphere first
+        into a triangle it touches, it stops at once (or goes on, if it never comes within
+        r - CONTACT_TOL of that triangle before it stops); else it stops where the sphere first
         comes within r of a triangle (touching, and never nearer than r before), or, when it
         misses, the sphere never comes nearer than r; and up to where it stops it never goes
         further into a triangle it touched at the start than a graze, or a touch less
@@ -240,10 +242,16 @@ class Oracle:
         r, ids = facts["r"], facts["ids"]
         length = math.sqrt(dvec @ dvec)
         tol = EXACT + 1e-14 * length * length / r
-        if facts["into"]:
-            assert hit is not None and hit[0] == 0.0, ("pressed into a triangle it touches", context, hit)
-            return facts
         end = 1.0 if hit is None else hit[0]
+        if facts["into"]:
+            if hit is not None and hit[0] == 0.0:
+                return facts
+            # or it slides on where the tangent line of the distance dips in and the distance
+            # itself never does (a coplanar neighbour touched at its edge, slid along: a
+            # certificate reads nothing behind the tangent plane, nor the tree a node whose
+            # plane the sphere stays r above)
+            least = self._least(facts["pressed"], a, dvec, end, r)[0]
+            assert (least >= r - CONTACT_TOL - tol).all(), ("pressed into a triangle it touches", context, hit)
         if len(facts["slid"]) and end > 0.0:
             least = self._least(facts["slid"], a, dvec, end, r)[0]
             assert (least >= facts["floor"] - tol).all(), ("went into a triangle it touched", context, hit)

@@ -381,31 +381,53 @@ def test_tree_queries_match_the_brute_force(make):
 
 def test_tree_sweeps_sliding_over_a_fan_of_slivers_match_the_brute_force():
     """A sphere resting on a cap of a CAD part (a fan of 300 slivers meeting at its centre,
-    every one within its reach) and sliding along it, into it or off it, swept by the box
-    tree alone: the nodes it stays r above are left out though its start lies within reach
-    of them, the nodes it moves into are not. Every answer is the brute force's."""
+    every one within its reach) and sliding along it, into it, or off its rim into a
+    neighbouring part's side, swept by the box tree: from no hint, the nodes it stays r
+    above are left out though its start lies within reach of them; from the sliver it rests
+    on, whose tangent plane too many triangles rise above for a certificate, so are the
+    nodes wholly behind that plane. The nodes it moves into, or that rise above the plane,
+    are not: every answer is the brute force's, and the walls are hit."""
     s, o = tree_shape(*sliver_part())
-    hub = np.bincount(o.f.ravel()).argmax()  # the centre of a cap's fan
+    # the centre of the cap's fan with the most of its neighbours' sides level with it
+    counts = np.bincount(o.f.ravel())
+    level = []
+    for h in np.flatnonzero(counts >= 100):
+        t = np.flatnonzero((o.f == h).any(axis=1))[0]
+        n = np.cross(o.b[t] - o.a[t], o.c[t] - o.a[t])
+        n /= np.linalg.norm(n)
+        level.append(np.count_nonzero((np.abs((o.centre - o.v[h]) @ n) < 0.002)
+                                      & (np.linalg.norm(o.centre - o.v[h], axis=1) > 0.012)))
+    hub = np.flatnonzero(counts >= 100)[int(np.argmax(level))]
     fan = np.flatnonzero((o.f == hub).any(axis=1))
     rng = np.random.default_rng(5)
-    hits = 0
-    for k in range(60):
+    hits = walls = 0
+    for k in range(90):
         t = fan[rng.integers(len(fan))]
         n = np.cross(o.b[t] - o.a[t], o.c[t] - o.a[t])
         n /= np.linalg.norm(n)
-        w = rng.dirichlet([1.0, 1.0, 1.0])
+        w = rng.dirichlet([1.0, 1.0, 1.0] if k % 2 else [0.1, 3.0, 3.0])  # (every other near the rim)
         foot = w[0] * o.a[t] + w[1] * o.b[t] + w[2] * o.c[t]
         if o.distance([foot + 1e-4 * n])[0] < 0.0:
             n = -n  # outward
         r = [0.002, 0.005][k % 2]
-        along = np.cross(n, rng.normal(size=3))
-        along *= rng.choice([1e-4, 1e-3, 5e-3]) / np.linalg.norm(along)
-        u = along + n * np.linalg.norm(along) * [-0.05, 0.0, 0.05][k % 3]
-        from_tree(s)
-        got = s.sweep(*(foot + r * n), *u, r)
-        o.check_sweep(foot + r * n, u, r, got, context=k)
-        hits += got is not None
-    assert 10 <= hits < 60
+        if k % 3 == 2:  # along the cap, off its rim and on into a neighbouring part's side
+            level = (o.centre - foot - r * n) @ n
+            aim = np.flatnonzero((np.abs(level) < 0.5 * r) & (np.linalg.norm(o.centre - foot, axis=1) > 0.012))
+            along = o.centre[aim[rng.integers(len(aim))]] - foot
+            along = 0.04 * (along - n * (along @ n)) / np.linalg.norm(along - n * (along @ n))
+        else:
+            along = np.cross(n, rng.normal(size=3))
+            along *= rng.choice([1e-4, 1e-3, 5e-3]) / np.linalg.norm(along)
+        u = along + n * np.linalg.norm(along) * [-0.05, 0.0, 0.0][k % 3]
+        # from the tree alone, then from the touched sliver as the hint (a tangent plane the
+        # sphere stays r above: what lies behind it is left out)
+        for hint in (-1, t):
+            from_tree(s, hint)
+            got = s.sweep(*(foot + r * n), *u, r)
+            o.check_sweep(foot + r * n, u, r, got, context=(k, hint))
+            hits += got is not None
+            walls += got is not None and k % 3 == 2
+    assert 20 <= hits < 180 and walls >= 6
 
 
 def test_tree_finds_the_nearest_triangle_in_a_far_leaf():

@@ -1101,11 +1101,34 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
+def _record_top(C, j, nx, ny, nz):
+    """The highest point (m, along unit n) of the rectangle of the record at C[j]."""
+    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
+    tx, ty, tz = C[j], C[j + 1], C[j + 2]
+    wx, wy, wz = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux
+    return (nx * C[j + 4] + ny * C[j + 5] + nz * C[j + 6] + C[j + 10] * abs(nx * ux + ny * uy + nz * uz)
+            + C[j + 11] * abs(nx * wx + ny * wy + nz * wz))
+
+
+@njit(cache=True, error_model="numpy")
+def _node_top(C, at, nx, ny, nz):
+    """The highest point (m, along unit n) of the oriented box of the node at C[at]."""
+    top = 0.0
+    for a in range(3):
+        c = at + N_AXES + 3 * a
+        k = nx * C[c] + ny * C[c + 1] + nz * C[c + 2]
+        top += max(k * C[at + N_EXT + a], k * C[at + N_EXT + 3 + a])
+    return top
+
+
+@njit(cache=True, error_model="numpy")
 def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
-               best_lam, bnx, bny, bnz, bi, far2):
+               best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff):
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
     returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far².
-    Only the part of the segment before the earliest hit so far (lam < best_lam) is tested."""
+    Only the part of the segment before the earliest hit so far (lam < best_lam) is tested;
+    when `cull`, not the triangles whose rectangle lies wholly behind the plane p·x = poff
+    (a tangent plane the sphere stays r above all the way: `_behind`)."""
     bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz  # where that part ends
     for j in range(j0, j1, RECORD_WIDTH):
         # a segment that stays more than r off the plane, on one side, never reaches it
@@ -1123,6 +1146,8 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
         # nor one that stays more than r off the rectangle in its plane that holds it along
         # the part of the segment before the earliest touch found
         if _record_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
+            continue
+        if cull and _record_top(C, j, pnx, pny, pnz) <= poff:
             continue
         i = int(C[j + R_ROW])
         if C[C_STAMPS + i] == stamp:
@@ -1216,7 +1241,9 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     near it and staying above its tangent plane, the kept certificates may leave only a few
     triangles to sweep (and prove the start's nearest point, kept for `mesh_distance`);
     else the box tree is walked: the nodes whose boxes, grown by the reach, the segment
-    enters before the earliest touch found, earliest first."""
+    enters before the earliest touch found, earliest first (and, when it stays r above the
+    hint's tangent plane but too many triangles rise above that plane for a certificate to
+    list, not the nodes and records wholly behind it)."""
     dd = dx * dx + dy * dy + dz * dz
     if dd == 0.0:
         return (-1.0, 0.0, 0.0, 0.0)
@@ -1239,6 +1266,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     uy = r01 * dx + r11 * dy + r21 * dz
     uz = r02 * dx + r12 * dy + r22 * dz
     best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
+    cull, pnx, pny, pnz, poff = False, 0.0, 0.0, 0.0, 0.0
     hint0 = int(S[k].hint)
     if hint0 >= 0:
         d2, qx, qy, qz, feature, hint = _from_hint(S, T, C, k, hint0, ax, ay, az)
@@ -1256,6 +1284,10 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
                 if m >= 0:
                     return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
                                       r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
+                # too many reach above it to list (a neighbour's wall): the walk below still
+                # leaves out what lies wholly behind it (a convex rim of 10⁴ slivers)
+                cull = True
+                pnx, pny, pnz, poff = nx, ny, nz, nx * qx + ny * qy + nz * qz + ABOVE_TOL
         else:
             lam, mx, my, mz, f = _sweep_triangle(T, hint, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
             if lam >= 0.0 and 1 <= f <= 3:
@@ -1310,7 +1342,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
         j0 = at + P_RECORDS
         best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
             T, C, j0, j0 + m * RECORD_WIDTH, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab,
-            reach, length, best_lam, bnx, bny, bnz, bi, far2)
+            reach, length, best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff)
         if bi < 0:
             return (-1.0, 0.0, 0.0, 0.0)
         return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, ax, ay, az, ux, uy, uz, r, graze)
@@ -1344,11 +1376,13 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
             again = _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
             if again > best_lam:
                 continue
+        if cull and _node_top(C, base + NODE_WIDTH * node, pnx, pny, pnz) <= poff:
+            continue
         if node >= size:
             j0, j1 = _leaf_records(C, tree, node, size, n)
             best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
                 T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
-                best_lam, bnx, bny, bnz, bi, far2)
+                best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff)
             continue
         at = base + NODE_WIDTH * 2 * node
         e0 = _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
