@@ -411,8 +411,8 @@ def test_tree_sweeps_sliding_over_a_fan_of_slivers_match_the_brute_force():
             n = -n  # outward
         r = [0.002, 0.005][k % 2]
         if k % 3 == 2:  # along the cap, off its rim and on into a neighbouring part's side
-            level = (o.centre - foot - r * n) @ n
-            aim = np.flatnonzero((np.abs(level) < 0.5 * r) & (np.linalg.norm(o.centre - foot, axis=1) > 0.012))
+            height = (o.centre - foot - r * n) @ n  # over the sphere's centre
+            aim = np.flatnonzero((np.abs(height) < 0.5 * r) & (np.linalg.norm(o.centre - foot, axis=1) > 0.012))
             along = o.centre[aim[rng.integers(len(aim))]] - foot
             along = 0.04 * (along - n * (along @ n)) / np.linalg.norm(along - n * (along @ n))
         else:

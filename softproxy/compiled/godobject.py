@@ -319,14 +319,15 @@ def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz, rested):
 
 @njit(cache=True, error_model="numpy")
 def _nearest(S, T, C, xpos, xmat, g, near, x, y, z):
-    """The near shape nearest the point (x, y, z)."""
-    best, best_d = -1, math.inf
+    """The near shape nearest the point (x, y, z) and its answer there: (row, signed distance
+    (m), outward normal); row -1 when no shape is near."""
+    best, best_d, bx, by, bz = -1, math.inf, 0.0, 0.0, 0.0
     for j in range(int(g.nnear)):
         s = near[j]
-        d = shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0]
+        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
         if d < best_d:
-            best, best_d = s, d
-    return best
+            best, best_d, bx, by, bz = s, d, nx, ny, nz
+    return best, best_d, bx, by, bz
 
 
 @njit(cache=True, error_model="numpy")
@@ -630,11 +631,7 @@ def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
     end overlaps another shape) is left to sliding.
     pl: a scratch plane list."""
     r = g.radius
-    d, nx, ny, nz, s = math.inf, 0.0, 0.0, 0.0, -1
-    for j in range(int(g.nnear)):
-        dj, mx, my, mz = shape_distance(S, T, C, xpos, xmat, near[j], gx, gy, gz)
-        if dj < d:
-            d, nx, ny, nz, s = dj, mx, my, mz, near[j]
+    s, d, nx, ny, nz = _nearest(S, T, C, xpos, xmat, g, near, gx, gy, gz)
     if s < 0 or d >= r:
         return False, x, y, z, 0.0, 0.0, 0.0, -1
     px, py, pz = gx + (r - d) * nx, gy + (r - d) * ny, gz + (r - d) * nz
@@ -917,7 +914,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
         fx, fy, fz = _land(S, T, C, xpos, xmat, g, near, fx, fy, fz, xd, yd, zd, saved)
         best = _touched_at(S, T, C, xpos, xmat, g, near, fx, fy, fz, nx, ny, nz, 0)
         if best < 0:  # not expected: a proxy in contact ends on a surface
-            best = _nearest(S, T, C, xpos, xmat, g, near, fx, fy, fz)
+            best = _nearest(S, T, C, xpos, xmat, g, near, fx, fy, fz)[0]
     g.x, g.y, g.z = fx, fy, fz
     g.touched = best
     if not S[best].static:  # remember the proxy in the touched geom's frame: it carries it

@@ -94,7 +94,7 @@ half-width across it; m) and its row of T, so that a leaf's bounds are read in o
 sequential pass and only the triangles they cannot rule out are opened. A rectangle, not a
 ball: a CAD sliver 7 mm long and 50 µm wide is as wide as its ball only along itself."""
 RECORD_WIDTH = 13
-R_CENTRE, R_AXIS, R_HALF, R_ROW = 4, 7, 10, 12
+R_CENTRE, R_ROW = 4, 12  # the rectangle (centre, axis, half-length, half-width) from 4; the row
 TREE_SIZE, TREE_RECORDS, TREE_NODES = 0, 1, 2
 # a node: its axis-aligned box (lower, upper corner; m), the three axes of its oriented box
 # (the first triangle's normal, its longest edge, their cross product) and its extents

@@ -504,14 +504,26 @@ def _span_gap2(C, at, ax, ay, az, ux, uy, uz, tmax):
 
 
 @njit(cache=True, error_model="numpy")
+def _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
+    """True when a sphere of radius r (m) on the segment a + t u, t in [0, tmax], stays r
+    off the node at C[at]'s oriented box along its first axis (the plane of its first
+    face), on one side from start to end (sliding over a flat patch, or lifting off it): it
+    never comes nearer than r to the node's triangles, so touches none. The box's extents
+    are taken less `slack` (m), what they were grown by at packing: a sphere resting on a
+    flat patch is r above it to a rounding."""
+    n0 = C[at + N_AXES] * ax + C[at + N_AXES + 1] * ay + C[at + N_AXES + 2] * az
+    n1 = n0 + tmax * (C[at + N_AXES] * ux + C[at + N_AXES + 1] * uy + C[at + N_AXES + 2] * uz)
+    top, bottom = C[at + N_EXT + 3] - slack, C[at + N_EXT] + slack
+    return (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r)
+
+
+@njit(cache=True, error_model="numpy")
 def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     """Where (fraction of the segment a + t u, t in [0, tmax], |u| = length (m)) it enters
     the node at C[at]'s boxes, each grown by `grow` (m) on every side; > tmax when it does
     not, or when the boxes lie farther than `grow` plus half its length from its middle, or
-    when a sphere of radius r (m) on it touches none of the node's triangles at the start and
-    stays r above the node's oriented box along its first axis (less `slack` (m), what the
-    box was grown by at packing: a sphere resting on a flat patch is r above it to a
-    rounding). A sphere of radius r < grow
+    when a sphere of radius r (m) on it stays r above the node's oriented box along its first
+    axis (`_stays_above`). A sphere of radius r < grow
     touching a triangle of the node has its centre within r of both boxes, so no touch on
     the segment comes before this, nor before the distance from a to the boxes less `grow`
     is travelled. The second test is what keeps
@@ -523,12 +535,9 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     if g2 <= grow * grow:
         # the start lies within `grow` of both boxes, so within them grown on every axis:
         # entered at once (what every test below would find, for less), unless the sphere
-        # stays r above the node's oriented box along its first axis: sliding over a flat
-        # cap of 10⁴ slivers, it is within reach of every one, and clear of all
-        n0 = C[at + N_AXES] * ax + C[at + N_AXES + 1] * ay + C[at + N_AXES + 2] * az
-        n1 = n0 + tmax * (C[at + N_AXES] * ux + C[at + N_AXES + 1] * uy + C[at + N_AXES + 2] * uz)
-        top, bottom = C[at + N_EXT + 3] - slack, C[at + N_EXT] + slack
-        if (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r):
+        # stays r above the node's plane: sliding over a flat cap of 10⁴ slivers, it is
+        # within reach of every one, and clear of all
+        if _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
             return 2.0 * tmax + 1.0
         return 0.0
     lower = (math.sqrt(g2) - grow) / length
@@ -538,15 +547,8 @@ def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     ball = grow + 0.5 * tmax * length
     if _node_gap2(C, at, mx, my, mz) > ball * ball:
         return 2.0 * tmax + 1.0
-    # a sphere touching none of the node's triangles at the start and never nearer to the
-    # plane of its first face's side it stays on than r (sliding over a flat patch, or
-    # lifting off it) never comes nearer to them than r: no touch in the node
-    n0 = C[at + N_AXES] * ax + C[at + N_AXES + 1] * ay + C[at + N_AXES + 2] * az
-    n1 = n0 + tmax * (C[at + N_AXES] * ux + C[at + N_AXES + 1] * uy + C[at + N_AXES + 2] * uz)
-    top, bottom = C[at + N_EXT + 3] - slack, C[at + N_EXT] + slack
-    if (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r):
-        if g2 > grow * grow:
-            return 2.0 * tmax + 1.0
+    if _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
+        return 2.0 * tmax + 1.0
     # per axis of either box, the least gap (m) between the segment's span and the box's:
     # together they bound the distance from every point of the segment (a tube about it,
     # where the boxes grown per axis are a square one)
@@ -687,13 +689,21 @@ def _segment_gap(ax, ay, az, bx, by, bz, px, py, pz):
 
 
 @njit(cache=True, error_model="numpy")
+def _across(C, j):
+    """The unit vector across the rectangle of the record at C[j]: its plane's normal × its
+    axis."""
+    nx, ny, nz = C[j], C[j + 1], C[j + 2]
+    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
+    return ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+
+
+@njit(cache=True, error_model="numpy")
 def _beyond2(C, j, ex, ey, ez):
     """How far (m², squared) the foot of a point at e (m) from the centre of the record at
     C[j] lies beyond its rectangle, in the triangle's plane."""
-    nx, ny, nz = C[j], C[j + 1], C[j + 2]
-    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
-    along = abs(ex * ux + ey * uy + ez * uz) - C[j + 10]
-    across = abs(ex * (ny * uz - nz * uy) + ey * (nz * ux - nx * uz) + ez * (nx * uy - ny * ux)) - C[j + 11]
+    wx, wy, wz = _across(C, j)
+    along = abs(ex * C[j + 7] + ey * C[j + 8] + ez * C[j + 9]) - C[j + 10]
+    across = abs(ex * wx + ey * wy + ez * wz) - C[j + 11]
     out = 0.0
     if along > 0.0:
         out += along * along
@@ -717,9 +727,8 @@ def _record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
     holds the triangle, along the rectangle's axis and across it, bound its distance, so
     the least of each along the segment bound them all."""
     low = 0.0 if ha * hb <= 0.0 else min(abs(ha), abs(hb))
-    nx, ny, nz = C[j], C[j + 1], C[j + 2]
     ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
-    wx, wy, wz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+    wx, wy, wz = _across(C, j)
     ex, ey, ez = ax - C[j + 4], ay - C[j + 5], az - C[j + 6]
     fx, fy, fz = bx - C[j + 4], by - C[j + 5], bz - C[j + 6]
     along = _span_beyond(ex * ux + ey * uy + ez * uz, fx * ux + fy * uy + fz * uz, C[j + 10])
@@ -1104,8 +1113,7 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
 def _record_top(C, j, nx, ny, nz):
     """The highest point (m, along unit n) of the rectangle of the record at C[j]."""
     ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
-    tx, ty, tz = C[j], C[j + 1], C[j + 2]
-    wx, wy, wz = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux
+    wx, wy, wz = _across(C, j)
     return (nx * C[j + 4] + ny * C[j + 5] + nz * C[j + 6] + C[j + 10] * abs(nx * ux + ny * uy + nz * uz)
             + C[j + 11] * abs(nx * wx + ny * wy + nz * wz))
 
@@ -1128,7 +1136,7 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
     returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far².
     Only the part of the segment before the earliest hit so far (lam < best_lam) is tested;
     when `cull`, not the triangles whose rectangle lies wholly behind the plane p·x = poff
-    (a tangent plane the sphere stays r above all the way: `_behind`)."""
+    (a tangent plane the sphere stays r above all the way)."""
     bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz  # where that part ends
     for j in range(j0, j1, RECORD_WIDTH):
         # a segment that stays more than r off the plane, on one side, never reaches it
