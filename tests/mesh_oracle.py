@@ -407,6 +407,16 @@ def sphere10k():
 
 
 @functools.cache
+def scanned_sphere():
+    """The 10k-triangle sphere with each vertex moved radially by a tenth of an edge at random
+    (a scan's noise): a proxy rests in pockets of three facets, not on one."""
+    mesh = geodesic_sphere(22, 0.05)
+    v = np.array(mesh.vertices)
+    v *= (1.0 + 0.1 * (1.1 / 22) * np.random.default_rng(5).standard_normal(len(v)))[:, None]
+    return mesh_model(trimesh.Trimesh(v, mesh.faces, process=False))
+
+
+@functools.cache
 def bowl():
     """The mesh_object scene's bowl (7200 triangles, rim at z = 4 cm) on its table plane."""
     m = mujoco.MjModel.from_xml_path(str(SCENES / "mesh_object.xml"))

@@ -17,7 +17,9 @@ import pytest
 import trimesh
 from hypothesis import given, settings, strategies as st
 
-from mesh_oracle import SCENES, TOL, Oracle, bowl, geodesic_sphere, mesh_model, mesh_of, oracle, small_tetra, sphere10k
+from mesh_oracle import (
+    SCENES, TOL, Oracle, bowl, geodesic_sphere, mesh_model, mesh_of, oracle, scanned_sphere, small_tetra, sphere10k,
+)
 from softproxy.geometry import shapes_of
 from softproxy.mesh import MeshShape, MeshWarning, validate_mesh
 from softproxy.proxy import GodObject
@@ -183,7 +185,8 @@ def test_a_world_without_meshes_builds_no_mesh_tables():
 def test_on_face_is_never_claimed_on_a_mesh():
     """A mesh never tells the god-object a contact lies on a flat face (it would warm-start
     from that face's plane): not for a face's own normal, pressed and held there, nor for
-    any other direction; the proxy held there is solved afresh each tick, and stays put."""
+    any other direction (the flat-face fast path would hold it past the triangle's edges);
+    the proxy held there stays put."""
     m, d, shapes = sphere10k()
     s = mesh_of(shapes)
     o = oracle(m, d, shapes)
@@ -204,6 +207,44 @@ def test_on_face_is_never_claimed_on_a_mesh():
 # ---------------------------------------------------------------------------------------
 
 coord = st.floats(-1.0, 1.0)
+
+
+@settings(max_examples=12, deadline=None, derandomize=True)
+@given(st.sampled_from(["scanned sphere", "bowl"]), st.floats(0.002, 0.008), st.floats(0.2, 1.0),
+       st.lists(st.tuples(coord, coord, st.floats(0.2, 1.0)), min_size=2, max_size=8))
+def test_a_stuck_proxy_warm_started_on_a_mesh_ends_where_a_cold_solve_ends(which, radius, mu, path):
+    """A proxy held by friction on a static mesh starts the next tick from the planes it
+    rests on (a sweep saved for each). On a scanned sphere and in the bowl, pressed 0.6-3 mm
+    in and pushed about by up to 2 mm, each target reached in five steps and held for three
+    with a 10 µm tremor (stuck, sliding off, stuck again), it ends every tick where a fresh
+    god-object placed where the first started the tick and solving from no planes ends: the
+    same position, contact, depth and force direction, and never inside (brute force)."""
+    if which == "scanned sphere":
+        m, d, shapes = scanned_sphere()
+        o, top, n = oracle(m, d, shapes), np.array([0.0, 0.0, 0.05]), np.array([0.0, 0.0, 1.0])
+    else:
+        m, d, shapes = bowl()
+        o, top, n = bowl_oracle(m, d, shapes), np.array([0.0, 0.0, 0.005]), np.array([0.0, 0.0, 1.0])
+    shapes.prepare(0.01)
+    fast = GodObject(shapes, radius, mu, 0.8 * mu, tuple(top + 0.02 * n), restick_time=0.0)
+    stuck = 0
+    for a, b, depth in path:
+        target = top + (radius - 0.003 * depth) * n + 0.002 * np.array([a, b, 0.0])
+        start = np.array([fast.x, fast.y, fast.z])
+        for k in range(1, 9):
+            q = tuple(start + (target - start) * min(k, 5) / 5 + 1e-5 * (k > 5) * np.array([(-1) ** k, 0.0, 0.0]))
+            cold = GodObject(shapes, radius, mu, 0.8 * mu, (fast.x, fast.y, fast.z), restick_time=0.0)
+            stuck += fast.sticking
+            fast.update(*q)
+            cold.update(*q)
+            assert penetration(o, (fast.x, fast.y, fast.z), radius).max() <= TOL
+            assert math.dist((fast.x, fast.y, fast.z), (cold.x, cold.y, cold.z)) < TOL
+            assert fast.contact == cold.contact
+            if fast.contact:
+                assert fast.depth == pytest.approx(cold.depth, abs=TOL)
+                if cold.depth > 1e-4:
+                    assert math.dist((fast.nx, fast.ny, fast.nz), (cold.nx, cold.ny, cold.nz)) < 1e-3
+    assert stuck > 0  # the warm start was tried
 
 
 @settings(max_examples=15, deadline=None)

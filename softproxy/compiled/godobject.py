@@ -587,10 +587,13 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
     to tick: starting from their planes saves a sweep per plane. A planar face's plane is kept
     as it was; a convex shape's plane elsewhere (a rounded edge or corner, a curved surface)
     is its tangent plane under the proxy now, one distance query, unless the last solve slid
-    round a curve (it would lift off again). A plane may run on past the shape's surface: a
-    proxy that lifts off one (past a face's edge, round a curve) is solved again from no
-    planes (`_move`), so a warm start ends where the cold solve ends. Never unsafe either way:
-    every motion is still swept."""
+    round a curve (it would lift off again). A static mesh's plane (a triangle's, or the
+    tangent plane at its edge or vertex) is kept as it was while the proxy is stuck and on it
+    (a proxy in a pocket of a scanned surface rests on three, a sweep each to find again);
+    a sliding proxy crosses facets and would lift off them. A plane may run on past the
+    shape's surface: a proxy that lifts off one (past a face's edge, round a curve) is solved
+    again from no planes (`_move`), so a warm start ends where the cold solve ends. Never
+    unsafe either way: every motion is still swept."""
     n = int(g.nplanes)
     count = 0
     for j in range(n):
@@ -603,8 +606,16 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
                 warm[count, k] = p[k]
             count += 1
             continue
-        if not S[s].convex or g.rounding:  # sliding round a curve: a warm start would lift
+        if g.rounding:  # sliding round a curve: a warm start would lift
             return 0
+        if not S[s].convex:
+            # a static mesh's plane, while the proxy is stuck and still on it
+            if not g.sticking or abs(p[0] * x + p[1] * y + p[2] * z - p[3]) > LIFT_TOL:
+                return 0
+            for k in range(PLANE_WIDTH):
+                warm[count, k] = p[k]
+            count += 1
+            continue
         d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
         if d - g.radius > LIFT_TOL:
             return 0

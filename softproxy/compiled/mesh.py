@@ -58,9 +58,10 @@ Cost per query is bounded on large meshes:
    and about where a sweep left it), keyed by the point in the geom frame, so a new pose
    never returns a stale answer.
 
-A mesh never reports a contact `on_face` (`softproxy.compiled.shapes.shape_on_face`): a
-proxy held on a mesh is solved afresh each tick, never warm-started from a face's plane (the
-same answer, one sweep more).
+A mesh never reports a contact `on_face` (`softproxy.compiled.shapes.shape_on_face`): the
+god-object's hold fast path for a flat face does not apply (a triangle's plane runs on past
+its edges); a proxy stuck on a static mesh starts the next tick's solve from the planes it
+rests on (`softproxy.compiled.godobject._warm_planes`), every motion still swept.
 """
 
 from __future__ import annotations
