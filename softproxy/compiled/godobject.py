@@ -112,13 +112,19 @@ def _load_planes(g, pl):
 
 
 @njit(cache=True, error_model="numpy")
-def _store_planes(g, pl, n):
-    """The finger's planes := the newest three of pl[:n] (a proxy rests on three at most)."""
+def _newest_three(dst, pl, n):
+    """dst := the newest three of pl[:n] (a proxy rests on three at most); returns how many."""
     start = n - 3 if n > 3 else 0
     for j in range(start, n):
         for k in range(PLANE_WIDTH):
-            g.planes[j - start, k] = pl[j, k]
-    g.nplanes = n - start
+            dst[j - start, k] = pl[j, k]
+    return n - start
+
+
+@njit(cache=True, error_model="numpy")
+def _store_planes(g, pl, n):
+    """The finger's planes := the newest three of pl[:n]."""
+    g.nplanes = _newest_three(g.planes, pl, n)
 
 
 @njit(cache=True, error_model="numpy")
@@ -628,6 +634,32 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
 
 
 @njit(cache=True, error_model="numpy")
+def _free_from_last(S, g, near, xd, yd, zd, warm):
+    """Last tick's frictionless proxy's planes, to solve this tick's frictionless proxy from
+    there, into warm; returns their count (0: solve from the proxy).
+
+    A proxy stuck on a static mesh stays put while the device trembles, and the frictionless
+    proxy its friction cone is tested against lies where sliding from it ends: over a scanned
+    surface a few facets away, one sweep per facet (five a tick at a million triangles).
+    Sliding on from there is a way the proxy could slide too (clear last tick, and nothing
+    near has moved since), so the solve starts there, on its planes, while the device
+    presses into every one of them: one sweep."""
+    n = int(g.nfree)
+    if n == 0 or not (g.contact and g.sticking):
+        return 0
+    for j in range(int(g.nnear)):
+        if not S[near[j]].static:
+            return 0
+    for j in range(n):
+        p = g.free_planes[j]
+        if S[int(p[4])].convex or p[0] * xd + p[1] * yd + p[2] * zd >= p[3]:
+            return 0
+        for k in range(PLANE_WIDTH):
+            warm[j, k] = p[k]
+    return n
+
+
+@njit(cache=True, error_model="numpy")
 def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
     """The end of a move toward the goal g (m, world) straight from (x, y, z), when it is the
     position r off the surface point q nearest the goal, along the normal there: (found, the
@@ -859,8 +891,19 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
             and _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
         return True
     x, y, z = g.x, g.y, g.z
-    nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
-    fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm, pl, kept)
+    n = 0
+    nfree = _free_from_last(S, g, near, xd, yd, zd, warm)
+    if nfree > 0:
+        fx, fy, fz, _, _, _, _, n = _move(S, T, C, xpos, xmat, g, near, g.free_x, g.free_y, g.free_z, xd, yd, zd,
+                                          warm, nfree, pl, kept)
+        hx, hy, hz, straight = x, y, z, False  # the proxy is where it touches first
+    if n == 0:
+        nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
+        fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm,
+                                                    pl, kept)
+    # the frictionless proxy and its planes, for a stuck proxy's next tick
+    g.free_x, g.free_y, g.free_z = fx, fy, fz
+    g.nfree = _newest_three(g.free_planes, pl, n)
     if n == 0:
         g.nplanes = 0
         g.x, g.y, g.z = fx, fy, fz

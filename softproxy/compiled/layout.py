@@ -143,6 +143,9 @@ FINGER = np.dtype([
     ("rounding", np.bool_),                                       # the last solve followed a surface round
     ("nplanes", np.int64),
     ("planes", np.float64, (3, PLANE_WIDTH)),                     # constraint planes: nx, ny, nz, c, shape row
+    ("free_x", np.float64), ("free_y", np.float64), ("free_z", np.float64),  # last tick's frictionless proxy (m)
+    ("nfree", np.int64),
+    ("free_planes", np.float64, (3, PLANE_WIDTH)),                # the planes it rested on
     ("radius", np.float64), ("mu_s", np.float64), ("mu_d", np.float64),
     # the friction cone's slip state (sticking False while in contact: slipping, dynamic cone)
     ("slide_ux", np.float64), ("slide_uy", np.float64), ("slide_uz", np.float64),  # unit offset of the last slide
