@@ -61,7 +61,8 @@ Cost per query is bounded on large meshes:
 A mesh never reports a contact `on_face` (`softproxy.compiled.shapes.shape_on_face`): the
 god-object's hold fast path for a flat face does not apply (a triangle's plane runs on past
 its edges); a proxy stuck on a static mesh starts the next tick's solve from the planes it
-rests on (`softproxy.compiled.godobject._warm_planes`), every motion still swept.
+rests on (`softproxy.compiled.godobject._warm_planes`) and its frictionless proxy from last
+tick's (`_free_from_last`), every motion still swept.
 """
 
 from __future__ import annotations
