@@ -409,7 +409,7 @@ def sphere10k():
 @functools.cache
 def scanned_sphere():
     """The 10k-triangle sphere with each vertex moved radially by a tenth of an edge at random
-    (a scan's noise): a proxy rests in pockets of three facets, not on one."""
+    (a scan's noise): dents and ridges between facets where the sphere was smooth."""
     mesh = geodesic_sphere(22, 0.05)
     v = np.array(mesh.vertices)
     v *= (1.0 + 0.1 * (1.1 / 22) * np.random.default_rng(5).standard_normal(len(v)))[:, None]

@@ -647,15 +647,16 @@ def _free_from_last(S, g, near, xd, yd, zd, warm):
     n = int(g.nfree)
     if n == 0 or not (g.contact and g.sticking):
         return 0
-    for j in range(int(g.nnear)):
-        if not S[near[j]].static:
-            return 0
+    # its own planes first: on a primitive (convex) the first one says no
     for j in range(n):
         p = g.free_planes[j]
         if S[int(p[4])].convex or p[0] * xd + p[1] * yd + p[2] * zd >= p[3]:
             return 0
         for k in range(PLANE_WIDTH):
             warm[j, k] = p[k]
+    for j in range(int(g.nnear)):
+        if not S[near[j]].static:
+            return 0
     return n
 
 
