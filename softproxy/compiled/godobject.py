@@ -763,12 +763,23 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             for i in range(n):
                 si = int(pl[i, 4])
                 d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, si, x, y, z)
-                if d - r <= LIFT_TOL:
+                own = True
+                if d - r <= LIFT_TOL and not S[si].convex and \
+                        1.0 - (mx * pl[i, 0] + my * pl[i, 1] + mz * pl[i, 2]) > LIFT_TOL / r:
+                    # a mesh's nearest feature is another than the plane's, more than a lift
+                    # of LIFT_TOL would tilt it (an edge hit and slid past, beside a facet
+                    # still touched): the plane holds while its own contact point, r below the
+                    # proxy, is on the surface
+                    own = shape_distance(S, T, C, xpos, xmat, si, x - r * pl[i, 0], y - r * pl[i, 1],
+                                         z - r * pl[i, 2])[0] <= LIFT_TOL
+                if d - r <= LIFT_TOL and own:
                     for k in range(PLANE_WIDTH):
                         kept[nk, k] = pl[i, k]
                     nk += 1
                     continue
                 lifted = True
+                if not own:
+                    continue  # dropped: the feature under the proxy stops a slide into it, swept
                 dup = False
                 for q in range(nk):
                     if int(kept[q, 4]) == si:
