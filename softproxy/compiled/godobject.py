@@ -634,18 +634,19 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
 
 
 @njit(cache=True, error_model="numpy")
-def _free_from_last(S, g, near, xd, yd, zd, warm):
+def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
     """Last tick's frictionless proxy's planes, to solve this tick's frictionless proxy from
     there, into warm; returns their count (0: solve from the proxy).
 
-    A proxy stuck on a static mesh stays put while the device trembles, and the frictionless
-    proxy its friction cone is tested against lies where sliding from it ends: over a scanned
-    surface a few facets away, one sweep per facet (five a tick at a million triangles).
-    Sliding on from there is a way the proxy could slide too (clear last tick, and nothing
-    near has moved since), so the solve starts there, on its planes, while the device
-    presses into every one of them: one sweep."""
+    A proxy on a static mesh is tested against the frictionless proxy, where sliding from it
+    ends: over a scanned surface a few facets away, one sweep per facet (five a tick at a
+    million triangles). The proxy and last tick's frictionless proxy were both reached from
+    last tick's proxy through free space, and nothing near has moved since, so sliding on
+    from there is a way the proxy could slide too: the solve starts there, on its planes,
+    while the device presses into every one of them (one sweep), and into the surface at
+    the proxy (which is then where the proxy touches first, as a sweep from it would find)."""
     n = int(g.nfree)
-    if n == 0 or not (g.contact and g.sticking):
+    if n == 0 or not g.contact or g.touched < 0:
         return 0
     # its own planes first: on a primitive (convex) the first one says no
     for j in range(n):
@@ -657,6 +658,10 @@ def _free_from_last(S, g, near, xd, yd, zd, warm):
     for j in range(int(g.nnear)):
         if not S[near[j]].static:
             return 0
+    x, y, z = g.x, g.y, g.z
+    d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, int(g.touched), x, y, z)
+    if d - g.radius > LIFT_TOL or nx * (xd - x) + ny * (yd - y) + nz * (zd - z) >= 0.0:
+        return 0
     return n
 
 
@@ -904,7 +909,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
         return True
     x, y, z = g.x, g.y, g.z
     n = 0
-    nfree = _free_from_last(S, g, near, xd, yd, zd, warm)
+    nfree = _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm)
     if nfree > 0:
         fx, fy, fz, _, _, _, _, n = _move(S, T, C, xpos, xmat, g, near, g.free_x, g.free_y, g.free_z, xd, yd, zd,
                                           warm, nfree, pl, kept)
@@ -913,7 +918,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
         nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
         fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm,
                                                     pl, kept)
-    # the frictionless proxy and its planes, for a stuck proxy's next tick
+    # the frictionless proxy and its planes, for the next tick
     g.free_x, g.free_y, g.free_z = fx, fy, fz
     g.nfree = _newest_three(g.free_planes, pl, n)
     if n == 0:

@@ -21,9 +21,10 @@ GEOM_MESH = 7
 
 KEPT_WIDTH = 7
 """Columns of a kept query: the point (3), the distance, the normal (3)."""
-HINT_SLOTS = 8
+HINT_SLOTS = 16
 """Hint slots per mesh shape in SHAPE["key"]: the queries of each finger on one mesh keep to
-their own (`softproxy.compiled.mesh._slot`)."""
+their own (`softproxy.compiled.mesh._slot`), two a finger (its proxy's and its frictionless
+proxy's)."""
 SLOT_HINT, SLOT_AGE, SLOT_KEPT = 3, 4, 5
 """A slot's columns: the point of its last query (3, m, geom frame), the row of T that query
 ended on, when it was used (a count), then its last two kept queries (KEPT_WIDTH each)."""

@@ -61,8 +61,8 @@ Cost per query is bounded on large meshes:
 A mesh never reports a contact `on_face` (`softproxy.compiled.shapes.shape_on_face`): the
 god-object's hold fast path for a flat face does not apply (a triangle's plane runs on past
 its edges); a proxy stuck on a static mesh starts the next tick's solve from the planes it
-rests on (`softproxy.compiled.godobject._warm_planes`) and its frictionless proxy from last
-tick's (`_free_from_last`), every motion still swept.
+rests on (`softproxy.compiled.godobject._warm_planes`), and a proxy in contact solves its
+frictionless proxy on from last tick's (`_free_from_last`), every motion still swept.
 """
 
 from __future__ import annotations
@@ -85,8 +85,9 @@ POINT_RADIUS = 1e-8
 """A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
 from the nearest point to a point lying on it is rounding noise, so whether it moves into the
 mesh is not decidable; 10 nm gives it a direction and is far below the 1 µm promise."""
-SLOT_NEAR = 0.005
-"""A query within this distance (m) of a hint slot's last query keeps to that slot (`_slot`)."""
+SLOT_NEAR = 0.0005
+"""A query within this distance (m) of a hint slot's last query keeps to that slot (`_slot`):
+a finger's proxy and its frictionless proxy, a millimetre apart, keep a patch each."""
 WALK_STEPS = 8
 """Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
 
