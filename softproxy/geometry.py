@@ -219,7 +219,7 @@ class ShapeSet(list):
             r.type, r.geom, r.body = s.gtype, s.geom, s.body
             r.static, r.convex, r.planar = s.static, s.convex, s.flat
             r.rbound = s.rbound
-            r.hint = -1
+            r.hint = r.feature = -1
             s.record(r)
         self.S = S
         self.T = self.C = None

@@ -65,7 +65,11 @@ def test_a_frictionless_proxy_rolls_off_the_bowls_rim_toward_the_device():
     """Resting on the bowl's inner rim, where two rim edges meet at a vertex at nearly the same
     tangent plane, with the device 2 mm into the inner wall below: the frictionless proxy
     rolls over the rim toward the device at once and settles where no free point is nearer to
-    it (its distance from the device the least the mesh allows, to a µm); never inside."""
+    it (its distance from the device the least the mesh allows, to a µm; no point LIFT_TOL
+    nearer, about it, is free: the solver follows the two rim edges' round surfaces until
+    they lift by no more than that); never inside."""
+    from softproxy.compiled.godobject import LIFT_TOL
+
     m, d, shapes = bowl()
     o = oracle(m, d, shapes)
     god = GodObject(shapes, RADIUS, 0.0, 0.0, (0.03497532562938234, 0.0, 0.04499993828562851))
@@ -88,7 +92,7 @@ def test_a_frictionless_proxy_rolls_off_the_bowls_rim_toward_the_device():
     side -= (side @ out)[:, None] * out
     side /= np.linalg.norm(side, axis=1)[:, None]
     turn = rng.uniform(0.0, 0.05, (400, 1))
-    nearer = device + (reach[-1] - 1e-8) * (np.cos(turn) * out + np.sin(turn) * side)
+    nearer = device + (reach[-1] - LIFT_TOL) * (np.cos(turn) * out + np.sin(turn) * side)
     assert o.nearest(nearer)[0].max() < RADIUS
 
 

@@ -646,6 +646,38 @@ def patches(shape) -> list[tuple[float, int, tuple]]:
             for k in range(HINT_SLOTS)]
 
 
+def test_a_query_names_the_triangle_it_answers_from():
+    """After a distance query (asked afresh or answered from the kept two) the mesh's feature
+    is the triangle of its nearest point, and after a touching sweep the triangle touched: the
+    god-object keeps it with a plane, to tell whether that plane's own triangle is still
+    under the proxy. Checked by the distance to that one triangle, brute force, on the bowl
+    (concave and convex patches) about its floor and rim, sweeps from points clear of it."""
+    m, d, shapes = bowl()
+    o = oracle(m, d, shapes)
+    s = mesh_of(shapes)
+    T, rng = shapes.T, np.random.default_rng(4)
+
+    def to_triangle(p, row):
+        local = np.array(s.to_local(*p))
+        return point_triangle(local[None, :], T[row:row + 1, 0:3], T[row:row + 1, 3:6], T[row:row + 1, 6:9])[0][0]
+
+    points = np.concatenate([[0.0, 0.0, 0.01] + rng.normal(size=(40, 3)) * 0.01,
+                             [0.0, 0.035, 0.04] + rng.normal(size=(40, 3)) * 0.005])
+    touched = 0
+    for p in points.tolist():
+        beside = (np.array(p) + rng.normal(size=3) * 1e-4).tolist()  # in the same hint slot
+        for q in (p, beside, p):  # afresh, afresh, then p's kept answer
+            dist = s.distance(*q)[0]
+            assert abs(to_triangle(q, int(shapes.S[s.row].feature)) - abs(dist)) <= EXACT, q
+        u = rng.normal(size=3) * 0.02
+        hit = s.sweep(*p, *u, 0.003) if abs(dist) > 0.003 else None  # from clear of the surface
+        if hit is not None:
+            touched += 1
+            at = np.array(p) + hit[0] * u
+            assert abs(to_triangle(at, int(shapes.S[s.row].feature)) - 0.003) <= EXACT, p
+    assert touched > 10
+
+
 def test_patch_answers_match_the_brute_force():
     """On the bowl's concave floor and wall no certificate holds, so a query reads the
     triangles its hint slot's patch gathered (a ball a little larger than the query needs):

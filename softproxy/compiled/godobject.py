@@ -36,8 +36,9 @@ record that calls the `*_row` entries at the end, and `softproxy.compiled.finger
 State: `g` is the finger's record (`layout.FINGER`), `near` its row of the broad phase's
 shape list; shapes are rows of the table `S` (a mesh's triangles and grid in the tables `T`
 and `C`), posed by MuJoCo's `geom_xpos` / `geom_xmat`. A list of constraint planes is an
-(n, 5) array of rows (nx, ny, nz, c, shape row) plus a count; a plane keeps the proxy's
-centre in {y: n·y >= c}. Units: m.
+(n, 6) array of rows (nx, ny, nz, c, shape row, triangle) plus a count; a plane keeps the
+proxy's centre in {y: n·y >= c}, and on a mesh names the triangle it came from, whose
+distance tells whether the plane's own feature is still under the proxy. Units: m.
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.layout import GEOM_MESH, PLANE_WIDTH
-from softproxy.compiled.shapes import shape_distance, shape_on_face, shape_sweep, shape_to_local, shape_to_world
+from softproxy.compiled.shapes import (shape_distance, shape_feature, shape_feature_distance, shape_on_face, shape_sweep,
+                                       shape_to_local, shape_to_world)
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 
 MAX_ITERATIONS = 10
@@ -249,16 +251,17 @@ def _plane_of(pl, n, s, nx, ny, nz):
 
 
 @njit(cache=True, error_model="numpy")
-def _add_plane(pl, n, nx, ny, nz, c, s):
-    """Add a constraint plane just hit to pl[:n]; returns the new count. The same plane met
-    again is replaced, not doubled, and the oldest goes when there would be four."""
+def _add_plane(pl, n, nx, ny, nz, c, s, f):
+    """Add a constraint plane just hit (shape row s, feature f) to pl[:n]; returns the new
+    count. The same plane met again is replaced, not doubled, and the oldest goes when there
+    would be four."""
     i = _plane_of(pl, n, s, nx, ny, nz)
     if i >= 0:
         for j in range(i, n - 1):
             for k in range(PLANE_WIDTH):
                 pl[j, k] = pl[j + 1, k]
         n -= 1
-    pl[n, 0], pl[n, 1], pl[n, 2], pl[n, 3], pl[n, 4] = nx, ny, nz, c, s
+    pl[n, 0], pl[n, 1], pl[n, 2], pl[n, 3], pl[n, 4], pl[n, 5] = nx, ny, nz, c, s, f
     n += 1
     if n > 3:
         for j in range(n - 1):
@@ -498,11 +501,16 @@ def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
     surface, both within LIFT_TOL (m): a plane runs on past a face's edge, a curved shape
     falls away from its tangent plane, and a point friction held back short of the plane (on
     a rounded edge below a face's plane) does not rest on it. `on_surface`: the shape's
-    surface is known to be under the proxy already."""
+    surface is known to be under the proxy already, or its own triangle is (a mesh's)."""
     nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
     if not abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL:
         return False
-    return on_surface or shape_distance(S, T, C, xpos, xmat, int(pl[i, 4]), x, y, z)[0] - g.radius <= LIFT_TOL
+    if on_surface:
+        return True
+    s, f = int(pl[i, 4]), int(pl[i, 5])
+    if f >= 0 and shape_feature_distance(S, T, xpos, xmat, s, f, x, y, z)[0] - g.radius <= LIFT_TOL:
+        return True
+    return shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0] - g.radius <= LIFT_TOL
 
 
 @njit(cache=True, error_model="numpy")
@@ -577,7 +585,7 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
         if s != shape and shape_sweep(S, T, C, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
             return False
     p = g.planes[0]
-    p[0], p[1], p[2], p[3], p[4] = nx, ny, nz, nx * x + ny * y + nz * z, shape
+    p[0], p[1], p[2], p[3], p[4], p[5] = nx, ny, nz, nx * x + ny * y + nz * z, shape, -1.0
     g.nplanes = 1
     g.nx, g.ny, g.nz = nx, ny, nz
     g.depth = depth
@@ -629,6 +637,7 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
         # through the proxy in _move_once)
         if count == 0 or _plane_of(warm, count, s, nx, ny, nz) < 0:
             warm[count, 0], warm[count, 1], warm[count, 2], warm[count, 3], warm[count, 4] = nx, ny, nz, 0.0, s
+            warm[count, 5] = shape_feature(S, s)
             count += 1
     return count
 
@@ -669,7 +678,7 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
 def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
     """The end of a move toward the goal g (m, world) straight from (x, y, z), when it is the
     position r off the surface point q nearest the goal, along the normal there: (found, the
-    position, the normal, the shape row of q).
+    position), and the plane it rests on (q's tangent plane) in pl[0] when found.
 
     No free position lies nearer the goal than r - d(goal) (r + |d| inside a solid), and this
     one does when the sphere there overlaps nothing, so it is where sliding ends; taken when,
@@ -677,25 +686,26 @@ def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
     proxy the sliding solve asks a sweep per facet crossed (ten a millimetre on a concave
     patch of 0.14 mm triangles): this asks a distance at the goal, one sweep and a distance
     at the end. A convex patch (the straight way dips under the surface) or a corner (the
-    end overlaps another shape) is left to sliding.
-    pl: a scratch plane list."""
+    end overlaps another shape) is left to sliding."""
     r = g.radius
     s, d, nx, ny, nz = _nearest(S, T, C, xpos, xmat, g, near, gx, gy, gz)
     if s < 0 or d >= r:
-        return False, x, y, z, 0.0, 0.0, 0.0, -1
+        return False, x, y, z
+    f = shape_feature(S, s)  # before the sweep below queries s again
     px, py, pz = gx + (r - d) * nx, gy + (r - d) * ny, gz + (r - d) * nz
     ex, ey, ez = px - g.bx, py - g.by, pz - g.bz
     if ex * ex + ey * ey + ez * ez > g.room * g.room:  # past the shapes gathered
-        return False, x, y, z, 0.0, 0.0, 0.0, -1
+        return False, x, y, z
     dx, dy, dz = px - x, py - y, pz - z
     length = math.sqrt(dx * dx + dy * dy + dz * dz)
     hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
     if hit and (1.0 - lam) * length > LIFT_TOL:  # it arrives touching q; anything earlier is in the way
-        return False, x, y, z, 0.0, 0.0, 0.0, -1
+        return False, x, y, z
     for j in range(int(g.nnear)):
         if shape_distance(S, T, C, xpos, xmat, near[j], px, py, pz)[0] - r < -LIFT_TOL:
-            return False, x, y, z, 0.0, 0.0, 0.0, -1
-    return True, px, py, pz, nx, ny, nz, s
+            return False, x, y, z
+    pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3], pl[0, 4], pl[0, 5] = nx, ny, nz, nx * px + ny * py + nz * pz, s, f
+    return True, px, py, pz
 
 
 @njit(cache=True, error_model="numpy")
@@ -762,38 +772,47 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             # a plane whose shape fell away under the proxy (a curved shape's tangent plane, a
             # rounded edge's, a face's plane past the face's edge) is replaced by the shape's
             # tangent plane below the proxy now (its linearisation where the proxy is) and the
-            # others kept: a crease of a face and a curved shape is followed along both at once
+            # others kept: a crease of a face and a curved shape is followed along both at once.
+            # On a mesh, one shape of many features, a plane holds while its own triangle is
+            # under the proxy, or the next facet in its plane is
             nk = 0
             lifted = False
+            fd = fnx = fny = fnz = 0.0
             for i in range(n):
-                si = int(pl[i, 4])
+                si, fi = int(pl[i, 4]), int(pl[i, 5])
+                if fi >= 0:
+                    d, mx, my, mz = shape_feature_distance(S, T, xpos, xmat, si, fi, x, y, z)
+                    if d - r <= LIFT_TOL:
+                        for k in range(PLANE_WIDTH):  # its own triangle is under the proxy
+                            kept[nk, k] = pl[i, k]
+                        nk += 1
+                        continue
+                    fd, fnx, fny, fnz = d, mx, my, mz  # its triangle's distance and normal
                 d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, si, x, y, z)
-                own = True
-                if d - r <= LIFT_TOL and not S[si].convex and \
-                        1.0 - (mx * pl[i, 0] + my * pl[i, 1] + mz * pl[i, 2]) > LIFT_TOL / r:
-                    # a mesh's nearest feature is another than the plane's, more than a lift
-                    # of LIFT_TOL would tilt it (an edge hit and slid past, beside a facet
-                    # still touched): the plane holds while its own contact point, r below the
-                    # proxy, is on the surface
-                    own = shape_distance(S, T, C, xpos, xmat, si, x - r * pl[i, 0], y - r * pl[i, 1],
-                                         z - r * pl[i, 2])[0] <= LIFT_TOL
-                if d - r <= LIFT_TOL and own:
-                    for k in range(PLANE_WIDTH):
-                        kept[nk, k] = pl[i, k]
-                    nk += 1
-                    continue
+                f = shape_feature(S, si)
+                if d - r <= LIFT_TOL:
+                    if S[si].convex or 1.0 - (mx * pl[i, 0] + my * pl[i, 1] + mz * pl[i, 2]) <= LIFT_TOL / r:
+                        # on its shape's surface; on a mesh, on the next facet in its plane
+                        for k in range(PLANE_WIDTH):
+                            kept[nk, k] = pl[i, k]
+                        kept[nk, 5] = f
+                        nk += 1
+                        continue
+                    if fi >= 0:
+                        # a mesh's nearest feature is another than the plane's triangle, which
+                        # is not under the proxy (above): an edge hit and slid past, beside a
+                        # facet still touched. Its triangle's tangent plane replaces it below
+                        d, mx, my, mz, f = fd, fnx, fny, fnz, float(fi)
                 lifted = True
-                if not own:
-                    continue  # dropped: the feature under the proxy stops a slide into it, swept
                 dup = False
                 for q in range(nk):
-                    if int(kept[q, 4]) == si:
+                    if int(kept[q, 4]) == si and kept[q, 5] == f:
                         dup = True
                         break
                 if not dup:
                     kept[nk, 0], kept[nk, 1], kept[nk, 2] = mx, my, mz
                     kept[nk, 3] = mx * x + my * y + mz * z - (d - r)
-                    kept[nk, 4] = si
+                    kept[nk, 4], kept[nk, 5] = si, f
                     nk += 1
             if not lifted:
                 on_surfaces = True  # every plane's real surface is under the proxy
@@ -822,13 +841,11 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
         if hits == SLIDE_HITS and S[s].type == GEOM_MESH:
             # sliding across a mesh's facets, one sweep each: to where sliding ends, if that
             # is one clear move away
-            done, ex, ey, ez, mx, my, mz, ms = _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, kept)
+            done, x, y, z = _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl)
             if done:
-                x, y, z = ex, ey, ez
-                pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3], pl[0, 4] = mx, my, mz, mx * x + my * y + mz * z, ms
                 n = 1
                 break
-        n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s)
+        n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(S, s))
         found, qx, qy, qz = _project(gx, gy, gz, pl, n)
         if not found:
             break
@@ -846,7 +863,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             if not has_first:
                 has_first = True
                 hx, hy, hz = x, y, z
-            n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s)
+            n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(S, s))
     nr = 0  # keep only the planes the proxy still rests on (the loop may end before it checked)
     for i in range(n):
         if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surfaces):

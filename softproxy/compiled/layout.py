@@ -19,8 +19,9 @@ GEOM_BOX = 6
 GEOM_MESH = 7
 """MuJoCo's geom types (mjtGeom) a shape can have."""
 
-KEPT_WIDTH = 7
-"""Columns of a kept query: the point (3), the distance, the normal (3)."""
+KEPT_WIDTH = 8
+"""Columns of a kept query: the point (3), the distance, the normal (3), the row of T of its
+nearest point."""
 HINT_SLOTS = 16
 """Hint slots per mesh shape in SHAPE["key"]: the queries of each finger on one mesh keep to
 their own (`softproxy.compiled.mesh._slot`), two a finger (its proxy's and its frictionless
@@ -50,6 +51,7 @@ SHAPE = np.dtype([
     ("signed", np.bool_),     # watertight: signed distance; open: unsigned
     ("shading", np.bool_),    # force shading (interpolated vertex normals)
     ("hint", np.int64),       # row of T nearest the last distance query or touched last, -1 for none
+    ("feature", np.int64),    # row of T of the last answer: a distance's nearest point, a sweep's touch (-1: none)
     # its hint slots: per slot the last query's point and hint and the last two distance
     # queries kept, newest first: the point (geom frame, m; NaN for none), signed distance
     # (m), outward normal (geom frame)
@@ -60,8 +62,9 @@ SHAPE = np.dtype([
 ], align=True)
 """A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
 
-PLANE_WIDTH = 5
-"""A constraint plane: unit normal (nx, ny, nz), offset c (m), the shape row it belongs to."""
+PLANE_WIDTH = 6
+"""A constraint plane: unit normal (nx, ny, nz), offset c (m), the shape row it belongs to,
+and on a mesh the row of T of the triangle it came from (-1: none or not known)."""
 
 # -- mesh triangle table T: one row per triangle, geom frame (softproxy.compiled.mesh) -------
 # the first 22 columns are the triangle as `softproxy.mesh.MeshShape` builds it: A, B, C, AB, AC, unit normal N,
@@ -143,7 +146,7 @@ FINGER = np.dtype([
     ("bx", np.float64), ("by", np.float64), ("bz", np.float64), ("room", np.float64),  # the broad phase's ball (m)
     ("rounding", np.bool_),                                       # the last solve followed a surface round
     ("nplanes", np.int64),
-    ("planes", np.float64, (3, PLANE_WIDTH)),                     # constraint planes: nx, ny, nz, c, shape row
+    ("planes", np.float64, (3, PLANE_WIDTH)),                     # constraint planes: nx, ny, nz, c, shape row, triangle
     ("free_x", np.float64), ("free_y", np.float64), ("free_z", np.float64),  # last tick's frictionless proxy (m)
     ("nfree", np.int64),
     ("free_planes", np.float64, (3, PLANE_WIDTH)),                # the planes it rested on

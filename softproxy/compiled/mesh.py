@@ -224,7 +224,7 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         S[k].t0, S[k].nt, S[k].tree = t0, n, tree
         S[k].signed = s.signed
         S[k].shading = s.shading
-        S[k].hint = -1
+        S[k].hint = S[k].feature = -1
         S[k].key[:, :] = math.nan  # no hint slot used, none kept
         S[k].verts = verts
         S[k].kept = reach
@@ -1028,15 +1028,15 @@ def _local_distance(S, T, C, k, sl, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _keep(S, k, sl, x, y, z, d, nx, ny, nz):
-    """Keep the answer (signed distance (m), outward normal) at p (geom frame) as the newest
-    of the two of mesh k's hint slot sl, the older dropped."""
+def _keep(S, k, sl, x, y, z, d, nx, ny, nz, row):
+    """Keep the answer (signed distance (m), outward normal, row of T of the nearest point)
+    at p (geom frame) as the newest of the two of mesh k's hint slot sl, the older dropped."""
     key = S[k].key
     for c in range(KEPT_WIDTH):
         key[sl, SLOT_KEPT + KEPT_WIDTH + c] = key[sl, SLOT_KEPT + c]
     c = SLOT_KEPT
     key[sl, c], key[sl, c + 1], key[sl, c + 2] = x, y, z
-    key[sl, c + 3], key[sl, c + 4], key[sl, c + 5], key[sl, c + 6] = d, nx, ny, nz
+    key[sl, c + 3], key[sl, c + 4], key[sl, c + 5], key[sl, c + 6], key[sl, c + 7] = d, nx, ny, nz, row
 
 
 @njit(cache=True, error_model="numpy")
@@ -1081,10 +1081,11 @@ def _touch(S, k, sl, x, y, z, hint):
 @njit(cache=True, error_model="numpy")
 def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
-    the outward unit normal, world frame. Each hint slot (`_slot`) keeps its last two
-    answers, keyed by the point in the geom frame, where the triangles never move (the
-    god-object asks again about the point it holds, about the point it moved to, and about a
-    sweep's start whose nearest point the sweep proved)."""
+    the outward unit normal, world frame; S[k].feature is then the row of T of the nearest
+    point. Each hint slot (`_slot`) keeps its last two answers, keyed by the point in the
+    geom frame, where the triangles never move (the god-object asks again about the point it
+    holds, about the point it moved to, and about a sweep's start whose nearest point the
+    sweep proved)."""
     g = int(S[k].geom)
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
     r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
@@ -1103,13 +1104,35 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
         else:
             S[k].hint = hint
             d, nx, ny, nz = _local_distance(S, T, C, k, sl, lx, ly, lz)
-            _keep(S, k, sl, lx, ly, lz, d, nx, ny, nz)
+            _keep(S, k, sl, lx, ly, lz, d, nx, ny, nz, S[k].hint)
             _touch(S, k, sl, lx, ly, lz, S[k].hint)
+    S[k].feature = int(key[sl, a + 7])
     nx, ny, nz = key[sl, a + 4], key[sl, a + 5], key[sl, a + 6]
     return (key[sl, a + 3],
             r00 * nx + r01 * ny + r02 * nz,
             r10 * nx + r11 * ny + r12 * nz,
             r20 * nx + r21 * ny + r22 * nz)
+
+
+@njit(cache=True, error_model="numpy")
+def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
+    """Unsigned distance (m) from the world point p to one triangle (row of T) of the mesh of
+    geom g, and the unit direction (world) from its nearest point to p: whether the feature
+    a constraint plane came from is still under the proxy, and its tangent plane there."""
+    dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
+    lx = xmat[g, 0] * dx + xmat[g, 3] * dy + xmat[g, 6] * dz
+    ly = xmat[g, 1] * dx + xmat[g, 4] * dy + xmat[g, 7] * dz
+    lz = xmat[g, 2] * dx + xmat[g, 5] * dy + xmat[g, 8] * dz
+    d2, qx, qy, qz, _ = _closest(T, row, lx, ly, lz)
+    d = math.sqrt(d2)
+    if d == 0.0:  # on the triangle: its normal
+        nx, ny, nz = T[row, T_N], T[row, T_N + 1], T[row, T_N + 2]
+    else:
+        nx, ny, nz = (lx - qx) / d, (ly - qy) / d, (lz - qz) / d
+    return (d,
+            xmat[g, 0] * nx + xmat[g, 1] * ny + xmat[g, 2] * nz,
+            xmat[g, 3] * nx + xmat[g, 4] * ny + xmat[g, 5] * nz,
+            xmat[g, 6] * nx + xmat[g, 7] * ny + xmat[g, 8] * nz)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1177,8 +1200,8 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
 def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze):
     """The touch of row `tri` at fraction lam: its normal (geom frame) shaded when asked (while
     the shaded one still opposes the motion) and turned into the world frame; the triangle
-    becomes the hint."""
-    S[k].hint = tri
+    becomes the hint and the answer's feature."""
+    S[k].hint = S[k].feature = tri
     if S[k].shading:
         qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
         sx, sy, sz = _shade(T, tri, qx, qy, qz, nx, ny, nz)
@@ -1218,7 +1241,7 @@ def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay,
             best_lam, mx, my, mz, bi = hit, hx, hy, hz, i
     if sd2 >= 0.0:
         d, nx, ny, nz = _answer(S, T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
-        _keep(S, k, sl, ax, ay, az, d, nx, ny, nz)
+        _keep(S, k, sl, ax, ay, az, d, nx, ny, nz, si)
         S[k].hint = si
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
@@ -1229,7 +1252,8 @@ def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay,
 def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none (`_sweep`), from
-    and into the hint slot of its start (`_slot`)."""
+    and into the hint slot of its start (`_slot`). After a touch S[k].feature is the row of T
+    touched (`_hit`)."""
     g = int(S[k].geom)
     px, py, pz = x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2]
     ax = xmat[g, 0] * px + xmat[g, 3] * py + xmat[g, 6] * pz

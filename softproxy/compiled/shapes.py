@@ -17,7 +17,7 @@ from numba import njit
 from softproxy.compiled.layout import (
     GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE,
 )
-from softproxy.compiled.mesh import mesh_distance, mesh_sweep
+from softproxy.compiled.mesh import mesh_distance, mesh_sweep, mesh_triangle_distance
 from softproxy.compiled.tolerances import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
 
 ELLIPSOID_STEPS = 64
@@ -168,6 +168,23 @@ def _ellipsoid_local(a, b, c, x, y, z):
     gn = math.sqrt(gx * gx + gy * gy + gz * gz)
     inside = (x / a) ** 2 + (y / b) ** 2 + (z / c) ** 2 < 1.0
     return ((-dist if inside else dist), gx / gn, gy / gn, gz / gn)
+
+
+@njit(cache=True, error_model="numpy")
+def shape_feature(S, k):
+    """The feature of shape k its last distance query or touching sweep ended on: on a mesh
+    the row of T of the triangle, as a float for a plane's column; -1.0 for any other shape
+    (its surface is one feature)."""
+    return float(S[k].feature) if int(S[k].type) == GEOM_MESH else -1.0
+
+
+@njit(cache=True, error_model="numpy")
+def shape_feature_distance(S, T, xpos, xmat, k, row, x, y, z):
+    """Unsigned distance (m) from the world point p to feature `row` of mesh shape k (a
+    triangle), and the unit direction (world) from the feature's nearest point to p."""
+    if T is None:
+        return (math.inf, 0.0, 0.0, 1.0)
+    return mesh_triangle_distance(T, xpos, xmat, int(S[k].geom), row, x, y, z)
 
 
 @njit(cache=True, error_model="numpy")
