@@ -709,13 +709,16 @@ def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
 
 
 @njit(cache=True, error_model="numpy")
-def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
+def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """Constrained motion from (x, y, z) toward (gx, gy, gz), starting from the planes
     warm[:nwarm] the proxy rests on (none: cold). Returns (restart, x, y, z, hx, hy, hz,
     straight, n): restart when what a warm start assumed no longer holds (`_move` solves
     again cold); otherwise the end point, the first surface point reached (or the end point),
     whether the way from that first point to the end was one straight swept segment (any
-    point on it is reachable), and the planes the proxy rests on at the end in pl[:n]."""
+    point on it is reachable), and the planes the proxy rests on at the end in pl[:n].
+    `follow_lifts`: a warm start's plane that lifts is followed on as a cold solve follows
+    it, not solved again (the frictionless proxy's solve, which wants only where sliding
+    ends, not the first surface point)."""
     n = 0
     has_first = False
     hx = hy = hz = 0.0
@@ -818,7 +821,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                 on_surfaces = True  # every plane's real surface is under the proxy
                 break
             g.rounding = True
-            if nwarm > 0:  # what the warm start assumed no longer holds: solve cold
+            if nwarm > 0 and not follow_lifts:  # what the warm start assumed no longer holds: solve cold
                 return True, x, y, z, hx, hy, hz, straight, 0
             straight = False
             for i in range(nk):
@@ -879,14 +882,14 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
 
 
 @njit(cache=True, error_model="numpy")
-def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept):
+def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """`_move_once`, warm-started, and solved again cold when the warm start's planes did not
     hold: (x, y, z, hx, hy, hz, straight, n), the resting planes in pl[:n]."""
     restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz,
-                                                              warm, nwarm, pl, kept)
+                                                              warm, nwarm, pl, kept, follow_lifts)
     if restart:  # what the warm start assumed no longer holds: solve again from no planes
         restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz,
-                                                                  warm, 0, pl, kept)
+                                                                  warm, 0, pl, kept, False)
     return ex, ey, ez, hx, hy, hz, straight, n
 
 
@@ -928,13 +931,14 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
     n = 0
     nfree = _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm)
     if nfree > 0:
+        # a plane lifting on the way is followed on: both ends are reached through free space
         fx, fy, fz, _, _, _, _, n = _move(S, T, C, xpos, xmat, g, near, g.free_x, g.free_y, g.free_z, xd, yd, zd,
-                                          warm, nfree, pl, kept)
+                                          warm, nfree, pl, kept, True)
         hx, hy, hz, straight = x, y, z, False  # the proxy is where it touches first
     if n == 0:
         nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
         fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm,
-                                                    pl, kept)
+                                                    pl, kept, False)
     # the frictionless proxy and its planes, for the next tick
     g.free_x, g.free_y, g.free_z = fx, fy, fz
     g.nfree = _newest_three(g.free_planes, pl, n)
@@ -988,7 +992,8 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
             for j in range(n):  # the frictionless solve's planes, kept aside
                 for k in range(PLANE_WIDTH):
                     saved[j, k] = pl[j, k]
-            fx, fy, fz, _, _, _, _, m = _move(S, T, C, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept)
+            fx, fy, fz, _, _, _, _, m = _move(S, T, C, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept,
+                                              False)
             _keep_resting(S, T, C, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
     g.contact = True
     g.nx, g.ny, g.nz = nx, ny, nz
