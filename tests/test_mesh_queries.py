@@ -652,8 +652,7 @@ def test_a_query_names_the_triangle_it_answers_from():
     god-object keeps it with a plane, to tell whether that plane's own triangle is still
     under the proxy. Checked by the distance to that one triangle, brute force, on the bowl
     (concave and convex patches) about its floor and rim, sweeps from points clear of it."""
-    m, d, shapes = bowl()
-    o = oracle(m, d, shapes)
+    _, _, shapes = bowl()
     s = mesh_of(shapes)
     T, rng = shapes.T, np.random.default_rng(4)
 

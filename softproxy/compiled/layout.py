@@ -54,7 +54,7 @@ SHAPE = np.dtype([
     ("feature", np.int64),    # row of T of the last answer: a distance's nearest point, a sweep's touch (-1: none)
     # its hint slots: per slot the last query's point and hint and the last two distance
     # queries kept, newest first: the point (geom frame, m; NaN for none), signed distance
-    # (m), outward normal (geom frame)
+    # (m), outward normal (geom frame), the row of T of the nearest point
     ("key", np.float64, (HINT_SLOTS, SLOT_WIDTH)),
     ("verts", np.int64),      # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
     ("patch", np.int64),      # where its patches begin in C: one per hint slot, PATCH_WIDTH floats each (-1: none)
