@@ -587,6 +587,56 @@ def test_a_query_inside_a_too_full_capsule_keeps_it():
     assert [f for _, _, f in patches(s) if f[6] > 0.0] == full
 
 
+def test_a_finger_held_still_gathers_a_close_patch():
+    """On a dish so dense that a patch 0.1 mm wider than a query is too full (~300 triangles
+    within 0.1 mm of a 5 mm sphere resting on it), a finger held still (each query within
+    PATCH_STILL of its slot's last) gathers a patch PATCH_CLOSE wider than its query once and
+    reads it from then on; a query that moved is answered by the tree, the patch left as it
+    was. On a dish denser still, where even that patch is too full, it is tried once and
+    remembered. Every answer is the brute force's."""
+    import warnings
+
+    from softproxy.compiled.layout import HINT_SLOTS, P_FULL, PATCH_WIDTH
+    from softproxy.compiled.mesh import PATCH_CLOSE, PATCH_STILL
+    from test_mesh_queries import check_distance, patches
+
+    r = 0.005
+    rng = np.random.default_rng(8)
+    for spacing, half, close in ((1.5e-4, 0.012, True), (5e-5, 0.004, False)):
+        v, f = fine_dish(spacing, half)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an open mesh
+            s, o = tree_shape(v, f)
+        bottom = len(v) // 2
+        a, b, c = o.v[f[f[:, 0] == bottom][0]]
+        n = np.cross(b - a, c - a)
+        n /= np.linalg.norm(n)
+        t = np.cross(n, [1.0, 0.0, 0.0])
+        t /= np.linalg.norm(t)
+        p = a + (r + 1e-6) * n
+        check_distance(o, s, [p])  # the first: too full for a patch, the tree answers
+        assert all(count == 0 for _, count, _ in patches(s))
+        q = p
+        for i in range(20):  # held still: trembling by well under PATCH_STILL
+            q = p + rng.normal(size=3) * PATCH_STILL / 10
+            check_distance(o, s, [q], i)
+            u = t * PATCH_STILL / 2
+            o.check_sweep(q, u, r, s.sweep(*q, *u, r), context=i)
+            if i == 1:
+                held = patches(s)
+        used = [(radius, count) for radius, count, _ in patches(s) if count > 0]
+        at, C = int(s.set.S[s.row].patch), s.set.C
+        tried = [C[at + PATCH_WIDTH * k + P_FULL + 9] for k in range(HINT_SLOTS)]
+        if close:
+            assert len(used) == 1 and r + PATCH_CLOSE / 2 <= used[0][0] <= r + 2 * PATCH_CLOSE, used
+            assert patches(s) == held and not any(tried)  # gathered once, read since
+            q = q + 5 * PATCH_CLOSE * t  # moved: past the patch, not held still
+            check_distance(o, s, [q])
+            assert patches(s) == held
+        else:
+            assert not used and sum(tried) == 1
+
+
 def test_a_dense_patch_shrinks_to_what_it_holds():
     """On a dense concave sheet the patch a query gathers (its capsule grown by 1 mm) would
     hold too many triangles, so the slot keeps the nearest PATCH_RECORDS and a thinner

@@ -50,7 +50,7 @@ from numba import njit
 
 from softproxy.compiled.layout import GEOM_MESH, PLANE_WIDTH
 from softproxy.compiled.shapes import (shape_distance, shape_feature, shape_feature_distance, shape_on_face, shape_sweep,
-                                       shape_to_local, shape_to_world)
+                                       shape_to_local, shape_to_world, shape_walk_distance)
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 
 MAX_ITERATIONS = 10
@@ -658,12 +658,24 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
     if n == 0 or not g.contact or g.touched < 0:
         return 0
     # its own planes first: on a primitive (convex) the first one says no
+    fx, fy, fz, r = g.free_x, g.free_y, g.free_z, g.radius
     for j in range(n):
         p = g.free_planes[j]
-        if S[int(p[4])].convex or p[0] * xd + p[1] * yd + p[2] * zd >= p[3]:
+        s, f = int(p[4]), int(p[5])
+        if S[s].convex:
             return 0
         for k in range(PLANE_WIDTH):
             warm[j, k] = p[k]
+        if f >= 0:
+            # its triangle's tangent plane where the frictionless proxy is now: a plane found
+            # at an edge or a vertex lifts off it within ~30 µm of sliding round it (r = 5 mm),
+            # a fresh mesh query each time
+            d, mx, my, mz = shape_feature_distance(S, T, xpos, xmat, s, f, fx, fy, fz)
+            if d - r <= LIFT_TOL:
+                warm[j, 0], warm[j, 1], warm[j, 2] = mx, my, mz
+                warm[j, 3] = mx * fx + my * fy + mz * fz - (d - r)
+        if warm[j, 0] * xd + warm[j, 1] * yd + warm[j, 2] * zd >= warm[j, 3]:
+            return 0
     for j in range(int(g.nnear)):
         if not S[near[j]].static:
             return 0
@@ -777,7 +789,9 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             # tangent plane below the proxy now (its linearisation where the proxy is) and the
             # others kept: a crease of a face and a curved shape is followed along both at once.
             # On a mesh, one shape of many features, a plane holds while its own triangle is
-            # under the proxy, or the next facet in its plane is
+            # under the proxy, or the next facet in its plane is (the nearest a walk from its
+            # triangle reaches: a facet elsewhere on the mesh is not this plane's surface, and
+            # the sweep that follows meets any in the way)
             nk = 0
             lifted = False
             fd = fnx = fny = fnz = 0.0
@@ -791,8 +805,12 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                         nk += 1
                         continue
                     fd, fnx, fny, fnz = d, mx, my, mz  # its triangle's distance and normal
-                d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, si, x, y, z)
-                f = shape_feature(S, si)
+                if fi >= 0:
+                    d, mx, my, mz, walked = shape_walk_distance(S, T, C, xpos, xmat, si, fi, x, y, z)
+                    f = float(walked)
+                else:
+                    d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, si, x, y, z)
+                    f = shape_feature(S, si)
                 if d - r <= LIFT_TOL:
                     if S[si].convex or 1.0 - (mx * pl[i, 0] + my * pl[i, 1] + mz * pl[i, 2]) <= LIFT_TOL / r:
                         # on its shape's surface; on a mesh, on the next facet in its plane
@@ -802,9 +820,9 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                         nk += 1
                         continue
                     if fi >= 0:
-                        # a mesh's nearest feature is another than the plane's triangle, which
-                        # is not under the proxy (above): an edge hit and slid past, beside a
-                        # facet still touched. Its triangle's tangent plane replaces it below
+                        # the facet under the proxy is another than the plane's triangle, and
+                        # not in its plane: an edge hit and slid past, beside a facet still
+                        # touched. Its triangle's tangent plane replaces it below
                         d, mx, my, mz, f = fd, fnx, fny, fnz, float(fi)
                 lifted = True
                 dup = False

@@ -121,12 +121,13 @@ VERTEX_WIDTH = 14
 # a patch (one per hint slot of a mesh shape, from C[S.patch + PATCH_WIDTH slot]): a capsule
 # (its segment's ends (2 × 3, geom frame), radius; m) and how many records it holds; a
 # capsule found too full (ends, radius, and the shortest segment and least radius of the
-# queries found too full in it; m), where the box tree serves the queries, and the cut of
+# queries found too full in it; m; and 1 once a patch for a finger held still in it was
+# found too full too), where the box tree serves the queries, and the cut of
 # the tree the walks inside it start from (how many nodes, then their numbers); then a
 # lower bound on each record's distance from the first capsule's segment (m², ascending)
 # and copies of the tree records of every triangle within that capsule, nearest first, so a
 # query inside it reads those that may lie within its own capsule in one pass
-P_END, P_RADIUS, P_COUNT, P_FULL, P_CUT = 3, 6, 7, 8, 17
+P_END, P_RADIUS, P_COUNT, P_FULL, P_CUT = 3, 6, 7, 8, 18
 CUT_NODES = 32
 P_KEYS = P_CUT + 1 + CUT_NODES
 PATCH_RECORDS = 128

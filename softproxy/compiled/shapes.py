@@ -17,7 +17,7 @@ from numba import njit
 from softproxy.compiled.layout import (
     GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE,
 )
-from softproxy.compiled.mesh import mesh_distance, mesh_sweep, mesh_triangle_distance
+from softproxy.compiled.mesh import mesh_distance, mesh_sweep, mesh_triangle_distance, mesh_walk_distance
 from softproxy.compiled.tolerances import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
 
 ELLIPSOID_STEPS = 64
@@ -185,6 +185,16 @@ def shape_feature_distance(S, T, xpos, xmat, k, row, x, y, z):
     if T is None:
         return (math.inf, 0.0, 0.0, 1.0)
     return mesh_triangle_distance(T, xpos, xmat, int(S[k].geom), row, x, y, z)
+
+
+@njit(cache=True, error_model="numpy")
+def shape_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
+    """Signed distance (m) from mesh shape k at the world point p, outward unit normal and
+    row of T, as seen from triangle `row` of it (`mesh_walk_distance`): the nearest triangle
+    a walk from there reaches, which may be farther than the mesh's nearest."""
+    if T is None:
+        return (math.inf, 0.0, 0.0, 1.0, -1)
+    return mesh_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z)
 
 
 @njit(cache=True, error_model="numpy")
