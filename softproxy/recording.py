@@ -429,6 +429,27 @@ def load_recording(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> Recordi
             raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
 
 
+def read_header(path: str | Path) -> dict:
+    """A recording's header line, checked (format, version, fingers) without reading its body;
+    RecordingError naming the file otherwise."""
+    path = str(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise RecordingError(f"{path}: not a regular file; give a recording file")
+        start = os.read(fd, MAX_HEADER_BYTES)
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if not start:
+        raise RecordingError(f"{path}: empty file, not a recording")
+    return _parse_header(path, start)[0]
+
+
 def _read_exactly(file, n: int) -> bytes:
     """Up to `n` bytes (fewer only at the end of the file)."""
     parts, got = [], 0

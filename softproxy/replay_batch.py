@@ -37,8 +37,6 @@ import hashlib
 import io
 import json
 import math
-import os
-import stat
 import sys
 import tempfile
 import time
@@ -50,7 +48,7 @@ from softproxy.cells import Backend, Outcome, each_outcome
 from softproxy.device import DeviceError, DeviceSample
 from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
-from softproxy.recording import MAX_HEADER_BYTES, Recording, RecordingDevice, RecordingError, _parse_header
+from softproxy.recording import Recording, RecordingDevice, RecordingError, read_header
 from softproxy.run import check_device_fingers, open_device, run_scene
 from softproxy.scene import SceneError, load_scene
 from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ
@@ -141,27 +139,6 @@ def find_recordings(inputs: list[str]) -> list[tuple[str, Path]]:
         else:
             raise BatchError(f"{given}: no such file or folder; give recording files or folders of them (*{SUFFIX})")
     return sorted(((name, path) for path, name in found.items()), key=lambda item: item[0])
-
-
-def read_header(path: str | Path) -> dict:
-    """A recording's header line, checked (format, version, fingers) without reading its body;
-    RecordingError naming the file otherwise."""
-    path = str(path)
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise RecordingError(f"{path}: not a regular file; give a recording file")
-        start = os.read(fd, MAX_HEADER_BYTES)
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
-    finally:
-        os.close(fd)
-    if not start:
-        raise RecordingError(f"{path}: empty file, not a recording")
-    return _parse_header(path, start)[0]
 
 
 def _recorded_rate(header: dict, scene) -> float:
