@@ -805,7 +805,6 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                         nk += 1
                         continue
                     fd, fnx, fny, fnz = d, mx, my, mz  # its triangle's distance and normal
-                if fi >= 0:
                     d, mx, my, mz, walked = shape_walk_distance(S, T, C, xpos, xmat, si, fi, x, y, z)
                     f = float(walked)
                 else:

@@ -1098,6 +1098,22 @@ def _touch(S, k, sl, x, y, z, hint):
 
 
 @njit(cache=True, error_model="numpy")
+def _to_geom(xmat, g, x, y, z):
+    """The world vector (x, y, z) in geom g's frame (MuJoCo's geom_xmat, row-major)."""
+    return (xmat[g, 0] * x + xmat[g, 3] * y + xmat[g, 6] * z,
+            xmat[g, 1] * x + xmat[g, 4] * y + xmat[g, 7] * z,
+            xmat[g, 2] * x + xmat[g, 5] * y + xmat[g, 8] * z)
+
+
+@njit(cache=True, error_model="numpy")
+def _to_world(xmat, g, x, y, z):
+    """The geom-frame vector (x, y, z) of geom g in the world frame."""
+    return (xmat[g, 0] * x + xmat[g, 1] * y + xmat[g, 2] * z,
+            xmat[g, 3] * x + xmat[g, 4] * y + xmat[g, 5] * z,
+            xmat[g, 6] * x + xmat[g, 7] * y + xmat[g, 8] * z)
+
+
+@njit(cache=True, error_model="numpy")
 def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
     the outward unit normal, world frame; S[k].feature is then the row of T of the nearest
@@ -1106,13 +1122,7 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
     holds, about the point it moved to, and about a sweep's start whose nearest point the
     sweep proved)."""
     g = int(S[k].geom)
-    r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
-    r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
-    r20, r21, r22 = xmat[g, 6], xmat[g, 7], xmat[g, 8]
-    dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
-    lx = r00 * dx + r10 * dy + r20 * dz
-    ly = r01 * dx + r11 * dy + r21 * dz
-    lz = r02 * dx + r12 * dy + r22 * dz
+    lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     sl, hint = _slot(S, k, lx, ly, lz)
     key = S[k].key
     a, b = SLOT_KEPT, SLOT_KEPT + KEPT_WIDTH
@@ -1126,11 +1136,8 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
             _keep(S, k, sl, lx, ly, lz, d, nx, ny, nz, S[k].hint)
             _touch(S, k, sl, lx, ly, lz, S[k].hint)
     S[k].feature = int(key[sl, a + 7])
-    nx, ny, nz = key[sl, a + 4], key[sl, a + 5], key[sl, a + 6]
-    return (key[sl, a + 3],
-            r00 * nx + r01 * ny + r02 * nz,
-            r10 * nx + r11 * ny + r12 * nz,
-            r20 * nx + r21 * ny + r22 * nz)
+    nx, ny, nz = _to_world(xmat, g, key[sl, a + 4], key[sl, a + 5], key[sl, a + 6])
+    return key[sl, a + 3], nx, ny, nz
 
 
 @njit(cache=True, error_model="numpy")
@@ -1138,20 +1145,15 @@ def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
     """Unsigned distance (m) from the world point p to one triangle (row of T) of the mesh of
     geom g, and the unit direction (world) from its nearest point to p: whether the feature
     a constraint plane came from is still under the proxy, and its tangent plane there."""
-    dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
-    lx = xmat[g, 0] * dx + xmat[g, 3] * dy + xmat[g, 6] * dz
-    ly = xmat[g, 1] * dx + xmat[g, 4] * dy + xmat[g, 7] * dz
-    lz = xmat[g, 2] * dx + xmat[g, 5] * dy + xmat[g, 8] * dz
+    lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     d2, qx, qy, qz, _ = _closest(T, row, lx, ly, lz)
     d = math.sqrt(d2)
     if d == 0.0:  # on the triangle: its normal
         nx, ny, nz = T[row, T_N], T[row, T_N + 1], T[row, T_N + 2]
     else:
         nx, ny, nz = (lx - qx) / d, (ly - qy) / d, (lz - qz) / d
-    return (d,
-            xmat[g, 0] * nx + xmat[g, 1] * ny + xmat[g, 2] * nz,
-            xmat[g, 3] * nx + xmat[g, 4] * ny + xmat[g, 5] * nz,
-            xmat[g, 6] * nx + xmat[g, 7] * ny + xmat[g, 8] * nz)
+    nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
+    return d, nx, ny, nz
 
 
 @njit(cache=True, error_model="numpy")
@@ -1163,17 +1165,11 @@ def mesh_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
     Whether a plane's surface goes on past its own triangle (`_move_once`): a sweep still
     guards whatever plane the answer makes."""
     g = int(S[k].geom)
-    dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
-    lx = xmat[g, 0] * dx + xmat[g, 3] * dy + xmat[g, 6] * dz
-    ly = xmat[g, 1] * dx + xmat[g, 4] * dy + xmat[g, 7] * dz
-    lz = xmat[g, 2] * dx + xmat[g, 5] * dy + xmat[g, 8] * dz
+    lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     d2, qx, qy, qz, f, i = _from_hint(S, T, C, k, row, lx, ly, lz)
     d, nx, ny, nz = _answer(S, T, k, lx, ly, lz, math.sqrt(d2), qx, qy, qz, f, i)
-    return (d,
-            xmat[g, 0] * nx + xmat[g, 1] * ny + xmat[g, 2] * nz,
-            xmat[g, 3] * nx + xmat[g, 4] * ny + xmat[g, 5] * nz,
-            xmat[g, 6] * nx + xmat[g, 7] * ny + xmat[g, 8] * nz,
-            i)
+    nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
+    return d, nx, ny, nz, i
 
 
 @njit(cache=True, error_model="numpy")
@@ -1248,10 +1244,8 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graz
         sx, sy, sz = _shade(T, tri, qx, qy, qz, nx, ny, nz)
         if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
             nx, ny, nz = sx, sy, sz
-    return (lam,
-            xmat[g, 0] * nx + xmat[g, 1] * ny + xmat[g, 2] * nz,
-            xmat[g, 3] * nx + xmat[g, 4] * ny + xmat[g, 5] * nz,
-            xmat[g, 6] * nx + xmat[g, 7] * ny + xmat[g, 8] * nz)
+    nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
+    return lam, nx, ny, nz
 
 
 @njit(cache=True, error_model="numpy")
@@ -1296,21 +1290,18 @@ def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     and into the hint slot of its start (`_slot`). After a touch S[k].feature is the row of T
     touched (`_hit`)."""
     g = int(S[k].geom)
-    px, py, pz = x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2]
-    ax = xmat[g, 0] * px + xmat[g, 3] * py + xmat[g, 6] * pz
-    ay = xmat[g, 1] * px + xmat[g, 4] * py + xmat[g, 7] * pz
-    az = xmat[g, 2] * px + xmat[g, 5] * py + xmat[g, 8] * pz
+    ax, ay, az = _to_geom(xmat, g, x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2])
     sl, hint = _slot(S, k, ax, ay, az)
     S[k].hint = hint
-    out = _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r)
+    out = _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r)
     _touch(S, k, sl, ax, ay, az, S[k].hint)
     return out
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
+def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
-    x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none.
+    a (geom frame) by d (m, world) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none.
 
     From the hint (`_from_hint`): touching it and pressed into it, the
     touch is at once; touching it and moving along or away, or touching it on the way, or
@@ -1331,16 +1322,7 @@ def _sweep(S, T, C, xpos, xmat, k, sl, x0, y0, z0, dx, dy, dz, r):
     far = reach + length
     far2 = far * far
     g = int(S[k].geom)
-    r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
-    r10, r11, r12 = xmat[g, 3], xmat[g, 4], xmat[g, 5]
-    r20, r21, r22 = xmat[g, 6], xmat[g, 7], xmat[g, 8]
-    px, py, pz = x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2]
-    ax = r00 * px + r10 * py + r20 * pz
-    ay = r01 * px + r11 * py + r21 * pz
-    az = r02 * px + r12 * py + r22 * pz
-    ux = r00 * dx + r10 * dy + r20 * dz
-    uy = r01 * dx + r11 * dy + r21 * dz
-    uz = r02 * dx + r12 * dy + r22 * dz
+    ux, uy, uz = _to_geom(xmat, g, dx, dy, dz)
     best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
     cull, pnx, pny, pnz, poff = False, 0.0, 0.0, 0.0, 0.0
     hint0 = int(S[k].hint)
