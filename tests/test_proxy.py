@@ -1,8 +1,8 @@
 """The god-object (`GodObject`) and the finger around it (`SoftFingerProxy`), against answers
 computed in this file, not by the engine: each primitive's distance from its size and MuJoCo's
 pose, the device position in free space, the friction cone on a plane, the projection onto
-three planes, the crease of a floor and a sphere, the body frame that carries the proxy, the
-spike filter's reach and the soft start's ramp."""
+three planes, the crease of a floor and a sphere, the end of a roll round a box's edge, the
+body frame that carries the proxy, the spike filter's reach and the soft start's ramp."""
 
 import itertools
 import math
@@ -11,7 +11,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+import trimesh
 from hypothesis import assume, given, settings, strategies as st
+from mesh_oracle import mesh_model
 
 from softproxy.compiled.finger import SPIKE_PATIENCE
 from softproxy.compiled.godobject import LIFT_TOL
@@ -471,6 +473,28 @@ def test_rolls_round_a_rounded_edge_to_a_free_device(mu):
     assert not god.contact
     assert (god.x, god.y, god.z) == pytest.approx((0.005, 0.03, 0.0), abs=1e-9)
     assert scene.deepest(god) <= TOL
+
+
+@pytest.mark.parametrize("kind", ["box", "box mesh"])
+@pytest.mark.parametrize("out, below", [(5e-5, 2e-5), (5e-5, 2e-3), (2e-4, 2e-4), (2e-4, 2e-3), (1e-3, 5e-4)])
+def test_pressed_just_past_an_edge_the_proxy_rolls_round_it_in_one_tick(kind, out, below):
+    """A frictionless proxy on a box's top, the device moved in one tick to just past the
+    edge (`out` beyond the side face, `below` the top, m): that tick the proxy ends r off the
+    side face at the device's height, where sliding ends (the box's nearest point to the
+    device is on the side face), on a box geom and on a box mesh alike. Rolling round the
+    edge a tangent plane at a time creeps (each step (r + D)/r times the last, D the
+    device's depth under the edge), and once ran out of sweeps 0.2-7 mm short."""
+    r, h = 0.005, 0.02
+    if kind == "box":
+        shapes = Scene(f'<geom type="box" size="{h} {h} {h}"/>').shapes
+    else:
+        shapes = mesh_model(trimesh.creation.box((2 * h, 2 * h, 2 * h)))[2]
+    god = GodObject(shapes, r, 0.0, 0.0, (h - 0.001, 0.0, h + r + 0.001))
+    god.update(h - 0.001, 0.0, h + r - 0.001)
+    assert god.contact and god.z == pytest.approx(h + r, abs=1e-9)  # on the top face
+    god.update(h + out, 0.0, h - below)
+    assert god.contact and god.depth == pytest.approx(r - out, abs=1e-9)
+    assert (god.x, god.y, god.z) == pytest.approx((h + r, 0.0, h - below), abs=1e-9)
 
 
 # ---------------------------------------------------------------------------------------
