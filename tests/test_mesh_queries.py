@@ -38,6 +38,18 @@ def start_from(shape, tri: int) -> None:
     record.key[:, :] = math.nan
 
 
+def forget_queries(shape) -> None:
+    """Put a mesh shape's query state back as it was loaded: no hint, no slot used, no patch
+    held, no capsule found too full (the shared test meshes carry the last test's)."""
+    record = shape.set.S[shape.row]
+    record.hint = record.feature = -1
+    record.key[:, :] = math.nan
+    at, C = int(record.patch), shape.set.C
+    C[at:at + HINT_SLOTS * PATCH_WIDTH] = 0.0
+    for k in range(HINT_SLOTS):
+        C[at + PATCH_WIDTH * k + P_RADIUS] = C[at + PATCH_WIDTH * k + P_FULL + 6] = -1.0
+
+
 def check_distance(o: Oracle, shape, points, context=()):
     """Each point's distance and normal from `shape` against the brute force: the signed
     distance to EXACT (the sign only where the point is off the surface), a unit normal, and
@@ -646,6 +658,61 @@ def patches(shape) -> list[tuple[float, int, tuple]]:
             for k in range(HINT_SLOTS)]
 
 
+def test_a_query_off_the_map_leaves_the_patches_as_they_were():
+    """A sweep or a distance asked with NaN or inf in it (a bug upstream) leaves every hint
+    slot's patch and capsules as they were, and the queries after it are the brute force's.
+    A NaN capsule compares false with everything, and every later query of its slot took the
+    patch for holding it (its answers wrong by centimetres)."""
+    m, d, shapes = bowl()
+    o = oracle(m, d, shapes)
+    s = mesh_of(shapes)
+    r = 0.005
+    p = np.array([0.0, 0.0, 0.04 - 0.035 + r])  # the inner sphere's bottom, r above it
+    u = np.array([2e-4, 1e-4, 0.0])
+    check_distance(o, s, [p])
+    o.check_sweep(p, u, r, s.sweep(*p, *u, r))
+    at, C = int(s.set.S[s.row].patch), s.set.C
+    before = C[at:at + HINT_SLOTS * PATCH_WIDTH].copy()
+    rng = np.random.default_rng(4)
+    for bad in (math.nan, math.inf, -math.inf):
+        for k in range(3):
+            # from places 1-3 mm apart (slots whose patches do not hold them yet)
+            q = p + [0.0, 0.0, 0.001] + rng.uniform(-0.003, 0.003, 3)
+            s.sweep(*q, *np.where(np.arange(3) == k, bad, u), r)  # a direction off the map
+            s.sweep(*np.where(np.arange(3) == k, bad, q), *u, r)  # a start off the map
+            s.distance(*np.where(np.arange(3) == k, bad, q))
+    assert np.array_equal(C[at:at + HINT_SLOTS * PATCH_WIDTH], before)
+    for i in range(40):
+        q = p + rng.normal(size=3) * 1e-4
+        check_distance(o, s, [q], i)
+        o.check_sweep(q, u, r, s.sweep(*q, *u, r), context=i)
+
+
+def test_a_vanishing_proxy_leaves_the_mesh_queries_exact():
+    """A proxy of radius 4e-290 m on a path through the 10k sphere (one Hypothesis found):
+    afterwards no hint slot's capsule holds a NaN, and distances about the sphere are the
+    brute force's. On that path the god-object's way over a convex patch took the square
+    root of a cosine a hair over 1; the NaN became a slot's capsule, and the next test saw
+    the proxy 5 mm inside."""
+    m, d, shapes = sphere10k()
+    o = oracle(m, d, shapes)
+    s = mesh_of(shapes)
+    path = [(0.45685856922415913, 0.7143948516648635, 0.30240506362864106), (-1e-12, 0.4375847630988343,
+            0.10390369545318445), (-0.7356524564917235, 0.25606540817445533, 0.39307825598759893),
+            (0.5671780595137692, -4.739848936857893e-255, -0.18862583886117323),
+            (0.4265207966122182, 0.8937565580348474, -0.13809541828896), (1e-30, 0.8872793693173153,
+            -3.461201039043249e-227)]
+    mu = 0.5157880193230583
+    god = GodObject(shapes, 4.027865658967583e-290, mu, 0.8 * mu, (0.0, 0.0, 0.09))
+    for q in np.array(path) * 0.07:
+        god.update(*q)
+    at, C = int(s.set.S[s.row].patch), s.set.C
+    for k in range(HINT_SLOTS):
+        for c in (at + PATCH_WIDTH * k, at + PATCH_WIDTH * k + P_FULL):  # the patch's, the too full one
+            assert not np.isnan(C[c:c + 7]).any(), (k, C[c:c + 7])
+    check_distance(o, s, around(o, np.random.default_rng(5), 200))
+
+
 def test_a_query_names_the_triangle_it_answers_from():
     """After a distance query (asked afresh or answered from the kept two) the mesh's feature
     is the triangle of its nearest point, and after a touching sweep the triangle touched: the
@@ -687,6 +754,7 @@ def test_patch_answers_match_the_brute_force():
     m, d, shapes = bowl()
     o = oracle(m, d, shapes)
     s = mesh_of(shapes)
+    forget_queries(s)
     rng = np.random.default_rng(21)
     r = 0.005
     p = np.array([0.0, 0.0, 0.04 - 0.035 + r])  # the inner sphere's bottom, r above it

@@ -692,9 +692,12 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
 @njit(cache=True, error_model="numpy")
 def _arrives(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl):
     """True when a sweep by (dx, dy, dz) (m) from (x, y, z) meets nothing before its end,
-    where it may arrive touching (within LIFT_TOL)."""
+    where it may arrive touching (within LIFT_TOL); never for a way with NaN or inf in it."""
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if not abs(x) + abs(y) + abs(z) + length < math.inf:
+        return False
     hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
-    return not hit or (1.0 - lam) * math.sqrt(dx * dx + dy * dy + dz * dz) <= LIFT_TOL
+    return not hit or (1.0 - lam) * length <= LIFT_TOL
 
 
 @njit(cache=True, error_model="numpy")
@@ -711,7 +714,7 @@ def _clear_way(S, T, C, xpos, xmat, g, near, x, y, z, px, py, pz, nx, ny, nz, pl
     if _arrives(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl):
         return True
     s, _, mx, my, mz = _nearest(S, T, C, xpos, xmat, g, near, x, y, z)
-    c = mx * nx + my * ny + mz * nz
+    c = min(mx * nx + my * ny + mz * nz, 1.0)  # (unit normals: a hair over 1 by rounding)
     if s < 0 or c <= 0.0:
         return False
     # twice (L/2)·tan(θ/4), from c = cos θ: tan(θ/4) = t / (1 + √(1 + t²)), t = tan(θ/2) = √((1 - c)/(1 + c))

@@ -766,6 +766,10 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     S.patch -1)."""
     if S[k].patch < 0:
         return -1, 0, -1
+    if not abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz) + need < math.inf:
+        # a query off the map (NaN, inf) never becomes a capsule: NaN compares false, and
+        # every later query in the slot would take the patch for holding it
+        return -1, 0, -1
     at = int(S[k].patch) + PATCH_WIDTH * sl
     gap = _capsule_gap(C, at, ax, ay, az, bx, by, bz)
     if gap + need > C[at + P_RADIUS]:
@@ -1158,16 +1162,22 @@ def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
 
 @njit(cache=True, error_model="numpy")
 def mesh_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
-    """Signed distance (m) and outward normal (world) at the world point p from the triangle
-    nearest p found by walking from triangle `row` (`_from_hint`: across an edge, round a
-    vertex), and that triangle's row: the mesh's distance as seen from one place on it, no
-    certificate, patch or tree (at a million triangles each of those is a walk of the tree).
-    Whether a plane's surface goes on past its own triangle (`_move_once`): a sweep still
-    guards whatever plane the answer makes."""
+    """Distance (m, unsigned) and normal (world, from the triangle toward p) at the world
+    point p from the triangle nearest p found by walking from triangle `row` (`_from_hint`:
+    across an edge, round a vertex), and that triangle's row: the mesh's distance as seen
+    from one place on it, no certificate, patch or tree (at a million triangles each of
+    those is a walk of the tree). Whether a plane's surface goes on past its own triangle
+    (`_move_once`): a sweep still guards whatever plane the answer makes.
+
+    Unsigned: a walk may end on a nearest triangle of its own across the mesh, and p behind
+    that one is not inside (a point proxy 4 cm from a sphere's far side was taken for
+    resting on it, and floated 4 mm off the sphere with the device inside)."""
     g = int(S[k].geom)
     lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     d2, qx, qy, qz, f, i = _from_hint(S, T, C, k, row, lx, ly, lz)
     d, nx, ny, nz = _answer(S, T, k, lx, ly, lz, math.sqrt(d2), qx, qy, qz, f, i)
+    if d < 0.0:
+        d, nx, ny, nz = -d, -nx, -ny, -nz
     nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
     return d, nx, ny, nz, i
 

@@ -189,7 +189,7 @@ def shape_feature_distance(S, T, xpos, xmat, k, row, x, y, z):
 
 @njit(cache=True, error_model="numpy")
 def shape_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
-    """Signed distance (m) from mesh shape k at the world point p, outward unit normal and
+    """Distance (m, unsigned) from mesh shape k at the world point p, unit normal toward p and
     row of T, as seen from triangle `row` of it (`mesh_walk_distance`): the nearest triangle
     a walk from there reaches, which may be farther than the mesh's nearest."""
     if T is None:
