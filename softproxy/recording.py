@@ -392,20 +392,36 @@ class Recording:
         return len(self.index)
 
 
-def load_recording(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> Recording:
-    """Read and validate a recording (format versions 1 and 2); RecordingError naming the file
-    (and the first bad record) for anything else. Reads at most `max_bytes`."""
-    path = str(path)
-    try:  # non-blocking: opening a FIFO must not wait for a writer
+def _open_recording(path: str) -> tuple[int, os.stat_result]:
+    """A recording file's descriptor, opened for reading, and its stat; RecordingError naming
+    the file (the descriptor closed) when it cannot be opened or is no regular file. Opened
+    non-blocking (opening a FIFO must not wait for a writer) and checked before anything is
+    read from it."""
+    try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
     except OSError as exc:
         raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
-    try:  # the descriptor is checked before anything is read from it
+    try:
         info = os.fstat(fd)
         if stat.S_ISDIR(info.st_mode):
             raise RecordingError(f"{path}: is a directory, not a recording file")
         if not stat.S_ISREG(info.st_mode):
             raise RecordingError(f"{path}: not a regular file (a FIFO, socket or device); replay a recording file")
+    except OSError as exc:
+        os.close(fd)
+        raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd, info
+
+
+def load_recording(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> Recording:
+    """Read and validate a recording (format versions 1 and 2); RecordingError naming the file
+    (and the first bad record) for anything else. Reads at most `max_bytes`."""
+    path = str(path)
+    fd, info = _open_recording(path)
+    try:
         size = info.st_size
         if size > max_bytes:
             raise RecordingError(f"{path}: {size} bytes, over the {max_bytes}-byte limit for a recording")
@@ -433,13 +449,8 @@ def read_header(path: str | Path) -> dict:
     """A recording's header line, checked (format, version, fingers) without reading its body;
     RecordingError naming the file otherwise."""
     path = str(path)
+    fd, _ = _open_recording(path)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise RecordingError(f"{path}: not a regular file; give a recording file")
         start = os.read(fd, MAX_HEADER_BYTES)
     except OSError as exc:
         raise RecordingError(f"{path}: cannot read the recording: {exc.strerror or exc}") from None
