@@ -488,6 +488,17 @@ def heap_offer(hs, hw, m, keep, s, w):
 
 
 @njit(cache=True, error_model="numpy")
+def heap_pop(hs, hw, m):
+    """Take the top (the largest hs) off the max-heap hs[:m], hw[:m]: (its hs, its hw, new m)."""
+    s, w = hs[0], hw[0]
+    m -= 1
+    if m > 0:
+        hs[0], hw[0] = hs[m], hw[m]
+        _sift_down(hs, hw, m)
+    return s, w, m
+
+
+@njit(cache=True, error_model="numpy")
 def _sift_down(hs, hw, m):
     """Restore the max-heap (by hs) of hs[:m], hw[:m] after its top was replaced."""
     j = 0
