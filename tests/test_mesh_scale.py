@@ -504,8 +504,9 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
     """A hint slot's patch (`_gather`) against brute force on a dense dish: it holds every
     triangle within its capsule's radius of its segment, nearest first by a lower bound on
     the distance that never exceeds it; where more than PATCH_RECORDS lie within the radius
-    asked, the capsule shrinks to what it holds; and where even that falls below the least
-    asked for, the patch is left as it was."""
+    asked, the capsule shrinks to what it holds, as it does where the walk has no room to keep
+    a node waiting; and where even that falls below the least asked for, the patch is left
+    as it was."""
     import warnings
 
     from softproxy.compiled.layout import (
@@ -548,6 +549,23 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
             whole += 1
             assert held == radius and np.all(keys <= radius * radius), i
     assert shrunk >= 4 and whole >= 4
+    # with room for only a few nodes waiting, the walk cannot keep every node within the
+    # radius: the capsule shrinks to the nearest it dropped, and still holds all within it
+    short = 0
+    for i in range(24):
+        x, y = rng.uniform(-0.006, 0.006, 2)
+        a = np.array([x, y, (x * x + y * y) / 0.2 + rng.uniform(0.0, 0.006)])
+        b = a + rng.normal(size=3) * [0.0, 1e-4, 2e-3][i % 3]
+        radius = rng.uniform(0.0005, 0.004)
+        assert _gather(S, C, k, at, *a, *b, radius, 0.0, 3)
+        m, held = int(C[at + P_COUNT]), C[at + P_RADIUS]
+        rows = C[at + P_RECORDS + R_ROW:at + P_RECORDS + RECORD_WIDTH * m:RECORD_WIDTH].astype(np.int64) - t0
+        near = np.flatnonzero(np.linalg.norm(centre - a, axis=1) - circum <= radius + np.linalg.norm(b - a))
+        d = np.full(len(A), np.inf)
+        d[near] = segment_triangles(a, b, A[near], B[near], Cv[near])
+        assert held <= radius and set(np.flatnonzero(d <= held - 1e-9).tolist()) <= set(rows.tolist()), i
+        short += m < PATCH_RECORDS and held < radius
+    assert short >= 4
     # asked to hold at least more than it can: the patch is left as it was
     before = C[at:at + PATCH_WIDTH].copy()
     a = np.array([0.0, 0.0, 0.005])

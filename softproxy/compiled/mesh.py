@@ -866,7 +866,7 @@ def _cut(S, C, k, at, ax, ay, az, bx, by, bz, radius):
 
 
 @njit(cache=True, error_model="numpy")
-def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
+def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
     """Fill the patch at C[at] with the records of mesh k's triangles nearest the segment a..b
     (geom frame), out to `radius` (m) from it, or to less where more than PATCH_RECORDS lie
     that near: then those whose lower bound on the distance is least are kept, and the
@@ -879,14 +879,15 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
     so far: the first records kept are the nearest, the radius shrinks to theirs at once, and
     the walk ends at the first node beyond it (depth first, a walk that found the place too
     full read on until the radius came down: the 1M grid's slowest sliding ticks spent 119 µs
-    gathering, now 75)."""
+    gathering, now 75). At most `room` nodes wait (FRONTIER); one it has no room for bounds
+    the radius."""
     ux, uy, uz = bx - ax, by - ay, bz - az
     r2 = radius * radius
     tree, size, n, base = _tree(S, C, k)
     # a max-heap on minus the nodes' gaps (m²): the nearest on top
-    waiting = np.empty(FRONTIER)
-    nodes = np.empty(FRONTIER, dtype=np.int64)
-    w = heap_offer(waiting, nodes, 0, FRONTIER, -_span_gap2(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, 1.0), 1)
+    waiting = np.empty(room)
+    nodes = np.empty(room, dtype=np.int64)
+    w = heap_offer(waiting, nodes, 0, room, -_span_gap2(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, 1.0), 1)
     # a max-heap of the kept records' bounds (m²) and their rows in `kept`
     keys = np.empty(PATCH_RECORDS)
     rows = np.empty(PATCH_RECORDS, dtype=np.int64)
@@ -901,13 +902,13 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least):
                 g2 = _span_gap2(C, base + NODE_WIDTH * child, ax, ay, az, ux, uy, uz, 1.0)
                 if g2 > r2:
                     continue
-                if w == FRONTIER:
+                if w == room:
                     # no room to keep it waiting: the patch holds only what lies nearer
                     r2 = g2
                     if r2 < least * least:
                         return False
                     continue
-                w = heap_offer(waiting, nodes, w, FRONTIER, -g2, child)
+                w = heap_offer(waiting, nodes, w, room, -g2, child)
             continue
         j0, j1 = _leaf_records(C, tree, node, size, n)
         for j in range(j0, j1, RECORD_WIDTH):
