@@ -287,6 +287,11 @@ class MeshTables:
         vertex_tree = box_tree(self.vpos, self.vpos)
         long = np.flatnonzero(edge > long_edge)
         long_tree = box_tree(self.tlo[long], self.thi[long], long)
+        # a face's walk finds the short triangles through their vertices and the long ones in
+        # their own tree, so it needs only the short triangles' vertices (a CAD part of
+        # slivers has none: its faces walked every vertex within 18 mm for nothing)
+        short = np.unique(self.tv[edge <= long_edge])
+        short_tree = vertex_tree if len(short) == nv else box_tree(self.vpos[short], self.vpos[short], short)
         frames = node_frames(long_tree[0], long_tree[3], self.vpos, self.tv, self.plane)
         clear = np.empty((n, 2), dtype=np.int64)
         listed = np.full((n, 2, STATIC_ABOVE), -1, dtype=np.int64)
@@ -296,12 +301,13 @@ class MeshTables:
         counts = np.empty(nv, dtype=np.int64)
         common = (self.tlo, self.thi, self.centre, self.rhos)
         trees = (*vertex_tree, *long_tree, kept, long_edge, *frames)
+        face_trees = (*short_tree, *long_tree, kept, long_edge, *frames)
         scratch = threading.local()  # per worker: a stamp per triangle and one per vertex
 
         def faces(s: int, e: int) -> int:
             if not hasattr(scratch, "tstamp"):
                 scratch.tstamp, scratch.mark = np.zeros(n, dtype=np.int64), np.zeros(nv, dtype=np.int64)
-            face_lists(np.arange(s, e), self.vpos, self.tv, self.plane, *common, self.fan_start, self.fan, *trees,
+            face_lists(np.arange(s, e), self.vpos, self.tv, self.plane, *common, self.fan_start, self.fan, *face_trees,
                        scratch.tstamp, s, clear[s:e], listed[s:e])
             return e - s
 

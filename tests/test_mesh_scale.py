@@ -173,6 +173,37 @@ def test_sliver_heavy_tables_hold_what_the_queries_need():
                 assert kept[w] <= sine + 1e-12, (vertex, w)
 
 
+def test_a_face_of_long_triangles_sees_short_ones_rising_above_it():
+    """A ground of two long triangles with a small box of short ones standing on it: the
+    box's triangles rise above the ground's plane within its reach, more than a list holds,
+    so each ground face is concave on its upper side. A face's walk finds short triangles
+    through their vertices and long ones in their own tree; a walk over the wrong vertices
+    (the long triangles') finds nothing rising and would certify the ground empty."""
+    import warnings
+
+    from softproxy.compiled.certificate import ABOVE_TOL, STATIC_ABOVE
+    from softproxy.mesh import tables_of
+
+    ground = np.array([[-0.02, -0.02, 0.0], [0.02, -0.02, 0.0], [0.02, 0.02, 0.0], [-0.02, 0.02, 0.0]])
+    box = trimesh.creation.box(extents=(0.002, 0.002, 0.002))
+    bv, bf = trimesh.remesh.subdivide(box.vertices + [0.0, 0.0, 0.001], box.faces)
+    bv, bf = trimesh.remesh.subdivide(bv, bf)
+    v = np.vstack([ground, bv])
+    f = np.vstack([[[0, 1, 2], [0, 2, 3]], bf + len(ground)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an open sheet
+        t = tables_of(v, f, "ground and box")
+    abc = t.vpos[t.tv]
+    span = np.linalg.norm(abc - np.roll(abc, 1, axis=1), axis=2).max(axis=1)
+    floor = np.flatnonzero(span > 0.01)
+    assert len(floor) == 2
+    rising = np.count_nonzero(abc[span < 0.01, :, 2].max(axis=1) > ABOVE_TOL)
+    assert rising > STATIC_ABOVE
+    for i in floor:
+        up = 0 if t.plane[i, 2] > 0.0 else 1
+        assert t.clear[i, up] == -1, (i, t.clear[i])
+
+
 def t_lists(t, key):
     """A face's kept list (key i or -1 - i for its back) as a tuple, None for a concave patch."""
     i, side = (key, 0) if key >= 0 else (-1 - key, 1)
