@@ -27,18 +27,13 @@ from numba import njit
 
 from softproxy import device_guard
 from softproxy.compiled import godobject
+from softproxy.compiled.finite import finite
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_TRAVEL
 from softproxy.compiled.shapes import shape_distance, shape_to_world
 from softproxy.fingertip import P_MAX
 
 SPIKE_PATIENCE = 3
 """Consecutive ticks a position jump is held back as a spike before it is believed."""
-
-
-@njit(cache=True, error_model="numpy")
-def _finite(v):
-    """True for a number that is neither NaN nor ±Inf."""
-    return v == v and v != math.inf and v != -math.inf
 
 
 # -- torsion (eqs 38-42; `softproxy.torsion.TorsionalFriction` is the view) ---------------------
@@ -60,7 +55,7 @@ def _finite(v):
 def torsion_touch(f, alpha_s):
     """Contact made: the proxy twist starts at the finger's current twist α_s (rad), so the
     torque starts at zero (a non-finite twist counts as 0); stuck."""
-    if not _finite(alpha_s):
+    if not finite(alpha_s):
         alpha_s = 0.0
     f.in_contact = True
     f.alpha_0 = f.alpha_p = f.alpha_g = alpha_s
@@ -97,7 +92,7 @@ def torsion_step(f, alpha_s, P, dt):
     does not."""
     if not f.in_contact:
         return 0.0
-    if not _finite(alpha_s):
+    if not finite(alpha_s):
         f.spring_torque = 0.0
         return 0.0
     P = abs(P)
@@ -166,7 +161,7 @@ def torsion_follow(f, omega_n, dt):
     if not f.in_contact:
         return
     alpha_p = f.alpha_p + omega_n * dt
-    if _finite(alpha_p):
+    if finite(alpha_p):
         f.alpha_p = alpha_p
 
 
@@ -237,7 +232,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     if f.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
         _follow_body(S, cvel, f)
     if not f.placed:
-        ok = place(S, T, C, xpos, xmat, f, near, x, y, z) and _finite(twist)
+        ok = place(S, T, C, xpos, xmat, f, near, x, y, z) and finite(twist)
         clear_output(f)
         return ok
     xd = f.ox + f.scale * x
@@ -254,7 +249,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
         clear_output(f)
         return False
     f.spike_run = 0
-    if not _finite(twist):  # an unusable sample: the proxy stays where it was, on its body
+    if not finite(twist):  # an unusable sample: the proxy stays where it was, on its body
         godobject.follow(S, T, C, xpos, xmat, f, near)
         clear_output(f)
         return False
@@ -462,7 +457,7 @@ def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratc
         row = near[i]
         if not f.in_valid:
             hold(S, T, C, xpos, xmat, cvel, f, row)
-        elif not _finite(f.in_x + f.in_y + f.in_z + f.in_qw + f.in_qx + f.in_qy + f.in_qz + f.in_twist):
+        elif not finite(f.in_x + f.in_y + f.in_z + f.in_qw + f.in_qx + f.in_qy + f.in_qz + f.in_twist):
             refused += 1
             hold(S, T, C, xpos, xmat, cvel, f, row)
         else:
@@ -470,7 +465,7 @@ def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratc
                 refused += 1
             if safe:
                 clear_output(f)
-            elif not _finite(f.fx + f.fy + f.fz + f.tx + f.ty + f.tz):
+            elif not finite(f.fx + f.fy + f.fz + f.tx + f.ty + f.tz):
                 unsafe += 1
                 clear_output(f)
             if f.body >= 0.0:

@@ -48,6 +48,7 @@ import math
 import numpy as np
 from numba import njit
 
+from softproxy.compiled.finite import finite
 from softproxy.compiled.layout import GEOM_MESH, PLANE_WIDTH
 from softproxy.compiled.shapes import (shape_distance, shape_feature, shape_feature_distance, shape_on_face, shape_sweep,
                                        shape_to_local, shape_to_world, shape_walk_distance)
@@ -694,7 +695,7 @@ def _arrives(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl):
     """True when a sweep by (dx, dy, dz) (m) from (x, y, z) meets nothing before its end,
     where it may arrive touching (within LIFT_TOL); never for a way with NaN or inf in it."""
     length = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if not abs(x) + abs(y) + abs(z) + length < math.inf:
+    if not finite(abs(x) + abs(y) + abs(z) + length):
         return False
     hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
     return not hit or (1.0 - lam) * length <= LIFT_TOL

@@ -74,6 +74,7 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, heap_offer, heap_pop, static_clear
+from softproxy.compiled.finite import finite
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, CUT_NODES, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO,
     NODE_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, R_CENTRE, R_ROW,
@@ -770,7 +771,7 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     S.patch -1)."""
     if S[k].patch < 0:
         return -1, 0, -1
-    if not abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz) + need < math.inf:
+    if not finite(abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz) + need):
         # a query off the map (NaN, inf) never becomes a capsule: NaN compares false, and
         # every later query in the slot would take the patch for holding it
         return -1, 0, -1
