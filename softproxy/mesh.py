@@ -41,11 +41,12 @@ import numpy as np
 import trimesh
 from tqdm import tqdm
 
+from softproxy.compiled.ball import BALL_ABOVE, BALL_LIFT, ball_lists
 from softproxy.compiled.certificate import (
     STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, node_frames, vertex_tables,
 )
-from softproxy.compiled.layout import GEOM_MESH
-from softproxy.compiled.mesh import tree_nodes
+from softproxy.compiled.layout import GEOM_MESH, PATCH_RECORDS, T_INV
+from softproxy.compiled.mesh import PATCH_KEEP, tree_nodes
 from softproxy.compiled.tolerances import CONTACT_TOL
 from softproxy.geometry import Shape
 
@@ -162,6 +163,9 @@ class MeshTables:
         self.clear = None      # per face and side: how many triangles rise above it (-1: concave)
         self.listed = None     # ... and which (faces × 2 sides × STATIC_ABOVE)
         self.vtable = None     # per vertex: (reach, start, sin β, vertex id), the last two flat
+        self.ball = 0.0        # the radius (m) of the ball certificates' resting ball
+        self.ball_count = None  # per face and side without a plane certificate: how many a resting ball reaches (-1: none)
+        self.ball_listed = None  # ... and which (faces × 2 sides × BALL_ABOVE)
         self._certify(reach(KEPT_RADIUS))
 
     def _build(self, v: np.ndarray, f: np.ndarray) -> None:
@@ -318,16 +322,58 @@ class MeshTables:
                           *trees, scratch.mark, s, sines[s:e], ids[s:e], counts[s:e])
             return e - s
 
+        # the ball certificates, once the plane's are known, where those do not hold: on the
+        # short triangles of a mesh too dense for a patch to hold a resting proxy's contact
+        radius = ball_radius(kept)
+        fine = edge <= long_edge
+        if not (dense(self.tri, radius) and fine.any()):
+            fine[:] = False
+        bcount = np.full((n, 2), -1, dtype=np.int64)
+        blisted = np.full((n, 2, BALL_ABOVE if fine.any() else 0), -1, dtype=np.int64)
+        if fine.any():
+            held = np.flatnonzero(fine)
+            short_triangles = box_tree(self.tlo[held], self.thi[held], held)
+            short_frames = node_frames(short_triangles[0], short_triangles[3], self.vpos, self.tv, self.plane)
+
+        def balls(s: int, e: int) -> int:
+            if not hasattr(scratch, "tstamp"):
+                scratch.tstamp, scratch.mark = np.zeros(n, dtype=np.int64), np.zeros(nv, dtype=np.int64)
+            wanted = (clear[s:e] < 0) & fine[s:e, None]  # the face lists are done by now
+            ball_lists(np.arange(s, e), wanted, self.vpos, self.tv, self.tri, self.plane, self.tlo, self.thi,
+                       *short_triangles, *short_frames, *long_tree, *frames, radius, scratch.tstamp, n + 2 * s,
+                       bcount[s:e], blisted[s:e])
+            return e - s
+
         jobs = [(faces, s, min(n, s + BUILD_CHUNK)) for s in range(0, n, BUILD_CHUNK)]
         jobs += [(vertices, s, min(nv, s + BUILD_CHUNK)) for s in range(0, nv, BUILD_CHUNK)]
-        with _progress(n + nv, f"mesh certificates ({n} triangles)") as bar, \
+        later = [(balls, s, min(n, s + BUILD_CHUNK)) for s in range(0, n, BUILD_CHUNK) if fine[s:s + BUILD_CHUNK].any()]
+        with _progress(n + nv + sum(e - s for _, s, e in later), f"mesh certificates ({n} triangles)") as bar, \
                 ThreadPoolExecutor(max_workers=min(len(jobs), os.cpu_count() or 1, BUILD_THREADS)) as pool:
             for done in as_completed([pool.submit(*job) for job in jobs]):
                 bar.update(done.result())
+            for done in as_completed([pool.submit(*job) for job in later]):
+                bar.update(done.result())
         head = np.arange(keep)[None, :] < counts[:, None]
         self.clear, self.listed = clear, listed
+        self.ball, self.ball_count, self.ball_listed = radius, bcount, blisted
         self.vtable = (kept, np.concatenate([[0], np.cumsum(counts)]), sines[head], ids[head])
         self.kept = kept
+
+
+def dense(tri: np.ndarray, radius: float) -> bool:
+    """Whether a mesh (rows of T: `tri`) is too dense for the patches to hold a resting
+    proxy of `radius` (m): the band within PATCH_KEEP of it on a flat surface, 2π radius
+    PATCH_KEEP, holds more than PATCH_RECORDS triangles of the median area. Only such a mesh
+    gets ball certificates (`softproxy.compiled.ball`): elsewhere a patch answers as fast
+    and the lists would only lengthen the load."""
+    area = 0.5 / np.sqrt(tri[:, T_INV])  # T_INV = 1 / |AB × AC|²
+    return bool(float(np.median(area)) * PATCH_RECORDS < 2.0 * np.pi * radius * PATCH_KEEP)
+
+
+def ball_radius(kept: float) -> float:
+    """The radius (m) of the ball certificates' resting ball for certificates over `kept` (m):
+    the radius of the proxy they were built for (`reach`), plus BALL_LIFT."""
+    return 0.5 * (kept - KEPT_STEP) - CONTACT_TOL + BALL_LIFT
 
 
 def reach(radius: float) -> float:

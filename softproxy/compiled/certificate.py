@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, FEW_SLOTS, T_ADJ, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
+    C_FEW, C_STAMP, C_STAMPS, FEW_SLOTS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
     V_RING, V_SINES, V_THRESHOLD, V_X,
 )
 
@@ -50,10 +50,11 @@ axis (those whose sin β is below the tilt's sine); more, and the box tree serve
 assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' lists (an edge's certificate)"
 
 
-def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, float]:
+def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, float, float]:
     """The certificates of `softproxy.mesh.MeshTables` s whose triangles are rows t0.. of T and
-    whose tables start at C[c0]: (its T_ADJ..T_CLEAR columns (triangles × 10), its part of C
-    (vertex records, then rings, fans, sin β tables and face lists), the reach (m) they hold over)."""
+    whose tables start at C[c0]: (its T_ADJ..T_BALL columns (triangles × 14), its part of C
+    (vertex records, then rings, fans, sin β tables, face lists and ball lists), the reach
+    (m) they hold over, the radius (m) of the ball certificates' resting ball)."""
     n, nv = s.triangles, len(s.vpos)
     adj = np.where(s.adj >= 0, s.adj + t0, -1).astype(np.float64)
     verts = np.zeros((nv, VERTEX_WIDTH))
@@ -96,9 +97,21 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     clear[:, [0, 2]] = np.where(clear[:, [1, 3]] < 0, 0.0, clear[:, [0, 2]])
     flat = s.listed.reshape(-1, s.listed.shape[2])
     parts.append(flat[np.arange(flat.shape[1])[None, :] < runs[:, None]].astype(np.float64) + t0)
-    columns = np.column_stack([adj, s.tv.astype(np.float64), clear])
-    assert columns.shape[1] == T_CLEAR + 4 - T_ADJ
-    return columns, np.concatenate([p.ravel() for p in parts]), float(s.kept)
+    at += int(runs.sum())
+    # per face and side, its ball list: the plane list where that holds, else its own (-1: none)
+    ball = clear.copy()
+    b = s.ball_count.reshape(-1)
+    own = (m < 0) & (b >= 0)
+    bruns = np.where(own, b, 0)
+    bfirst = at + np.cumsum(bruns) - bruns
+    starts, counts = ball[:, [0, 2]].reshape(-1), ball[:, [1, 3]].reshape(-1)
+    starts[own], counts[own] = bfirst[own], b[own]
+    ball[:, [0, 2]], ball[:, [1, 3]] = starts.reshape(-1, 2), counts.reshape(-1, 2)
+    bflat = s.ball_listed.reshape(2 * n, s.ball_listed.shape[2])
+    parts.append(bflat[np.arange(bflat.shape[1])[None, :] < bruns[:, None]].astype(np.float64) + t0)
+    columns = np.column_stack([adj, s.tv.astype(np.float64), clear, ball])
+    assert columns.shape[1] == T_BALL + 4 - T_ADJ
+    return columns, np.concatenate([p.ravel() for p in parts]), float(s.kept), float(s.ball)
 
 
 @njit(cache=True, error_model="numpy")
@@ -122,10 +135,11 @@ def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_few(T, C, i, side, at):
-    """Row i's list of triangles rising above its plane on `side`, copied to C[C_FEW + at:];
-    the new count, or -1 when it has none (a concave patch)."""
-    col = T_CLEAR if side > 0.0 else T_CLEAR + 2
+def _face_few(T, C, i, side, at, lists=T_CLEAR):
+    """Row i's list on `side` (`lists`: T_CLEAR, the triangles rising above its plane; T_BALL,
+    those a ball resting on it reaches), copied to C[C_FEW + at:]; the new count, or -1 when
+    it has none (a concave patch)."""
+    col = lists if side > 0.0 else lists + 2
     count = int(T[i, col + 1])
     if count < 0 or at + count > C_STAMPS - C_FEW:
         return -1

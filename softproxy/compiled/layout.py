@@ -59,6 +59,7 @@ SHAPE = np.dtype([
     ("verts", np.int64),      # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
     ("patch", np.int64),      # where its patches begin in C: one per hint slot, PATCH_WIDTH floats each (-1: none)
     ("kept", np.float64),     # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
+    ("ball", np.float64),     # the radius (m) of its ball certificates' resting ball (0: none)
 ], align=True)
 """A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
 
@@ -80,7 +81,9 @@ T_ADJ = 73       # the rows across edges AB, BC, CA (-1: an open edge), 73..75
 T_TV = 76        # its vertices A, B, C (vertex ids of its mesh), 76..78
 T_CLEAR = 79     # per side (front, back): where its list of triangles rising above its plane
                  # starts in C and how many (-1: a concave patch, no certificate), 79..82
-T_COLUMNS = 83
+T_BALL = 83      # per side (front, back): where its ball list starts in C and how many (-1: none;
+                 # softproxy.compiled.ball: the plane list where that holds), 83..86
+T_COLUMNS = 87
 
 # -- mesh grids C: one float64 array (indices stored as floats, exact below 2**53) ----------
 C_STAMP = 0

@@ -73,15 +73,19 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.certificate import ABOVE_TOL, LEAF, certificate_tables, heap_offer, heap_pop, static_clear
+from softproxy.compiled.ball import BALL_SLACK
+from softproxy.compiled.certificate import (
+    ABOVE_TOL, LEAF, _face_few, certificate_tables, heap_offer, heap_pop, static_clear,
+)
 from softproxy.compiled.finite import finite
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, CUT_NODES, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO,
     NODE_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, R_CENTRE, R_ROW,
-    RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES,
+    RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_BALL, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES,
     TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
+from softproxy.compiled.triangle import closest
 
 POINT_RADIUS = 1e-8
 """A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
@@ -226,15 +230,15 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         del records, nodes
         tree = c0
         c0 = first + n * RECORD_WIDTH
-        columns, kept, reach = certificate_tables(a, t0, c0)
+        columns, kept, reach, ball = certificate_tables(a, t0, c0)
         rows.append(np.concatenate([a.tri, a.edges.reshape(n, 3 * EDGE_WIDTH), a.pn.reshape(n, 21), a.vn, columns],
                                    axis=1))
-        where[id(a)] = (t0, n, tree, c0, reach)
+        where[id(a)] = (t0, n, tree, c0, reach, ball)
         parts.append(kept)
         c0 += len(kept)
         t0 += n
     for k, s in meshes:
-        t0, n, tree, verts, reach = where[id(s.tables)]
+        t0, n, tree, verts, reach, ball = where[id(s.tables)]
         S[k].t0, S[k].nt, S[k].tree = t0, n, tree
         S[k].signed = s.signed
         S[k].shading = s.shading
@@ -242,6 +246,7 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         S[k].key[:, :] = math.nan  # no hint slot used, none kept
         S[k].verts = verts
         S[k].kept = reach
+        S[k].ball = ball
         S[k].patch = c0
         patches = np.zeros((HINT_SLOTS, PATCH_WIDTH))
         patches[:, P_RADIUS] = -1.0  # holds nothing yet
@@ -265,51 +270,6 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # ---------------------------------------------------------------------------------------
 # One triangle: features 0 the face, 1-3 its edges AB, BC, CA, 4-6 its vertices A, B, C
 # ---------------------------------------------------------------------------------------
-
-@njit(cache=True, error_model="numpy")
-def _closest(T, i, px, py, pz):
-    """Closest point of triangle row i to p: (squared distance, qx, qy, qz, feature).
-    Ericson's Voronoi-region walk, the dot products about B and C derived from those about A."""
-    t = T[i]
-    ax, ay, az, bx, by, bz, cx, cy, cz = t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8]
-    ux, uy, uz, vx, vy, vz, nx, ny, nz = t[9], t[10], t[11], t[12], t[13], t[14], t[15], t[16], t[17]
-    aa, ab, cc = t[18], t[19], t[20]
-    wx, wy, wz = px - ax, py - ay, pz - az
-    d1 = ux * wx + uy * wy + uz * wz
-    d2 = vx * wx + vy * wy + vz * wz
-    if d1 <= 0.0 and d2 <= 0.0:
-        return (wx * wx + wy * wy + wz * wz, ax, ay, az, 4)
-    d3 = d1 - aa
-    d4 = d2 - ab
-    if d3 >= 0.0 and d4 <= d3:
-        ex, ey, ez = px - bx, py - by, pz - bz
-        return (ex * ex + ey * ey + ez * ez, bx, by, bz, 5)
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        s = d1 / aa
-        qx, qy, qz = ax + s * ux, ay + s * uy, az + s * uz
-        ex, ey, ez = px - qx, py - qy, pz - qz
-        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 1)
-    d5 = d1 - ab
-    d6 = d2 - cc
-    if d6 >= 0.0 and d5 <= d6:
-        ex, ey, ez = px - cx, py - cy, pz - cz
-        return (ex * ex + ey * ey + ez * ez, cx, cy, cz, 6)
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        s = d2 / cc
-        qx, qy, qz = ax + s * vx, ay + s * vy, az + s * vz
-        ex, ey, ez = px - qx, py - qy, pz - qz
-        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 3)
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and d4 >= d3 and d5 >= d6:
-        s = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        qx, qy, qz = bx + s * (cx - bx), by + s * (cy - by), bz + s * (cz - bz)
-        ex, ey, ez = px - qx, py - qy, pz - qz
-        return (ex * ex + ey * ey + ez * ez, qx, qy, qz, 2)
-    h = nx * wx + ny * wy + nz * wz  # inside the face's prism: straight down to the plane
-    return (h * h, px - h * nx, py - h * ny, pz - h * nz, 0)
-
 
 @njit(cache=True, error_model="numpy")
 def _pressed(dist, into, r, graze):
@@ -340,7 +300,7 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     reach = r + CONTACT_TOL
     if (h0 > reach and h1 > reach) or (h0 < -reach and h1 < -reach):
         return (-1.0, 0.0, 0.0, 0.0, 0)  # the segment never comes within r of the plane
-    d2, qx, qy, qz, feature = _closest(T, i, ax, ay, az)
+    d2, qx, qy, qz, feature = closest(T, i, ax, ay, az)
     if d2 > far2:
         return (-1.0, 0.0, 0.0, 0.0, 0)  # farther than the sphere can reach on this segment
     if d2 <= reach * reach:
@@ -644,7 +604,7 @@ def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
                     break
         if step < 0:
             break
-        c2, rx, ry, rz, f = _closest(T, step, x, y, z)
+        c2, rx, ry, rz, f = closest(T, step, x, y, z)
         if c2 >= d2:
             break
         d2, qx, qy, qz, feature, hint = c2, rx, ry, rz, f, step
@@ -658,11 +618,11 @@ def _from_hint(S, T, C, k, hint0, x, y, z):
     (`_walk`) when it stepped across or lies on a vertex: (d2, qx, qy, qz, feature, row).
     Every distance query and sweep begins here."""
     hint = hint0
-    d2, qx, qy, qz, f = _closest(T, hint, x, y, z)
+    d2, qx, qy, qz, f = closest(T, hint, x, y, z)
     if 1 <= f <= 3:
         other = int(T[hint, T_ADJ + f - 1])
         if other >= 0:
-            c2, rx, ry, rz, g = _closest(T, other, x, y, z)
+            c2, rx, ry, rz, g = closest(T, other, x, y, z)
             if c2 < d2:
                 d2, qx, qy, qz, f, hint = c2, rx, ry, rz, g, other
     if (f != 0 and hint != hint0) or f >= 4:
@@ -686,7 +646,7 @@ def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
         i = int(C[j + R_ROW])
         if i == bi:
             continue
-        d2, rx, ry, rz, f = _closest(T, i, x, y, z)
+        d2, rx, ry, rz, f = closest(T, i, x, y, z)
         if d2 < best2:
             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
             best = math.sqrt(d2)
@@ -951,12 +911,41 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
 
 
 @njit(cache=True, error_model="numpy")
+def _ball_holds(T, i, sx, sy, sz, radius, cx, cy, cz, rho):
+    """Whether the ball of radius rho (m) about c lies inside a ball of `radius` (m) resting on
+    row i's face on the side of unit normal s: c is within radius - rho of the face lifted
+    by radius (`softproxy.compiled.ball`)."""
+    room = radius - rho + BALL_SLACK
+    if room < 0.0:
+        return False
+    return closest(T, i, cx - radius * sx, cy - radius * sy, cz - radius * sz)[0] <= room * room
+
+
+@njit(cache=True, error_model="numpy")
+def _ball_few(S, T, C, k, i, cx, cy, cz, rho):
+    """The ball certificate of row i at c: how many triangles (listed in C[C_FEW:]) besides
+    row i may come within rho (m) of c, and the unit normal of the side of row i that c is
+    on; -1 when the ball of radius rho about c is not inside a ball resting on row i on that
+    side, or the face has no ball list there."""
+    radius = S[k].ball
+    nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
+    if nx * (cx - T[i, 0]) + ny * (cy - T[i, 1]) + nz * (cz - T[i, 2]) < 0.0:
+        nx, ny, nz = -nx, -ny, -nz
+    if radius <= 0.0 or not _ball_holds(T, i, nx, ny, nz, radius, cx, cy, cz, rho):
+        return -1, nx, ny, nz
+    side = 1.0 if nx * T[i, T_N] + ny * T[i, T_N + 1] + nz * T[i, T_N + 2] > 0.0 else -1.0
+    return _face_few(T, C, i, side, 0, T_BALL), nx, ny, nz
+
+
+@njit(cache=True, error_model="numpy")
 def _nearest(S, T, C, k, sl, x, y, z):
     """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame),
     for a query of hint slot sl.
 
-    From the hint (`_from_hint`): when the kept certificates hold at its nearest point, the
-    few triangles they name (none on a convex patch) are all that may be nearer; else the
+    From the hint (`_from_hint`): when the kept certificates hold at its nearest point (the
+    tangent plane's, or a ball resting on the hint's face holding the ball of the hint's
+    distance), the few triangles they name (none on a convex patch) are all that may be
+    nearer; else the
     slot's patch when it holds the ball of the hint's distance, or the box tree walked
     nearest node first, leaving out every node farther than the best found (the hint's, to
     begin with)."""
@@ -970,12 +959,14 @@ def _nearest(S, T, C, k, sl, x, y, z):
         if best2 > 0.0:
             best = math.sqrt(best2)
             m = static_clear(S, T, C, k, bi, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, 2.0 * best)
+            if m < 0:
+                m = _ball_few(S, T, C, k, bi, x, y, z, best)[0]
             if m >= 0:
                 hint = bi
                 for j in range(m):
                     i = int(C[C_FEW + j])
                     if i != hint:
-                        d2, rx, ry, rz, f = _closest(T, i, x, y, z)
+                        d2, rx, ry, rz, f = closest(T, i, x, y, z)
                         if d2 < best2:
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
                 S[k].hint = bi
@@ -1169,7 +1160,7 @@ def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
     geom g, and the unit direction (world) from its nearest point to p: whether the feature
     a constraint plane came from is still under the proxy, and its tangent plane there."""
     lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
-    d2, qx, qy, qz, _ = _closest(T, row, lx, ly, lz)
+    d2, qx, qy, qz, _ = closest(T, row, lx, ly, lz)
     d = math.sqrt(d2)
     if d == 0.0:  # on the triangle: its normal
         nx, ny, nz = T[row, T_N], T[row, T_N + 1], T[row, T_N + 2]
@@ -1278,12 +1269,10 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graz
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
-               graze, lam, mx, my, mz):
-    """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
-    besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When
-    sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature sf) or one of theirs,
-    and its answer is kept for `mesh_distance`."""
+def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2, graze, lam, mx, my, mz):
+    """The earliest touch (lam, normal, row; row -1 for none) among the m triangles in
+    C[C_FEW:] and the hint's own (lam < 0: none); when sd2 >= 0, also the start's nearest
+    point among them and the hint's (sd2, q, feature sf): (…, sd2, q, sf, its row)."""
     best_lam, bi = (lam, hint) if lam >= 0.0 else (1.0, -1)
     si = hint
     slab = r + CONTACT_TOL + 1e-12
@@ -1292,7 +1281,7 @@ def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay,
         if i == hint:
             continue
         if sd2 >= 0.0:  # before the slab test: a triangle the segment never reaches may still be nearest
-            d2, qx, qy, qz, f = _closest(T, i, ax, ay, az)
+            d2, qx, qy, qz, f = closest(T, i, ax, ay, az)
             if d2 < sd2:
                 sd2, sqx, sqy, sqz, sf, si = d2, qx, qy, qz, f, i
         nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
@@ -1303,6 +1292,14 @@ def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay,
         hit, hx, hy, hz, _ = _sweep_triangle(T, i, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
         if hit >= 0.0 and hit < best_lam:
             best_lam, mx, my, mz, bi = hit, hx, hy, hz, i
+    return best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si
+
+
+@njit(cache=True, error_model="numpy")
+def _few_answer(S, T, k, xmat, sl, g, best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si, ax, ay, az, ux, uy, uz,
+                r, graze):
+    """`mesh_sweep`'s answer from `_few_run`'s: the touch (`_hit`), and the start's nearest
+    point kept for `mesh_distance` when it was asked for (sd2 >= 0)."""
     if sd2 >= 0.0:
         d, nx, ny, nz = _answer(S, T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
         _keep(S, k, sl, ax, ay, az, d, nx, ny, nz, si)
@@ -1310,6 +1307,36 @@ def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay,
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
     return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, ax, ay, az, ux, uy, uz, r, graze)
+
+
+@njit(cache=True, error_model="numpy")
+def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
+               graze, lam, mx, my, mz):
+    """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
+    besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When
+    sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature sf) or one of theirs,
+    and its answer is kept for `mesh_distance`."""
+    out = _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2, graze, lam, mx, my, mz)
+    return _few_answer(S, T, k, xmat, sl, g, *out, ax, ay, az, ux, uy, uz, r, graze)
+
+
+@njit(cache=True, error_model="numpy")
+def _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz, r, dd, far2, graze):
+    """`mesh_sweep` by the ball certificate of the start's nearest row `hint` (at d2, q,
+    `feature`), for a sweep not moving into it: the earliest touch among its ball list, when
+    the sphere (and the start's ball of radius its distance) lies inside a ball resting on
+    the hint's face at the start and at that touch (or the end), and so all the way (the
+    test is convex along the segment). (True, answer) or (False, …) when it does not hold."""
+    reach = r + CONTACT_TOL
+    m, sx, sy, sz = _ball_few(S, T, C, k, hint, ax, ay, az, max(reach, math.sqrt(d2)))
+    if m < 0:
+        return False, (-1.0, 0.0, 0.0, 0.0)
+    out = _few_run(T, C, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz, r, dd, far2, graze,
+                   -1.0, 0.0, 0.0, 0.0)
+    lam = out[0] if out[4] >= 0 else 1.0
+    if not _ball_holds(T, hint, sx, sy, sz, S[k].ball, ax + lam * ux, ay + lam * uy, az + lam * uz, reach):
+        return False, (-1.0, 0.0, 0.0, 0.0)
+    return True, _few_answer(S, T, k, xmat, sl, g, *out, ax, ay, az, ux, uy, uz, r, graze)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1335,8 +1362,9 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     From the hint (`_from_hint`): touching it and pressed into it, the
     touch is at once; touching it and moving along or away, or touching it on the way, or
     near it and staying above its tangent plane, the kept certificates may leave only a few
-    triangles to sweep (and prove the start's nearest point, kept for `mesh_distance`);
-    else the box tree is walked: the nodes whose boxes, grown by the reach, the segment
+    triangles to sweep (and prove the start's nearest point, kept for `mesh_distance`): the
+    tangent plane's, or where too many rise above it, a ball resting on the hint's face that
+    holds the sphere from start to touch (`_sweep_ball`); else the box tree is walked: the nodes whose boxes, grown by the reach, the segment
     enters before the earliest touch found, earliest first (and, when it stays r above the
     hint's tangent plane but too many triangles rise above that plane for a certificate to
     list, not the nodes and records wholly behind it)."""
@@ -1371,6 +1399,12 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 if m >= 0:
                     return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
                                       r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
+                # a ball resting on the hint's face may hold the sphere all the way (a concave
+                # patch finer than the proxy: only the neighbours rising into that ball)
+                held, out = _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
+                                        r, dd, far2, graze)
+                if held:
+                    return out
                 # too many reach above it to list (a neighbour's wall): the walk below still
                 # leaves out what lies wholly behind it (a convex rim of 10⁴ slivers)
                 cull = True
@@ -1388,7 +1422,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 # touched on a vertex: a fan triangle on an edge rising above the tangent
                 # plane there holds a nearer point, so it was touched first
                 sx, sy, sz = ax + lam * ux, ay + lam * uy, az + lam * uz
-                c2, cx, cy, cz, cf = _closest(T, hint, sx, sy, sz)
+                c2, cx, cy, cz, cf = closest(T, hint, sx, sy, sz)
                 if cf >= 4:
                     walked = _walk(S, T, C, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
                     if walked != hint:
@@ -1416,6 +1450,10 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                     if m >= 0:
                         return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
                                           uz, r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
+                    held, out = _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
+                                            uz, r, dd, far2, graze)
+                    if held:
+                        return out
     slab = reach + 1e-12
     C[C_STAMP] += 1.0
     stamp = C[C_STAMP]
