@@ -18,8 +18,11 @@ those triangles ready, once, when a world is loaded (numpy; nothing here runs in
   the kept certificates: per face and side the few triangles near it rising above its plane
   (`_face_tables`), per vertex the vertices near it by how far below its cone they lie
   (`_vertex_tables`), built for every face and vertex at once over the reach of a
-  KEPT_RADIUS proxy at load, and of a larger one by `prepare`. And the box tree the
-  queries walk where no certificate holds (`softproxy.compiled.mesh.tree_nodes`).
+  KEPT_RADIUS proxy at load, and of a larger one by `prepare`; on a mesh too dense for a
+  patch to hold a resting proxy (`dense`), per face and side where the plane's list fails,
+  the few triangles a ball of the proxy's radius resting on the face reaches
+  (`softproxy.compiled.ball`). And the box tree the queries walk where no certificate
+  holds (`softproxy.compiled.mesh.tree_nodes`).
 A watertight mesh has an inside (signed distance); an open or non-manifold one is a
 two-sided sheet (unsigned distance, both sides solid).
 """

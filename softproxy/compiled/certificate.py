@@ -20,7 +20,8 @@ that plane enter any of them. So a query reads only the triangles near q that re
 `softproxy.mesh.MeshShape` builds the lists and tables for every face and vertex at load
 (and for a larger proxy in `prepare`); `certificate_tables` packs them into the mesh tables T
 and C and `static_clear` asks them. Where they do not hold (a concave patch, a reach beyond
-the one they were built for), the caller walks its box tree.
+the one they were built for), the caller asks the ball certificate (`softproxy.compiled.ball`)
+on a dense mesh, or walks its box tree.
 """
 
 from __future__ import annotations
