@@ -4,7 +4,8 @@ On a concave patch finer than the proxy no plane certificate holds (hundreds of 
 rise above a face's plane within the proxy's reach), but a ball of the proxy's radius
 resting on a face reaches only its few neighbours rising above it. These tests check the
 lists built at load against brute-force triangle distances, and the queries that read them
-against `mesh_oracle.Oracle`, on the inside of a sphere of 4 cm, 0.12 mm facets.
+against `mesh_oracle.Oracle`, on the inside of a sphere of 4 cm and on a saddle as curved,
+0.12 mm facets.
 """
 
 import functools
@@ -12,6 +13,7 @@ import math
 import warnings
 
 import numpy as np
+import pytest
 import trimesh
 
 from mesh_oracle import EXACT, mesh_model, mesh_of, oracle, point_triangle
@@ -23,13 +25,14 @@ R = 0.005
 
 
 @functools.cache
-def dish():
-    """The inside of a sphere of radius 4 cm, 12 mm across, 100 × 100 vertices (19602
-    triangles, 0.12 mm apart: too dense for a patch to hold a resting 5 mm proxy, so it gets
-    ball certificates), facing up (an open sheet)."""
+def dish(kind: str = "dish"):
+    """12 mm across, 100 × 100 vertices (19602 triangles, 0.12 mm apart: too dense for a patch
+    to hold a resting 5 mm proxy, so it gets ball certificates), facing up (an open sheet):
+    the inside of a sphere of radius 4 cm ("dish"), or a saddle curving as much up along x
+    and down along y ("saddle": a sphere sliding along y slides off its face's convex edges)."""
     n, half, big = 100, 0.006, 0.04
     x, y = np.meshgrid(np.linspace(-half, half, n), np.linspace(-half, half, n))
-    z = big - np.sqrt(big * big - x * x - y * y)
+    z = big - np.sqrt(big * big - x * x - y * y) if kind == "dish" else (x * x - y * y) / (2.0 * big)
     v = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
     k = np.arange(n * n).reshape(n, n)
     a, b, c, d = k[:-1, :-1].ravel(), k[:-1, 1:].ravel(), k[1:, :-1].ravel(), k[1:, 1:].ravel()
@@ -72,12 +75,13 @@ def triangle_gap(a, b):
     return out
 
 
-def test_a_ball_list_holds_every_triangle_a_resting_ball_reaches():
-    """Per face of the dish's upper side, the triangles a ball of the certificate's radius
+@pytest.mark.parametrize("kind", ["dish", "saddle"])
+def test_a_ball_list_holds_every_triangle_a_resting_ball_reaches(kind):
+    """Per face of the dish's (or saddle's) concave side, the triangles a ball of the certificate's radius
     resting on the face reaches: every triangle rising above the face's plane that comes
     within that radius of the face lifted by it, by brute force, is listed, and nothing
     farther. The plane certificate holds on none of those faces, the ball's on nearly all."""
-    _, _, shapes = dish()
+    _, _, shapes = dish(kind)
     t = mesh_of(shapes).tables
     assert abs(t.ball - (R + 1e-5)) < 1e-9
     up = int(np.argmin((t.clear >= 0).mean(axis=0)))  # the concave side (MuJoCo turns a mesh to its inertia frame)
@@ -106,14 +110,15 @@ def test_a_ball_list_holds_every_triangle_a_resting_ball_reaches():
     assert checked > 100
 
 
-def test_queries_a_resting_ball_holds_match_the_brute_force():
+@pytest.mark.parametrize("kind", ["dish", "saddle"])
+def test_queries_a_resting_ball_holds_match_the_brute_force(kind):
     """A 5 mm sphere resting on the dish (or floating 2 nm or 1 µm above it), sliding
     towards a point on its face's rim and beyond (so that it runs into the neighbour rising
     there) or lifting off: distances at its centre and sweeps of it, against brute force. Most
     start and end (at the touch) inside a ball resting on their nearest face (checked here,
     by brute force: the ball certificate answers those), the rest run past it, where the
     box tree answers."""
-    m, d, shapes = dish()
+    m, d, shapes = dish(kind)
     o = oracle(m, d, shapes)
     s = mesh_of(shapes)
     ball = s.tables.ball
@@ -140,4 +145,4 @@ def test_queries_a_resting_ball_holds_match_the_brute_force():
         end = p + (hit[0] if hit is not None else 1.0) * u
         gaps = point_triangle(np.array([p, end]) - ball * n, *(np.broadcast_to(c, (2, 3)) for c in corners))[0]
         held += bool((gaps <= ball - R - 1e-9).all())
-    assert held > 80  # 97 of these 300
+    assert held > 80  # 97 (dish) and 91 (saddle) of these 300
