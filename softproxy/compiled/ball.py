@@ -7,7 +7,7 @@ plane on one side, at a point of the face. A sphere of radius r whose centre c l
 R - r of the face lifted by R along its normal (dist(c - R n, face) <= R - r) lies inside
 such a ball, so no other triangle comes within r of it; and along a segment that distance
 is convex, so a sweep whose two ends pass the test stays inside all the way. On a surface
-curving more gently than R the list is the face's neighbours rising above it: 8-10 a face on
+curving more gently than R the list is the face's neighbours rising above it: 8-12 a face on
 the million-triangle near-flat grid, whose plane certificates hold nowhere concave.
 
 `ball_lists` builds the lists at load for the faces and sides whose plane certificate does
@@ -143,8 +143,8 @@ def ball_lists(faces, wanted, V, F, tri, plane, tlo, thi, sorder, slo, shi, ssiz
     (`node_frames`: saxes, sext; laxes, lext), whose height over a face's plane stays small
     on a smooth tilted patch where the axis-aligned box's does not; a walk leaves out the
     boxes no resting ball reaches (`_may_reach`: near the face only as far as they rise above
-    its plane). `tstamp` (one
-    int per triangle) is scratch, stamped from stamp0 + 2 j + side + 1 on."""
+    its plane). `tstamp` (one int per triangle) is scratch, stamped from stamp0 + 2 j + side
+    + 1 on."""
     stack = np.empty(STACK, np.int64)
     reach = radius + BALL_SLACK
     reach2 = reach * reach
