@@ -166,7 +166,7 @@ class MeshTables:
         self.clear = None      # per face and side: how many triangles rise above it (-1: concave)
         self.listed = None     # ... and which (faces × 2 sides × STATIC_ABOVE)
         self.vtable = None     # per vertex: (reach, start, sin β, vertex id), the last two flat
-        self.ball = 0.0        # the radius (m) of the ball certificates' resting ball
+        self.ball = 0.0        # the radius (m) of the ball certificates' resting ball (0: none built)
         self.ball_count = None  # per face and side without a plane certificate: how many a resting ball reaches (-1: none)
         self.ball_listed = None  # ... and which (faces × 2 sides × BALL_ABOVE)
         self._certify(reach(KEPT_RADIUS))
@@ -311,39 +311,37 @@ class MeshTables:
         face_trees = (*short_tree, *long_tree, kept, long_edge, *frames)
         scratch = threading.local()  # per worker: a stamp per triangle and one per vertex
 
-        def faces(s: int, e: int) -> int:
+        def worker():
             if not hasattr(scratch, "tstamp"):
                 scratch.tstamp, scratch.mark = np.zeros(n, dtype=np.int64), np.zeros(nv, dtype=np.int64)
+            return scratch
+
+        def faces(s: int, e: int) -> int:
             face_lists(np.arange(s, e), self.vpos, self.tv, self.plane, *common, self.fan_start, self.fan, *face_trees,
-                       scratch.tstamp, s, clear[s:e], listed[s:e])
+                       worker().tstamp, s, clear[s:e], listed[s:e])
             return e - s
 
         def vertices(s: int, e: int) -> int:
-            if not hasattr(scratch, "tstamp"):
-                scratch.tstamp, scratch.mark = np.zeros(n, dtype=np.int64), np.zeros(nv, dtype=np.int64)
             vertex_tables(np.arange(s, e), self.vpos, self.tv, self.vcone, self.ring_start, self.ring_to, *common,
-                          *trees, scratch.mark, s, sines[s:e], ids[s:e], counts[s:e])
+                          *trees, worker().mark, s, sines[s:e], ids[s:e], counts[s:e])
             return e - s
 
         # the ball certificates, once the plane's are known, where those do not hold: on the
         # short triangles of a mesh too dense for a patch to hold a resting proxy's contact
         radius = ball_radius(kept)
-        fine = edge <= long_edge
-        if not (dense(self.tri, radius) and fine.any()):
-            fine[:] = False
+        fine = (edge <= long_edge) & dense(self.tri, radius)
+        built = bool(fine.any())
         bcount = np.full((n, 2), -1, dtype=np.int64)
-        blisted = np.full((n, 2, BALL_ABOVE if fine.any() else 0), -1, dtype=np.int64)
-        if fine.any():
+        blisted = np.full((n, 2, BALL_ABOVE if built else 0), -1, dtype=np.int64)
+        if built:
             held = np.flatnonzero(fine)
             short_triangles = box_tree(self.tlo[held], self.thi[held], held)
             short_frames = node_frames(short_triangles[0], short_triangles[3], self.vpos, self.tv, self.plane)
 
         def balls(s: int, e: int) -> int:
-            if not hasattr(scratch, "tstamp"):
-                scratch.tstamp, scratch.mark = np.zeros(n, dtype=np.int64), np.zeros(nv, dtype=np.int64)
             wanted = (clear[s:e] < 0) & fine[s:e, None]  # the face lists are done by now
             ball_lists(np.arange(s, e), wanted, self.vpos, self.tv, self.tri, self.plane, self.tlo, self.thi,
-                       *short_triangles, *short_frames, *long_tree, *frames, radius, scratch.tstamp, n + 2 * s,
+                       *short_triangles, *short_frames, *long_tree, *frames, radius, worker().tstamp, n + 2 * s,
                        bcount[s:e], blisted[s:e])
             return e - s
 
@@ -358,7 +356,7 @@ class MeshTables:
                 bar.update(done.result())
         head = np.arange(keep)[None, :] < counts[:, None]
         self.clear, self.listed = clear, listed
-        self.ball, self.ball_count, self.ball_listed = radius, bcount, blisted
+        self.ball, self.ball_count, self.ball_listed = (radius if built else 0.0), bcount, blisted
         self.vtable = (kept, np.concatenate([[0], np.cumsum(counts)]), sines[head], ids[head])
         self.kept = kept
 

@@ -104,10 +104,9 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     b = s.ball_count.reshape(-1)
     own = (m < 0) & (b >= 0)
     bruns = np.where(own, b, 0)
-    bfirst = at + np.cumsum(bruns) - bruns
-    starts, counts = ball[:, [0, 2]].reshape(-1), ball[:, [1, 3]].reshape(-1)
-    starts[own], counts[own] = bfirst[own], b[own]
-    ball[:, [0, 2]], ball[:, [1, 3]] = starts.reshape(-1, 2), counts.reshape(-1, 2)
+    sides = ball.reshape(-1, 2)                  # a view: (start, count) per face and side, as m
+    sides[own, 0] = (at + np.cumsum(bruns) - bruns)[own]
+    sides[own, 1] = b[own]
     bflat = s.ball_listed.reshape(2 * n, s.ball_listed.shape[2])
     parts.append(bflat[np.arange(bflat.shape[1])[None, :] < bruns[:, None]].astype(np.float64) + t0)
     columns = np.column_stack([adj, s.tv.astype(np.float64), clear, ball])

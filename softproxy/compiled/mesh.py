@@ -928,13 +928,16 @@ def _ball_few(S, T, C, k, i, cx, cy, cz, rho):
     on; -1 when the ball of radius rho about c is not inside a ball resting on row i on that
     side, or the face has no ball list there."""
     radius = S[k].ball
+    if radius <= 0.0:  # none built: the mesh is coarse enough for its patches
+        return -1, 0.0, 0.0, 0.0
+    side = 1.0
     nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
     if nx * (cx - T[i, 0]) + ny * (cy - T[i, 1]) + nz * (cz - T[i, 2]) < 0.0:
-        nx, ny, nz = -nx, -ny, -nz
-    if radius <= 0.0 or not _ball_holds(T, i, nx, ny, nz, radius, cx, cy, cz, rho):
+        nx, ny, nz, side = -nx, -ny, -nz, -1.0
+    m = _face_few(T, C, i, side, 0, T_BALL)
+    if m < 0 or not _ball_holds(T, i, nx, ny, nz, radius, cx, cy, cz, rho):
         return -1, nx, ny, nz
-    side = 1.0 if nx * T[i, T_N] + ny * T[i, T_N + 1] + nz * T[i, T_N + 2] > 0.0 else -1.0
-    return _face_few(T, C, i, side, 0, T_BALL), nx, ny, nz
+    return m, nx, ny, nz
 
 
 @njit(cache=True, error_model="numpy")
