@@ -166,17 +166,18 @@ def test_seqlock_publisher_reader_round_trip():
         pub.close()
 
 
-def test_seqlock_never_returns_a_torn_frame():
+def test_seqlock_never_returns_a_torn_frame(tmp_path):
     """A writer process rewrites a large block as fast as it can, each time with one value
     everywhere; every frame the reader accepts holds a single value."""
-    code = textwrap.dedent("""
-        import time, numpy as np
+    stop = tmp_path / "stop"
+    code = textwrap.dedent(f"""
+        import os, time, numpy as np
         from softproxy.viewer.state import Layout, StatePublisher
         pub = StatePublisher(Layout(4000, 2))
         print(pub.name, flush=True)
         data = np.empty(pub.layout.size)
-        k, end = 0, time.monotonic() + 2.5
-        while time.monotonic() < end:
+        k, end = 0, time.monotonic() + 60.0
+        while time.monotonic() < end and not (k % 256 == 0 and os.path.exists({str(stop)!r})):
             k += 1
             data.fill(k)
             pub.write(data)
@@ -188,8 +189,8 @@ def test_seqlock_never_returns_a_torn_frame():
         reader = StateReader(name)
         seen = set()
         deadline = time.monotonic() + 1.5
-        # at least 1.5 s, and on until the writer ends while the reader has not yet seen it
-        # progress and overlap (a loaded machine may starve either process for a while)
+        # at least 1.5 s, and on (the writer runs until told to stop, at most a minute) until
+        # the reader has seen it progress and overlap: a loaded machine may starve either
         while writer.poll() is None and (time.monotonic() < deadline or len(seen) <= 10 or reader.retries == 0):
             frame = reader.read()
             if frame is None:
@@ -197,11 +198,13 @@ def test_seqlock_never_returns_a_torn_frame():
             values = np.unique(frame.data)
             assert values.size == 1, f"torn frame: {values[:5]}"
             seen.add(float(values[0]))
+        stop.touch()
         assert len(seen) > 10, "the reader saw the writer progress"
         assert reader.retries > 0, "reads did overlap writes (the test exercised the seqlock)"
         reader.close()
         assert writer.wait(20) == 0
     finally:
+        stop.touch()
         if writer.poll() is None:
             writer.kill()
             writer.wait()
