@@ -663,23 +663,28 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
         return 0
     # its own planes first: on a primitive (convex) the first one says no
     fx, fy, fz, r = g.free_x, g.free_y, g.free_z, g.radius
+    m = 0
     for j in range(n):
         p = g.free_planes[j]
         s, f = int(p[4]), int(p[5])
         if S[s].convex:
             return 0
         for k in range(PLANE_WIDTH):
-            warm[j, k] = p[k]
+            warm[m, k] = p[k]
         if f >= 0:
             # its triangle's tangent plane where the frictionless proxy is now: a plane found
             # at an edge or a vertex lifts off it within ~30 µm of sliding round it (r = 5 mm),
             # a fresh mesh query each time
             d, mx, my, mz = shape_feature_distance(S, T, xpos, xmat, s, f, fx, fy, fz)
             if d - r <= LIFT_TOL:
-                warm[j, 0], warm[j, 1], warm[j, 2] = mx, my, mz
-                warm[j, 3] = mx * fx + my * fy + mz * fz - (d - r)
-        if warm[j, 0] * xd + warm[j, 1] * yd + warm[j, 2] * zd >= warm[j, 3]:
-            return 0
+                warm[m, 0], warm[m, 1], warm[m, 2] = mx, my, mz
+                warm[m, 3] = mx * fx + my * fy + mz * fz - (d - r)
+        # a plane the device no longer presses into is left behind (a crease along a curved
+        # wall the device pulls away from): the sweeps from there meet it if it is in the way
+        if warm[m, 0] * xd + warm[m, 1] * yd + warm[m, 2] * zd < warm[m, 3]:
+            m += 1
+    if m == 0:
+        return 0
     for j in range(int(g.nnear)):
         if not S[near[j]].static:
             return 0
@@ -687,7 +692,7 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
     d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, int(g.touched), x, y, z)
     if d - g.radius > LIFT_TOL or nx * (xd - x) + ny * (yd - y) + nz * (zd - z) >= 0.0:
         return 0
-    return n
+    return m
 
 
 @njit(cache=True, error_model="numpy")
