@@ -649,18 +649,22 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
 @njit(cache=True, error_model="numpy")
 def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
     """Last tick's frictionless proxy's planes, to solve this tick's frictionless proxy from
-    there, into warm; returns their count (0: solve from the proxy).
+    there, into warm; returns their count (0: solve from the proxy) and the proxy's gap (m)
+    to the surface it touches, within TOUCH_TOL (the chord of a slide back to the dynamic
+    cone floats up to that over a concave patch: `update` then sweeps it down first).
 
     A proxy on a static mesh is tested against the frictionless proxy, where sliding from it
     ends: over a scanned surface a few facets away, one sweep per facet (five a tick at a
     million triangles). The proxy and last tick's frictionless proxy were both reached from
     last tick's proxy through free space, and nothing near has moved since, so sliding on
-    from there is a way the proxy could slide too: the solve starts there, on its planes,
-    while the device presses into every one of them (one sweep), and into the surface at
-    the proxy (which is then where the proxy touches first, as a sweep from it would find)."""
+    from there is a way the proxy could slide too: the solve starts there, on the planes
+    the device presses into (a plane it pulls away from is left behind: the sweeps meet its
+    surface again if it is in the way), while the device presses into one at least and into
+    the surface at the proxy (which is then where the proxy touches first, as a sweep from
+    it would find)."""
     n = int(g.nfree)
     if n == 0 or not g.contact or g.touched < 0:
-        return 0
+        return 0, 0.0
     # its own planes first: on a primitive (convex) the first one says no
     fx, fy, fz, r = g.free_x, g.free_y, g.free_z, g.radius
     m = 0
@@ -668,7 +672,7 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
         p = g.free_planes[j]
         s, f = int(p[4]), int(p[5])
         if S[s].convex:
-            return 0
+            return 0, 0.0
         for k in range(PLANE_WIDTH):
             warm[m, k] = p[k]
         if f >= 0:
@@ -684,15 +688,15 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
         if warm[m, 0] * xd + warm[m, 1] * yd + warm[m, 2] * zd < warm[m, 3]:
             m += 1
     if m == 0:
-        return 0
+        return 0, 0.0
     for j in range(int(g.nnear)):
         if not S[near[j]].static:
-            return 0
+            return 0, 0.0
     x, y, z = g.x, g.y, g.z
     d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, int(g.touched), x, y, z)
-    if d - g.radius > LIFT_TOL or nx * (xd - x) + ny * (yd - y) + nz * (zd - z) >= 0.0:
-        return 0
-    return m
+    if d - g.radius > TOUCH_TOL or nx * (xd - x) + ny * (yd - y) + nz * (zd - z) >= 0.0:
+        return 0, 0.0
+    return m, d - g.radius
 
 
 @njit(cache=True, error_model="numpy")
@@ -996,12 +1000,22 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
         return True
     x, y, z = g.x, g.y, g.z
     n = 0
-    nfree = _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm)
+    nfree, gap = _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm)
+    hx, hy, hz = x, y, z
+    if nfree > 0 and gap > LIFT_TOL:
+        # the proxy ended last tick on the chord of its slide back to the dynamic cone, which
+        # floats up to TOUCH_TOL over a concave patch: where it touches first is where a
+        # sweep from it toward the device touches, as the solve from it would find
+        hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, xd - x, yd - y, zd - z, pl, 0)
+        if hit:
+            hx, hy, hz = x + lam * (xd - x), y + lam * (yd - y), z + lam * (zd - z)
+        else:
+            nfree = 0
     if nfree > 0:
         # a plane lifting on the way is followed on: both ends are reached through free space
         fx, fy, fz, _, _, _, _, n = _move(S, T, C, xpos, xmat, g, near, g.free_x, g.free_y, g.free_z, xd, yd, zd,
                                           warm, nfree, pl, kept, True)
-        hx, hy, hz, straight = x, y, z, False  # the proxy is where it touches first
+        straight = False  # the proxy is where it touches first (h)
     if n == 0:
         nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
         fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm,
