@@ -290,6 +290,60 @@ def test_a_proxy_on_a_mesh_solves_on_from_last_tick(which, radius, mu, path):
     assert stuck > 0  # the warm starts were tried
 
 
+CREASE_SPOT = (0.00187746, 0.00718917, 0.0106584), (0.04176069, 0.21102154, 0.97658894)
+"""A point (m) on a cap of `bench meshes`' CAD slivers and the cap's outward normal, 4.5 mm
+from its centre, 2.3 mm from its rim, beside a taller neighbouring cylinder: the spot the
+bench's 1M sliver row times (the cylinders do not depend on the triangle count)."""
+
+
+def test_the_frictionless_proxy_goes_on_along_a_crease_of_slivers():
+    """A finger pressed 2 mm into a CAD part's cap (`bench meshes`' slivers, 10k triangles)
+    and slid on a 3 mm circle into the crease with a taller neighbour's curved wall of
+    slivers. There the device lies outside the wall's tangent plane at the frictionless
+    proxy while the wall still stops the slide: the frictionless solve goes on from last
+    tick's past that plane, left behind (`_free_from_last`). Each tick, by brute force: the
+    proxy is never inside; the frictionless proxy touches the surface and is where sliding
+    ends (the device's pull in the cone of the normals there); and it is as near the device
+    as a fresh god-object's, placed at the proxy and solving from nothing. The crease is
+    met: for over a hundred ticks the frictionless proxy touches cap and wall at once. (The
+    first tick lands the finger from 15 mm above, a solve from nothing: in a crease of a
+    face and a curved surface it may stop microns short, docs/performance.md.)"""
+    from softproxy.benchmarks import meshes as bench
+    from softproxy.compiled.godobject import LIFT_TOL
+
+    v, f = bench.slivers(10_000)
+    shapes, _, _ = bench.load(v, f)
+    o = Oracle(v, f, True)
+    p, n = (np.array(a) for a in CREASE_SPOT)
+    assert o.distance([p + 1e-4 * n])[0] > 0.0 and abs(o.distance([p])[0]) < 1e-9  # on the cap, n outward
+    radius = bench.RADIUS
+    god = GodObject(shapes, radius, 0.5, 0.4, tuple(p + 3 * radius * n))
+    u = np.cross(n, [1.0, 0.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(n, u)
+    centre = p + (radius - bench.DEPTH) * n
+    tilt = 2.0 * math.sqrt(2.0 * LIFT_TOL / radius)
+    crease = 0
+    for i in range(300):
+        a = 0.004 * i
+        device = centre + 0.003 * (math.cos(a) * u + math.sin(a) * w)
+        fresh = GodObject(shapes, radius, 0.5, 0.4, (god.x, god.y, god.z))
+        god.update(*device)
+        fresh.update(*device)
+        assert penetration(o, (god.x, god.y, god.z), radius).max() <= TOL, i
+        assert god.contact, i
+        free = device + god.depth * np.array((god.nx, god.ny, god.nz))
+        assert -TOL <= o.nearest(free)[0][0] - radius <= 1.01 * LIFT_TOL, i
+        if i == 0:
+            continue
+        assert held_by_the_surface(o, free, device, radius) < tilt, i
+        assert god.depth <= fresh.depth + TOL, i
+        dist, q = point_triangle(free[None, :], o.a, o.b, o.c)
+        normals = (free - q[dist <= radius + 1e-6]) / dist[dist <= radius + 1e-6][:, None]
+        crease += (normals @ normals.T).min() < 0.5
+    assert crease > 100
+
+
 @settings(max_examples=15, deadline=None)
 @given(st.sampled_from(["sphere10k", "bowl"]), st.floats(0.0, 0.01), st.floats(0.0, 1.0),
        st.lists(st.tuples(coord, coord, coord), min_size=2, max_size=30))
