@@ -948,10 +948,9 @@ def _nearest(S, T, C, k, sl, x, y, z):
     From the hint (`_from_hint`): when the kept certificates hold at its nearest point (the
     tangent plane's, or a ball resting on the hint's face holding the ball of the hint's
     distance), the few triangles they name (none on a convex patch) are all that may be
-    nearer; else the
-    slot's patch when it holds the ball of the hint's distance, or the box tree walked
-    nearest node first, leaving out every node farther than the best found (the hint's, to
-    begin with)."""
+    nearer; else the slot's patch when it holds the ball of the hint's distance, or the box
+    tree walked nearest node first, leaving out every node farther than the best found (the
+    hint's, to begin with)."""
     best2 = math.inf
     qx = qy = qz = 0.0
     bf = 0
@@ -1343,6 +1342,22 @@ def _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, 
 
 
 @njit(cache=True, error_model="numpy")
+def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz, span, ax, ay, az, ux, uy, uz,
+                     r, dd, far2, graze):
+    """`mesh_sweep` of a sphere staying r above the tangent plane (normal n) at the start's
+    nearest point q on row `hint` (at d2, `feature`), by the kept certificates: the triangles
+    rising above that plane within `span` (m), or where too many do, a ball resting on the
+    hint's face that holds the sphere all the way (a concave patch finer than the proxy: only
+    the neighbours rising into that ball). (True, answer) or (False, …) when neither holds."""
+    m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, span)
+    if m >= 0:
+        return True, _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
+                                r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
+    return _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
+                       r, dd, far2, graze)
+
+
+@njit(cache=True, error_model="numpy")
 def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none (`_sweep`), from
@@ -1367,10 +1382,11 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     near it and staying above its tangent plane, the kept certificates may leave only a few
     triangles to sweep (and prove the start's nearest point, kept for `mesh_distance`): the
     tangent plane's, or where too many rise above it, a ball resting on the hint's face that
-    holds the sphere from start to touch (`_sweep_ball`); else the box tree is walked: the nodes whose boxes, grown by the reach, the segment
-    enters before the earliest touch found, earliest first (and, when it stays r above the
-    hint's tangent plane but too many triangles rise above that plane for a certificate to
-    list, not the nodes and records wholly behind it)."""
+    holds the sphere from start to touch (`_sweep_certified`); else the box tree is walked:
+    the nodes whose boxes, grown by the reach, the segment enters before the earliest touch
+    found, earliest first (and, when it stays r above the hint's tangent plane but too many
+    triangles rise above that plane for a certificate to list, not the nodes and records
+    wholly behind it)."""
     dd = dx * dx + dy * dy + dz * dz
     if dd == 0.0:
         return (-1.0, 0.0, 0.0, 0.0)
@@ -1398,14 +1414,8 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 # moving along or away, r above the hint's tangent plane from start to end (a
                 # sphere that dips below it may overlap a triangle behind it): only the
                 # triangles reaching above it can be touched
-                m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, 2.0 * reach + length)
-                if m >= 0:
-                    return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
-                                      r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
-                # a ball resting on the hint's face may hold the sphere all the way (a concave
-                # patch finer than the proxy: only the neighbours rising into that ball)
-                held, out = _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
-                                        r, dd, far2, graze)
+                held, out = _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
+                                             2.0 * reach + length, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
                 if held:
                     return out
                 # too many reach above it to list (a neighbour's wall): the walk below still
@@ -1449,12 +1459,8 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 dist = math.sqrt(d2)
                 nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
                 if dist + nx * ux + ny * uy + nz * uz >= r - CONTACT_TOL:
-                    m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, dist + reach + length)
-                    if m >= 0:
-                        return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
-                                          uz, r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
-                    held, out = _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy,
-                                            uz, r, dd, far2, graze)
+                    held, out = _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
+                                                 dist + reach + length, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
                     if held:
                         return out
     slab = reach + 1e-12
