@@ -686,6 +686,79 @@ def test_a_finger_held_still_gathers_a_close_patch():
             assert not used and sum(tried) == 1
 
 
+def test_a_sliding_finger_stretches_its_capsules_ahead():
+    """A finger sliding 3 mm along a dense dish's floor, 12 µm a tick: past its first patch,
+    each patch is stretched PATCH_AHEAD ahead along the way its slot travelled (a strip
+    serves a longer slide than a round capsule holding as many triangles); on a dish so dense
+    that a patch is too full, the capsule noted too full is stretched PATCH_MARGIN ahead and
+    is PATCH_KEEP wider than its query, and the close patch gathered where the finger is asked
+    about twice at one place is stretched too. A capsule holds the query that noted it, 4 mm
+    across the slide. Every answer is the brute force's."""
+    import warnings
+
+    from softproxy.compiled.layout import HINT_SLOTS, P_FULL, PATCH_WIDTH
+    from softproxy.compiled.mesh import PATCH_AHEAD, PATCH_CLOSE, PATCH_KEEP, PATCH_MARGIN
+    from test_mesh_queries import check_distance
+
+    r = 0.005
+    for spacing, too_full in ((3.5e-4, False), (1.5e-4, True)):
+        v, f = fine_dish(spacing)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an open mesh
+            s, o = tree_shape(v, f)
+        bottom = len(v) // 2
+        a, b, c = o.v[f[f[:, 0] == bottom][0]]
+        n = np.cross(b - a, c - a)
+        n /= np.linalg.norm(n)
+        t = np.cross(n, [1.0, 0.0, 0.0])
+        t /= np.linalg.norm(t)
+        # r above the floor (z = x² / 0.2 m), within the dish's tilt (~1 µm)
+        path = [a + x * t + (r + 1e-6 + x * x / 0.2) * n for x in np.arange(251) * 1.2e-5]
+        at, C = int(s.set.S[s.row].patch), s.set.C
+        stretched = close = 0.0
+        for i in range(250):
+            p, u = path[i], path[i + 1] - path[i]
+            check_distance(o, s, [p], i)
+            # asked again about (nearly) the same place, as at the turn of a tick (a 1 µm sweep
+            # into the floor): a close patch where a patch is too full, stretched once it
+            # slides on
+            h = p + 2e-7 * t
+            o.check_sweep(h, -1e-6 * n, r, s.sweep(*h, *(-1e-6 * n), r), context=i)
+            o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=i)
+            for k in range(HINT_SLOTS):
+                c = at + PATCH_WIDTH * k + (P_FULL if too_full else 0)
+                if C[c + 6] > 0.0:
+                    stretched = max(stretched, float(np.linalg.norm(C[c + 3:c + 6] - C[c:c + 3])))
+                if too_full and C[c + 6] > 0.0:
+                    assert C[c + 6] <= r + 1.2e-5 + 1e-6 + PATCH_KEEP, (i, k, C[c + 6])
+                c = at + PATCH_WIDTH * k
+                if too_full and 0.0 < C[c + 6] < r + 2 * PATCH_CLOSE:
+                    close = max(close, float(np.linalg.norm(C[c + 3:c + 6] - C[c:c + 3])))
+        # then 4 mm across the slide, coming down 5 µm into the rising floor at the end: its
+        # end lies ~1 mm off the stretched capsule, which must be that much wider to hold it
+        w = np.cross(n, t)
+        q = path[-1]
+        e = q + 0.004 * w + (0.004 ** 2 / 0.2 - 5e-6) * n - q
+        o.check_sweep(q, e, r, s.sweep(*q, *e, r), context="across")
+        if too_full:  # the capsule it noted holds it: its end within the radius less r
+            g = s.geom
+            local = (np.array([q, q + e]) - s.set.xpos[g]) @ s.set.xmat[g].reshape(3, 3)
+            noted = [at + PATCH_WIDTH * k + P_FULL for k in range(HINT_SLOTS)]
+            noted = [c for c in noted if np.allclose(C[c:c + 3], local[0], atol=1e-12)]
+            assert len(noted) == 1, noted
+            c = noted[0]
+            ends = C[c:c + 3], C[c + 3:c + 6]
+            along = np.clip(np.dot(local[1] - ends[0], ends[1] - ends[0]) / np.sum((ends[1] - ends[0]) ** 2), 0, 1)
+            off = np.linalg.norm(local[1] - ends[0] - along * (ends[1] - ends[0]))
+            assert off > 5 * PATCH_KEEP and off + r <= C[c + 6], (off, C[c + 6])
+        # a round capsule's segment is its query's: at most a tick's 12 µm
+        if too_full:
+            assert 0.9 * PATCH_MARGIN < stretched < 1.1 * PATCH_MARGIN, stretched
+            assert 0.9 * PATCH_AHEAD < close < 1.1 * PATCH_AHEAD, close
+        else:
+            assert 0.9 * PATCH_AHEAD < stretched < 1.1 * PATCH_AHEAD, stretched
+
+
 def test_a_dense_patch_shrinks_to_what_it_holds():
     """On a dense concave sheet the patch a query gathers (its capsule grown by 1 mm) would
     hold too many triangles, so the slot keeps the nearest PATCH_RECORDS and a thinner

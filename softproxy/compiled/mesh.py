@@ -41,8 +41,9 @@ Cost per query is bounded on large meshes:
    a segment a little (PATCH_MARGIN) wider than the query needs, or of the PATCH_RECORDS
    nearest and a thinner capsule, sorted by distance and gathered from the box tree, so a
    finger pressed into a bowl (ten sweeps a tick about one point) or sliding in it reads
-   the few records near its own capsule and walks the tree once per millimetre; where even
-   a capsule PATCH_KEEP wider than the query's holds more (a dense mesh, a long sweep), the
+   the few records near its own capsule and walks the tree once per millimetre; a sliding
+   finger's capsules are stretched ahead along its slide (PATCH_AHEAD); where even a
+   capsule PATCH_KEEP wider than the query's holds more (a dense mesh, a long sweep), the
    box tree (but for a finger held still, whose patch is only PATCH_CLOSE wider than its
    queries), from the cut of nodes noted under that capsule: the tree built at load
    (`softproxy.mesh.MeshTables`: triangles in Morton order, 8 a leaf, per node an
@@ -115,6 +116,14 @@ PATCH_KEEP = 1e-4
 holding less (a million triangles under a 5 mm proxy) would serve next to no other query, and
 be gathered again and again as the finger trembles: the box tree answers the queries about it
 instead."""
+PATCH_AHEAD = 2e-4
+"""A sliding finger's patch is stretched this far (m) ahead along the way its slot has
+travelled since the last one (`_ahead`): its queries keep near the line it slides on, so a
+strip serves a longer slide than a round capsule holding as many triangles (the 1M scanned
+sphere's patches: gathered every ~120 µm of sliding, now every ~250 µm)."""
+PATCH_KEEP_AHEAD = 3e-5
+"""The least (m) a stretched patch must hold beyond the query's capsule, across the strip: it
+serves the slide along its length, so it may be thinner than PATCH_KEEP."""
 PATCH_STILL = 2e-6
 """But a query within this (m) of its slot's last, inside a capsule found too full, gathers a
 patch only PATCH_CLOSE wider than itself (`_patch`): a finger held still asks about one place
@@ -728,7 +737,13 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     a = b), gathered now if its capsule does not hold the query's, and -1; or (-1, 0, cut)
     when so many triangles are there that the box tree serves the query instead, from the
     nodes of the cut at C[cut] (-1: from the root, as when the shape keeps no patches:
-    S.patch -1)."""
+    S.patch -1).
+
+    A capsule gathered or found too full where the slot has slid since its last one is
+    stretched ahead along that slide (`_ahead`): a finger's queries keep near the line it
+    slides on, so a strip a few triangles wide serves as long a slide as a round capsule of
+    hundreds (the too-full capsule: PATCH_KEEP beyond the query, stretched PATCH_MARGIN; the
+    patch: PATCH_AHEAD)."""
     if S[k].patch < 0:
         return -1, 0, -1
     if not finite(abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz) + need):
@@ -742,30 +757,50 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
         qx, qy, qz = bx - ax, by - ay, bz - az
         length = math.sqrt(qx * qx + qy * qy + qz * qz)
         inside = _capsule_gap(C, f, ax, ay, az, bx, by, bz) + need <= C[f + 6]
+        # a patch gathered now is stretched ahead along the slot's slide; the query's end
+        # strays `gap` off it
+        cx, cy, cz, gap = _ahead(C, at, C[at + P_RADIUS] > 0.0, ax, ay, az, bx, by, bz, PATCH_AHEAD)
+        stretched = cx != bx or cy != by or cz != bz
         # inside a capsule found too full, the tree serves the query, unless every query
         # found too full in it was much wider or longer than this one (a long sweep's), as
         # a smaller capsule may not be too full
-        if inside and need + 2.0 * PATCH_MARGIN >= C[f + 8] and length + 2.0 * PATCH_MARGIN >= C[f + 7]:
+        if inside and need + 2.0 * PATCH_KEEP >= C[f + 8] and length + 2.0 * PATCH_KEEP >= C[f + 7]:
             # a finger held still asks about one place tick after tick (its frictionless
             # proxy's sweep along the planes it is pressed into): a patch only PATCH_CLOSE
             # wider than its queries, gathered once, serves them, unless even that is too full
-            # (a fan of slivers)
+            # (a fan of slivers). A sliding finger asks twice about one place at the turn of a
+            # tick, and outgrows such a patch a tick later: where it has moved on from the
+            # last one, the patch is stretched ahead along the slide
             key = S[k].key
             ex, ey, ez = ax - key[sl, 0], ay - key[sl, 1], az - key[sl, 2]  # from its last query
             if C[f + 9] != 0.0 or length > PATCH_STILL or ex * ex + ey * ey + ez * ez > PATCH_STILL * PATCH_STILL:
                 return -1, 0, at + P_CUT
-            if not _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_CLOSE, need + 0.5 * PATCH_CLOSE):
-                C[f + 9] = 1.0
+            if not _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_CLOSE,
+                           need + gap + 0.5 * PATCH_CLOSE):
+                C[f + 9] = 1.0  # too full even that close: no more tries in this capsule
                 return -1, 0, at + P_CUT
-        elif not _gather(S, C, k, at, ax, ay, az, bx, by, bz, need + PATCH_MARGIN, need + PATCH_KEEP):
-            if inside:  # noted in it (its cut holds this capsule's triangles too)
-                C[f + 7], C[f + 8] = min(C[f + 7], length), min(C[f + 8], need)
-            else:
-                C[f], C[f + 1], C[f + 2], C[f + 3], C[f + 4], C[f + 5] = ax, ay, az, bx, by, bz
-                C[f + 6], C[f + 7], C[f + 8], C[f + 9] = need + PATCH_MARGIN, length, need, 0.0
-                _cut(S, C, k, at + P_CUT, ax, ay, az, bx, by, bz, need + PATCH_MARGIN)
-            return -1, 0, at + P_CUT
-        gap = 0.0
+            return _read(C, at, gap, need)
+        keep = PATCH_KEEP_AHEAD if stretched else PATCH_KEEP
+        if _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_MARGIN, need + gap + keep):
+            return _read(C, at, gap, need)
+        if inside:  # noted in it (its cut holds this capsule's triangles too)
+            C[f + 7], C[f + 8] = min(C[f + 7], length), min(C[f + 8], need)
+        else:
+            # the capsule found too full, PATCH_KEEP beyond the query and stretched
+            # PATCH_MARGIN ahead: its cut lies deeper in the tree than a round one's of
+            # PATCH_MARGIN, and serves as long a slide
+            cx, cy, cz, off = _ahead(C, f, C[f + 6] > 0.0, ax, ay, az, bx, by, bz, PATCH_MARGIN)
+            C[f], C[f + 1], C[f + 2], C[f + 3], C[f + 4], C[f + 5] = ax, ay, az, cx, cy, cz
+            C[f + 6], C[f + 7], C[f + 8], C[f + 9] = need + off + PATCH_KEEP, length, need, 0.0
+            _cut(S, C, k, at + P_CUT, ax, ay, az, cx, cy, cz, need + off + PATCH_KEEP)
+        return -1, 0, at + P_CUT
+    return _read(C, at, gap, need)
+
+
+@njit(cache=True, error_model="numpy")
+def _read(C, at, gap, need):
+    """(at, how many of the patch's first records to read, -1) for a query `need` (m) wide
+    whose segment strays `gap` (m) from the patch's at C[at]."""
     m = int(C[at + P_COUNT])
     # a triangle within `need` of the query's segment is within gap + need of the patch's, so
     # its key is no more: the keys ascend, the first ones up to that are read
@@ -778,6 +813,21 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
         else:
             hi = mid
     return at, lo, -1
+
+
+@njit(cache=True, error_model="numpy")
+def _ahead(C, at, kept, ax, ay, az, bx, by, bz, ahead):
+    """The far end c of a capsule for the query a..b stretched `ahead` (m) along the way its
+    slot travelled since the capsule at C[at] began (when `kept`, and it is 1 µm to 4 mm
+    back: a finger sliding, not one held still or a slot taken over elsewhere), and how far
+    (m) b lies off a..c; (b, 0) when not stretched."""
+    tx, ty, tz = ax - C[at], ay - C[at + 1], az - C[at + 2]
+    tt = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if not kept or not 1e-6 < tt < 4e-3:
+        return bx, by, bz, 0.0
+    s = ahead / tt
+    cx, cy, cz = bx + s * tx, by + s * ty, bz + s * tz
+    return cx, cy, cz, _segment_gap(ax, ay, az, cx, cy, cz, bx, by, bz)
 
 
 @njit(cache=True, error_model="numpy")
