@@ -110,17 +110,18 @@ than were read (each adds two), a few hundred at a million triangles. Past it th
 holds less, down to the gap of the node it had no room for."""
 PATCH_MARGIN = 0.001
 """A slot's patch gathers the triangles this much (m) beyond the capsule the query gathering
-it needs, so the next queries of a finger that moved less than that read it again."""
+it needs, so the next queries of a finger that moved less than that read it again; a
+capsule found too full is stretched this far ahead along a sliding finger's way."""
 PATCH_KEEP = 1e-4
 """A patch must hold at least this much (m) beyond the capsule of the query gathering it: one
 holding less (a million triangles under a 5 mm proxy) would serve next to no other query, and
 be gathered again and again as the finger trembles: the box tree answers the queries about it
-instead."""
+instead, from the cut under a capsule this much wider than the query, noted too full."""
 PATCH_AHEAD = 2e-4
 """A sliding finger's patch is stretched this far (m) ahead along the way its slot has
 travelled since the last one (`_ahead`): its queries keep near the line it slides on, so a
 strip serves a longer slide than a round capsule holding as many triangles (the 1M scanned
-sphere's patches: gathered every ~120 µm of sliding, now every ~250 µm)."""
+sphere's patches: gathered every ~130 µm of sliding, now every ~270 µm)."""
 PATCH_KEEP_AHEAD = 3e-5
 """The least (m) a stretched patch must hold beyond the query's capsule, across the strip: it
 serves the slide along its length, so it may be thinner than PATCH_KEEP."""
