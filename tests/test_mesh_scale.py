@@ -514,6 +514,23 @@ def fine_dish(spacing: float = 5e-4, half: float = 0.012):
     return v, f
 
 
+def dish_floor(spacing: float, half: float = 0.012):
+    """A `fine_dish` as a mesh shape on a turned geom (shape, brute force), and at the bottom of
+    its floor a corner a of a triangle there, that triangle's unit normal n and a unit
+    tangent t (world frame)."""
+    import warnings
+
+    v, f = fine_dish(spacing, half)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an open mesh
+        s, o = tree_shape(v, f)
+    a, b, c = o.v[f[f[:, 0] == len(v) // 2][0]]  # (0, 0, 0): faces (k, k + n, k + 1) begin at k
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n)
+    t = np.cross(n, [1.0, 0.0, 0.0])
+    return s, o, a, n, t / np.linalg.norm(t)
+
+
 def segment_triangles(a, b, A, B, C) -> np.ndarray:
     """Distance (m) from the segment a..b to each triangle (A[k], B[k], C[k]): the least of
     the point-to-triangle distance along the segment, which is convex in the position along
@@ -610,22 +627,12 @@ def test_a_query_inside_a_too_full_capsule_keeps_it():
     it, much shorter) is found too full as well and noted in it rather than replacing it, so
     the next long sweep is served by the tree at once instead of gathering again. Every
     answer is the brute force's."""
-    import warnings
-
     from test_mesh_queries import check_distance, patches
 
-    v, f = fine_dish(1.5e-4)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # an open mesh
-        s, o = tree_shape(v, f)
+    s, o, a, n, t = dish_floor(1.5e-4)
     r = 0.005
-    bottom = len(v) // 2
-    a, b, c = o.v[f[f[:, 0] == bottom][0]]
-    n = np.cross(b - a, c - a)
-    n /= np.linalg.norm(n)
     p = a + (r + 2e-6) * n
-    t = np.cross(n, [1.0, 0.0, 0.0])
-    u = 0.004 * t / np.linalg.norm(t)  # along the floor, into the rising dish
+    u = 0.004 * t  # along the floor, into the rising dish
     o.check_sweep(p, u, r, s.sweep(*p, *u, r))
     full = [f for _, count, f in patches(s) if f[6] > 0.0]
     assert len(full) == 1 and all(count == 0 for _, count, _ in patches(s))
@@ -643,8 +650,6 @@ def test_a_finger_held_still_gathers_a_close_patch():
     reads it from then on; a query that moved is answered by the tree, the patch left as it
     was. On a dish denser still, where even that patch is too full, it is tried once and
     remembered. Every answer is the brute force's."""
-    import warnings
-
     from softproxy.compiled.layout import HINT_SLOTS, P_FULL, PATCH_WIDTH
     from softproxy.compiled.mesh import PATCH_CLOSE, PATCH_STILL
     from test_mesh_queries import check_distance, patches
@@ -652,16 +657,7 @@ def test_a_finger_held_still_gathers_a_close_patch():
     r = 0.005
     rng = np.random.default_rng(8)
     for spacing, half, close in ((1.5e-4, 0.012, True), (5e-5, 0.004, False)):
-        v, f = fine_dish(spacing, half)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # an open mesh
-            s, o = tree_shape(v, f)
-        bottom = len(v) // 2
-        a, b, c = o.v[f[f[:, 0] == bottom][0]]
-        n = np.cross(b - a, c - a)
-        n /= np.linalg.norm(n)
-        t = np.cross(n, [1.0, 0.0, 0.0])
-        t /= np.linalg.norm(t)
+        s, o, a, n, t = dish_floor(spacing, half)
         p = a + (r + 1e-6) * n
         check_distance(o, s, [p])  # the first: too full for a patch, the tree answers
         assert all(count == 0 for _, count, _ in patches(s))
@@ -694,24 +690,13 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
     is PATCH_KEEP wider than its query, and the close patch gathered where the finger is asked
     about twice at one place is stretched too. A capsule holds the query that noted it, 4 mm
     across the slide. Every answer is the brute force's."""
-    import warnings
-
     from softproxy.compiled.layout import HINT_SLOTS, P_FULL, PATCH_WIDTH
     from softproxy.compiled.mesh import PATCH_AHEAD, PATCH_CLOSE, PATCH_KEEP, PATCH_MARGIN
     from test_mesh_queries import check_distance
 
     r = 0.005
     for spacing, too_full in ((3.5e-4, False), (1.5e-4, True)):
-        v, f = fine_dish(spacing)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # an open mesh
-            s, o = tree_shape(v, f)
-        bottom = len(v) // 2
-        a, b, c = o.v[f[f[:, 0] == bottom][0]]
-        n = np.cross(b - a, c - a)
-        n /= np.linalg.norm(n)
-        t = np.cross(n, [1.0, 0.0, 0.0])
-        t /= np.linalg.norm(t)
+        s, o, a, n, t = dish_floor(spacing)
         # r above the floor (z = x² / 0.2 m), within the dish's tilt (~1 µm)
         path = [a + x * t + (r + 1e-6 + x * x / 0.2) * n for x in np.arange(251) * 1.2e-5]
         at, C = int(s.set.S[s.row].patch), s.set.C
@@ -764,21 +749,13 @@ def test_a_dense_patch_shrinks_to_what_it_holds():
     hold too many triangles, so the slot keeps the nearest PATCH_RECORDS and a thinner
     capsule: a sphere pressed at the bottom, trembling and creeping, reads it. Every answer is
     the brute force's."""
-    import warnings
-
     from softproxy.compiled.layout import PATCH_RECORDS
     from softproxy.compiled.mesh import PATCH_MARGIN
     from test_mesh_queries import check_distance, patches
 
-    v, f = fine_dish(3.5e-4)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # an open mesh
-        s, o = tree_shape(v, f)
+    s, o, a, n, _ = dish_floor(3.5e-4)
     r = 0.005
-    bottom = len(v) // 2  # (0, 0, 0), where the faces (k, k + n, k + 1) of vertex k begin
-    a, b, c = o.v[f[f[:, 0] == bottom][0]]
-    n = np.cross(b - a, c - a)
-    p = a + r * n / np.linalg.norm(n)
+    p = a + r * n
     rng = np.random.default_rng(4)
     thin = 0
     for i in range(40):
