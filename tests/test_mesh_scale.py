@@ -714,8 +714,8 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
                 c = at + PATCH_WIDTH * k + (P_FULL if too_full else 0)
                 if C[c + 6] > 0.0:
                     stretched = max(stretched, float(np.linalg.norm(C[c + 3:c + 6] - C[c:c + 3])))
-                if too_full and C[c + 6] > 0.0:
-                    assert C[c + 6] <= r + 1.2e-5 + 1e-6 + PATCH_KEEP, (i, k, C[c + 6])
+                    if too_full:
+                        assert C[c + 6] <= r + 1.2e-5 + 1e-6 + PATCH_KEEP, (i, k, C[c + 6])
                 c = at + PATCH_WIDTH * k
                 if too_full and 0.0 < C[c + 6] < r + 2 * PATCH_CLOSE:
                     close = max(close, float(np.linalg.norm(C[c + 3:c + 6] - C[c:c + 3])))
@@ -723,7 +723,7 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
         # end lies ~1 mm off the stretched capsule, which must be that much wider to hold it
         w = np.cross(n, t)
         q = path[-1]
-        e = q + 0.004 * w + (0.004 ** 2 / 0.2 - 5e-6) * n - q
+        e = 0.004 * w + (0.004 ** 2 / 0.2 - 5e-6) * n
         o.check_sweep(q, e, r, s.sweep(*q, *e, r), context="across")
         if too_full:  # the capsule it noted holds it: its end within the radius less r
             g = s.geom

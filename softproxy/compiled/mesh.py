@@ -758,14 +758,11 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
         qx, qy, qz = bx - ax, by - ay, bz - az
         length = math.sqrt(qx * qx + qy * qy + qz * qz)
         inside = _capsule_gap(C, f, ax, ay, az, bx, by, bz) + need <= C[f + 6]
-        # a patch gathered now is stretched ahead along the slot's slide; the query's end
-        # strays `gap` off it
-        cx, cy, cz, gap = _ahead(C, at, C[at + P_RADIUS] > 0.0, ax, ay, az, bx, by, bz, PATCH_AHEAD)
-        stretched = cx != bx or cy != by or cz != bz
         # inside a capsule found too full, the tree serves the query, unless every query
         # found too full in it was much wider or longer than this one (a long sweep's), as
         # a smaller capsule may not be too full
-        if inside and need + 2.0 * PATCH_KEEP >= C[f + 8] and length + 2.0 * PATCH_KEEP >= C[f + 7]:
+        close = inside and need + 2.0 * PATCH_KEEP >= C[f + 8] and length + 2.0 * PATCH_KEEP >= C[f + 7]
+        if close:
             # a finger held still asks about one place tick after tick (its frictionless
             # proxy's sweep along the planes it is pressed into): a patch only PATCH_CLOSE
             # wider than its queries, gathered once, serves them, unless even that is too full
@@ -776,12 +773,16 @@ def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
             ex, ey, ez = ax - key[sl, 0], ay - key[sl, 1], az - key[sl, 2]  # from its last query
             if C[f + 9] != 0.0 or length > PATCH_STILL or ex * ex + ey * ey + ez * ez > PATCH_STILL * PATCH_STILL:
                 return -1, 0, at + P_CUT
+        # a patch gathered now is stretched ahead along the slot's slide; the query's end
+        # strays `gap` off it
+        cx, cy, cz, gap = _ahead(C, at, C[at + P_RADIUS] > 0.0, ax, ay, az, bx, by, bz, PATCH_AHEAD)
+        if close:
             if not _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_CLOSE,
                            need + gap + 0.5 * PATCH_CLOSE):
                 C[f + 9] = 1.0  # too full even that close: no more tries in this capsule
                 return -1, 0, at + P_CUT
             return _read(C, at, gap, need)
-        keep = PATCH_KEEP_AHEAD if stretched else PATCH_KEEP
+        keep = PATCH_KEEP_AHEAD if cx != bx or cy != by or cz != bz else PATCH_KEEP
         if _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_MARGIN, need + gap + keep):
             return _read(C, at, gap, need)
         if inside:  # noted in it (its cut holds this capsule's triangles too)
