@@ -19,6 +19,7 @@ import warnings
 
 import mujoco
 import numpy as np
+import trimesh
 
 from .report import Progress, figure, save
 
@@ -161,9 +162,10 @@ def spots(vertices, faces, count: int, seed: int = 1):
     return [(centre[i], n[i]) for i in chosen]
 
 
-def ticks(shapes, places, sliding: bool, updates: int, warm: int) -> np.ndarray:
+def ticks(shapes, places, sliding: bool, updates: int, warm: int, path: list | None = None) -> np.ndarray:
     """µs per god-object update, every finger's each tick, for fingers held at `places`
-    (pressed DEPTH in, still but for a 10 µm tremor, or sliding on 3 mm circles)."""
+    (pressed DEPTH in, still but for a 10 µm tremor, or sliding on 3 mm circles); the first
+    finger's proxy centre after each timed update is appended to `path` (m) when given."""
     from softproxy.proxy import GodObject
 
     gods = [GodObject(shapes, RADIUS, 0.5, 0.4, tuple(p + 3 * RADIUS * n)) for p, n in places]
@@ -185,11 +187,32 @@ def ticks(shapes, places, sliding: bool, updates: int, warm: int) -> np.ndarray:
             god.update(*x)
             if i >= 0:
                 out[i, f] = clock() - t0
+                if path is not None and f == 0:
+                    path.append((god.x, god.y, god.z))
     return out.ravel() * 1e6
 
 
+def within_reach(vertices, faces, path, every: int = 20) -> np.ndarray:
+    """Per `every`-th tick of a proxy's path (m), how many triangles lie within its radius
+    plus that tick's slide of its centre: those the tick's sweeps must rule out or touch
+    (the work an exact proxy cannot skip without a certificate). Brute force: the boxes of
+    all triangles, then trimesh's exact closest points on those within reach."""
+    tri = vertices[faces]
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    path = np.asarray(path)
+    counts = []
+    for i in range(1, len(path), every):
+        c = path[i]
+        reach = RADIUS + float(np.linalg.norm(c - path[i - 1])) + 1e-6
+        near = np.flatnonzero(((np.clip(c, lo, hi) - c) ** 2).sum(axis=1) <= reach * reach)
+        q = trimesh.triangles.closest_point(tri[near], np.broadcast_to(c, (len(near), 3)))
+        counts.append(int((np.linalg.norm(q - c, axis=1) <= reach).sum()))
+    return np.array(counts)
+
+
 def measure(sizes=SIZES, updates: int = 2000, warm: int = 300, progress=None) -> dict:
-    """Load and tick every kind at every size; returns the result dict."""
+    """Load and tick every kind at every size, then the BESIDE kinds' smallest mesh beside a
+    copy of their largest; returns the result dict."""
     load(*grid(200))  # the compiled kernels loaded (compiled on a first run), not timed
     rows = []
     for kind, make in KINDS.items():
@@ -197,25 +220,48 @@ def measure(sizes=SIZES, updates: int = 2000, warm: int = 300, progress=None) ->
             if progress is not None:
                 progress(f"{kind}, {size} triangles")
             v, f = make(size)
-            shapes, seconds, peak = load(v, f)
-            row = {"kind": kind, "triangles": int(shapes[0].triangles), "load_s": round(seconds, 3),
-                   "peak_mb": round(peak / 1e6, 1)}
             fingers = FINGERS if size == sizes[len(sizes) // 2] else (1,)
-            where = spots(v, f, max(fingers))
-            for mode in ("pressed", "sliding"):
-                # each spot alone, then the fingers together: a finger's cost in company is
-                # compared with the same spots' cost alone (spots differ: a concave one costs more)
-                alone = [ticks(shapes, [spot], mode == "sliding", updates, warm) for spot in where[:max(fingers)]]
-                for count in fingers:
-                    us = alone[0] if count == 1 else ticks(shapes, where[:count], mode == "sliding", updates, warm)
-                    row[f"{mode}_{count}f_p50_us"] = round(float(np.percentile(us, 50)), 2)
-                    row[f"{mode}_{count}f_p99_us"] = round(float(np.percentile(us, 99)), 2)
-                    if count > 1:
-                        base = np.concatenate(alone[:count])
-                        row[f"{mode}_{count}f_alone_p99_us"] = round(float(np.percentile(base, 99)), 2)
-            rows.append(row)
-            del shapes
+            rows.append(_row(kind, v, f, spots(v, f, max(fingers)), fingers, updates, warm))
+    for kind in BESIDE:
+        if progress is not None:
+            progress(f"{kind}, {sizes[0]} triangles beside {sizes[-1]}")
+        v, f = KINDS[kind](sizes[0])
+        far_v, far_f = KINDS[kind](sizes[-1])
+        row = _row(kind, np.vstack([v, far_v + BESIDE_OFFSET]), np.vstack([f, far_f + len(v)]), spots(v, f, 1), (1,),
+                   updates, warm)
+        row["beside"] = len(far_f)
+        rows.append(row)
     return {"radius_m": RADIUS, "updates": updates, "rows": rows}
+
+
+BESIDE = ("slivers (CAD-like)", "noisy sphere")
+"""Kinds timed again at their smallest size beside a copy of their largest, BESIDE_OFFSET away:
+the same spot and triangles within reach in a mesh 100 times the size."""
+BESIDE_OFFSET = (0.2, 0.0, 0.0)
+"""Where the larger copy lies from the smaller (m): clear of the smaller and of its spots."""
+
+
+def _row(kind: str, v, f, where, fingers, updates: int, warm: int) -> dict:
+    """One row: the mesh loaded, then `fingers` fingers at `where` ticked pressed and sliding."""
+    shapes, seconds, peak = load(v, f)
+    row = {"kind": kind, "triangles": int(shapes[0].triangles), "load_s": round(seconds, 3),
+           "peak_mb": round(peak / 1e6, 1)}
+    for mode in ("pressed", "sliding"):
+        # each spot alone, then the fingers together: a finger's cost in company is
+        # compared with the same spots' cost alone (spots differ: a concave one costs more)
+        path = []
+        alone = [ticks(shapes, [spot], mode == "sliding", updates, warm, path if i == 0 else None)
+                 for i, spot in enumerate(where[:max(fingers)])]
+        if mode == "sliding":
+            row["sliding_in_reach_p50"] = float(np.percentile(within_reach(v, f, path), 50))
+        for count in fingers:
+            us = alone[0] if count == 1 else ticks(shapes, where[:count], mode == "sliding", updates, warm)
+            row[f"{mode}_{count}f_p50_us"] = round(float(np.percentile(us, 50)), 2)
+            row[f"{mode}_{count}f_p99_us"] = round(float(np.percentile(us, 99)), 2)
+            if count > 1:
+                base = np.concatenate(alone[:count])
+                row[f"{mode}_{count}f_alone_p99_us"] = round(float(np.percentile(base, 99)), 2)
+    return row
 
 
 def chart(result: dict):
@@ -224,12 +270,16 @@ def chart(result: dict):
     kinds = list(dict.fromkeys(r["kind"] for r in rows))
     colours = ["#4a7ab8", "#c07030", "#30a050"]
     for kind, colour in zip(kinds, colours):
-        mine = [r for r in rows if r["kind"] == kind]
+        mine = [r for r in rows if r["kind"] == kind and "beside" not in r]
         n = [r["triangles"] for r in mine]
         axes[0].plot(n, [r["load_s"] for r in mine], "o-", color=colour, label=kind)
         axes[1].plot(n, [r["peak_mb"] for r in mine], "o-", color=colour, label=kind)
         axes[2].plot(n, [r["pressed_1f_p99_us"] for r in mine], "o-", color=colour, label=f"{kind}, pressed")
         axes[2].plot(n, [r["sliding_1f_p99_us"] for r in mine], "s--", color=colour, label=f"{kind}, sliding")
+        for r in rows:
+            if r["kind"] == kind and "beside" in r:
+                axes[2].plot([r["triangles"]], [r["sliding_1f_p99_us"]], "*", ms=11, color=colour,
+                             label=f"{kind}, sliding: smallest beside largest")
     axes[0].axhline(5.0, color="#c03030", lw=0.8, ls=":", label="target at 100k (5 s)")
     axes[1].axhline(500.0, color="#c03030", lw=0.8, ls=":", label="target at 100k (500 MB)")
     axes[2].axhline(1000.0, color="#c03030", lw=0.8, ls=":", label="a 1 kHz tick (1000 µs)")
@@ -256,10 +306,16 @@ def main(args) -> int:
         return 0
     print(f"meshes: load and god-object update ({result['radius_m'] * 1e3:g} mm proxy, {result['updates']} updates "
           "per finger); µs per finger update, p50/p99")
-    print("  (with several fingers: p99 in company / p99 of the same spots each alone)")
+    print("  (with several fingers: p99 in company / p99 of the same spots each alone; in reach: the")
+    print("  median sliding tick's triangles within the proxy's radius plus its slide, an exact sweep's work)")
     print(f"  {'mesh':20s}{'triangles':>10s}{'load s':>8s}{'peak MB':>9s}  {'fingers':>7s}"
-          f"{'pressed':>16s}{'sliding':>16s}{'p99 ratio':>14s}")
+          f"{'pressed':>16s}{'sliding':>16s}{'in reach':>9s}{'p99 ratio':>14s}")
+    previous = {}
     for r in result["rows"]:
+        if "beside" in r and "beside" not in previous:
+            print(f"  the smallest again, {BESIDE_OFFSET[0] * 100:g} cm from a copy of the largest "
+                  "(the same spot and triangles within reach):")
+        previous = r
         for count in FINGERS:
             if f"pressed_{count}f_p50_us" not in r:
                 continue
@@ -268,7 +324,8 @@ def main(args) -> int:
             ratio = "" if count == 1 else (
                 f"{r[f'pressed_{count}f_p99_us'] / r[f'pressed_{count}f_alone_p99_us']:6.2f}/"
                 f"{r[f'sliding_{count}f_p99_us'] / r[f'sliding_{count}f_alone_p99_us']:<6.2f}")
+            reach = f"{r['sliding_in_reach_p50']:9.0f}" if count == 1 else " " * 9
             print(f"{head}  {count:7d}{r[f'pressed_{count}f_p50_us']:8.1f}/{r[f'pressed_{count}f_p99_us']:<7.1f}"
-                  f"{r[f'sliding_{count}f_p50_us']:8.1f}/{r[f'sliding_{count}f_p99_us']:<7.1f}{ratio:>14s}")
+                  f"{r[f'sliding_{count}f_p50_us']:8.1f}/{r[f'sliding_{count}f_p99_us']:<7.1f}{reach}{ratio:>14s}")
     print(f"  wrote {json_path} and {png_path}")
     return 0

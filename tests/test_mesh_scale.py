@@ -343,11 +343,42 @@ def test_bench_meshes_in_miniature():
     assert np.median(longest * longest / area2) > 50
     result = meshes.measure(sizes=(1500, 3000, 6000), updates=30, warm=10)
     rows = result["rows"]
-    assert len(rows) == 9 and {r["kind"] for r in rows} == set(meshes.KINDS)
-    for r, size in zip(rows, [1500, 3000, 6000] * 3):
+    assert len(rows) == 9 + len(meshes.BESIDE) and {r["kind"] for r in rows} == set(meshes.KINDS)
+    for r, size in zip(rows, [1500, 3000, 6000] * 3 + [7500] * len(meshes.BESIDE)):
         assert 0.5 * size < r["triangles"] < 1.5 * size and r["load_s"] > 0.0 and r["peak_mb"] > 0.0
         assert r["pressed_1f_p99_us"] >= r["pressed_1f_p50_us"] > 0.0
-    assert all("sliding_5f_p99_us" in r and "sliding_5f_alone_p99_us" in r for r in rows[1::3])
+    assert all("sliding_5f_p99_us" in r and "sliding_5f_alone_p99_us" in r for r in rows[1:9:3])
+    # the smallest beside a copy of the largest: the same spot, so the same triangles in reach
+    for r in rows[9:]:
+        small = next(s for s in rows[:9:3] if s["kind"] == r["kind"])
+        assert 0.5 * 6000 < r["beside"] < 1.5 * 6000 and r["triangles"] == small["triangles"] + r["beside"]
+        assert r["sliding_in_reach_p50"] == small["sliding_in_reach_p50"]
+    # a sliding proxy touches the surface: at least the triangle under it is within reach
+    assert all(r["sliding_in_reach_p50"] >= 1 for r in rows)
+
+
+def test_the_bench_counts_the_triangles_within_a_ticks_reach():
+    """`bench meshes`' count of the triangles within a proxy's radius plus its slide that tick,
+    on a flat grid of 1 mm squares (6 triangles meet at an inner vertex of this grid): a
+    proxy resting on a vertex has those 6 within reach (and still, rising 2 µm in the tick),
+    one held 2 µm above it none, and one that slid 3 mm in the tick every triangle within
+    √((r + 3 mm)² - r²) ≈ 6.2 mm of it."""
+    from softproxy.benchmarks import meshes
+
+    v, f = meshes.grid(2 * 20 * 20)  # 21 × 21 vertices 5 mm apart: scaled to 1 mm below
+    v = v / 5.0
+    v[:, 2] = 0.0
+    r = meshes.RADIUS
+    on = np.array([0.0, 0.0, r])  # on the middle vertex
+    path = [on, on, on + [0.0, 0.0, 2e-6], on + [0.0, 0.0, 2e-6], on + [0.003, 0.0, 0.0]]
+    counts = meshes.within_reach(v, f, path, every=1)
+    assert counts.tolist()[:3] == [6, 6, 0]
+    far = counts[3]
+    disc = np.sqrt((r + 0.003 + 1e-6) ** 2 - r * r)
+    centres = v[f].mean(axis=1)
+    assert np.sum(np.linalg.norm(centres[:, :2] - [0.003, 0.0], axis=1) < disc - 0.001) <= far
+    assert far <= np.sum(np.linalg.norm(centres[:, :2] - [0.003, 0.0], axis=1) < disc + 0.001)
+    assert meshes.within_reach(v, f, path, every=2).tolist() == [6, 0]
 
 
 # ---------------------------------------------------------------------------------------
