@@ -194,7 +194,7 @@ def ticks(shapes, places, sliding: bool, updates: int, warm: int, path: list | N
 
 def within_reach(vertices, faces, path, every: int = 20) -> np.ndarray:
     """Per `every`-th tick of a proxy's path (m), how many triangles lie within its radius
-    plus that tick's slide of its centre: those the tick's sweeps must rule out or touch
+    plus that tick's move of its centre: those the tick's sweeps must rule out or touch
     (the work an exact proxy cannot skip without a certificate). Brute force: the boxes of
     all triangles, then trimesh's exact closest points on those within reach."""
     tri = vertices[faces]
@@ -252,8 +252,7 @@ def _row(kind: str, v, f, where, fingers, updates: int, warm: int) -> dict:
         path = []
         alone = [ticks(shapes, [spot], mode == "sliding", updates, warm, path if i == 0 else None)
                  for i, spot in enumerate(where[:max(fingers)])]
-        if mode == "sliding":
-            row["sliding_in_reach_p50"] = float(np.percentile(within_reach(v, f, path), 50))
+        row[f"{mode}_in_reach_p50"] = float(np.percentile(within_reach(v, f, path), 50))
         for count in fingers:
             us = alone[0] if count == 1 else ticks(shapes, where[:count], mode == "sliding", updates, warm)
             row[f"{mode}_{count}f_p50_us"] = round(float(np.percentile(us, 50)), 2)
@@ -307,9 +306,9 @@ def main(args) -> int:
     print(f"meshes: load and god-object update ({result['radius_m'] * 1e3:g} mm proxy, {result['updates']} updates "
           "per finger); µs per finger update, p50/p99")
     print("  (with several fingers: p99 in company / p99 of the same spots each alone; in reach: the")
-    print("  median sliding tick's triangles within the proxy's radius plus its slide, an exact sweep's work)")
+    print("  median tick's triangles within the proxy's radius plus its move, an exact sweep's work, pressed/sliding)")
     print(f"  {'mesh':20s}{'triangles':>10s}{'load s':>8s}{'peak MB':>9s}  {'fingers':>7s}"
-          f"{'pressed':>16s}{'sliding':>16s}{'in reach':>9s}{'p99 ratio':>14s}")
+          f"{'pressed':>16s}{'sliding':>16s}{'in reach':>10s}{'p99 ratio':>14s}")
     previous = {}
     for r in result["rows"]:
         if "beside" in r and "beside" not in previous:
@@ -324,7 +323,7 @@ def main(args) -> int:
             ratio = "" if count == 1 else (
                 f"{r[f'pressed_{count}f_p99_us'] / r[f'pressed_{count}f_alone_p99_us']:6.2f}/"
                 f"{r[f'sliding_{count}f_p99_us'] / r[f'sliding_{count}f_alone_p99_us']:<6.2f}")
-            reach = f"{r['sliding_in_reach_p50']:9.0f}" if count == 1 else " " * 9
+            reach = f"{r['pressed_in_reach_p50']:5.0f}/{r['sliding_in_reach_p50']:<4.0f}" if count == 1 else " " * 10
             print(f"{head}  {count:7d}{r[f'pressed_{count}f_p50_us']:8.1f}/{r[f'pressed_{count}f_p99_us']:<7.1f}"
                   f"{r[f'sliding_{count}f_p50_us']:8.1f}/{r[f'sliding_{count}f_p99_us']:<7.1f}{reach}{ratio:>14s}")
     print(f"  wrote {json_path} and {png_path}")

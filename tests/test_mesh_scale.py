@@ -353,8 +353,9 @@ def test_bench_meshes_in_miniature():
         small = next(s for s in rows[:9:3] if s["kind"] == r["kind"])
         assert 0.5 * 6000 < r["beside"] < 1.5 * 6000 and r["triangles"] == small["triangles"] + r["beside"]
         assert r["sliding_in_reach_p50"] == small["sliding_in_reach_p50"]
-    # a sliding proxy touches the surface: at least the triangle under it is within reach
-    assert all(r["sliding_in_reach_p50"] >= 1 for r in rows)
+        assert r["pressed_in_reach_p50"] == small["pressed_in_reach_p50"]
+    # a proxy pressed in or sliding touches the surface: at least the triangle under it is within reach
+    assert all(r["pressed_in_reach_p50"] >= 1 and r["sliding_in_reach_p50"] >= 1 for r in rows)
 
 
 def test_the_bench_counts_the_triangles_within_a_ticks_reach():
