@@ -359,27 +359,34 @@ def test_bench_meshes_in_miniature():
 
 
 def test_the_bench_counts_the_triangles_within_a_ticks_reach():
-    """`bench meshes`' count of the triangles within a proxy's radius plus its slide that tick,
+    """`bench meshes`' count of the triangles within a proxy's radius plus its move that tick,
     on a flat grid of 1 mm squares (6 triangles meet at an inner vertex of this grid): a
     proxy resting on a vertex has those 6 within reach (and still, rising 2 µm in the tick),
     one held 2 µm above it none, and one that slid 3 mm in the tick every triangle within
-    √((r + 3 mm)² - r²) ≈ 6.2 mm of it."""
+    √((r + 3 mm)² - r²) ≈ 6.2 mm of it; and over 0.4 mm squares one resting over a
+    triangle's incentre (0.117 mm from every side), that one alone (trimesh's closest point,
+    used as it comes, compares products of four lengths with 1e-12 and answered ~0.1 mm off
+    such a point: none within reach)."""
     from softproxy.benchmarks import meshes
 
     v, f = meshes.grid(2 * 20 * 20)  # 21 × 21 vertices 5 mm apart: scaled to 1 mm below
-    v = v / 5.0
     v[:, 2] = 0.0
     r = meshes.RADIUS
     on = np.array([0.0, 0.0, r])  # on the middle vertex
     path = [on, on, on + [0.0, 0.0, 2e-6], on + [0.0, 0.0, 2e-6], on + [0.003, 0.0, 0.0]]
-    counts = meshes.within_reach(v, f, path, every=1)
+    counts = meshes.within_reach(v / 5.0, f, path, every=1)
     assert counts.tolist()[:3] == [6, 6, 0]
     far = counts[3]
     disc = np.sqrt((r + 0.003 + 1e-6) ** 2 - r * r)
-    centres = v[f].mean(axis=1)
+    centres = (v / 5.0)[f].mean(axis=1)
     assert np.sum(np.linalg.norm(centres[:, :2] - [0.003, 0.0], axis=1) < disc - 0.001) <= far
     assert far <= np.sum(np.linalg.norm(centres[:, :2] - [0.003, 0.0], axis=1) < disc + 0.001)
-    assert meshes.within_reach(v, f, path, every=2).tolist() == [6, 0]
+    assert meshes.within_reach(v / 5.0, f, path, every=2).tolist() == [6, 0]
+    fine = v * 0.08  # 0.4 mm squares: the disc within reach, 0.1 mm in radius, inside one triangle
+    a, b, c = fine[f[200]]
+    sides = [np.linalg.norm(b - c), np.linalg.norm(c - a), np.linalg.norm(a - b)]
+    middle = (sides[0] * a + sides[1] * b + sides[2] * c) / sum(sides) + [0.0, 0.0, r]  # over its incentre
+    assert meshes.within_reach(fine, f, [middle, middle], every=1).tolist() == [1]
 
 
 # ---------------------------------------------------------------------------------------
