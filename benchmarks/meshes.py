@@ -209,7 +209,7 @@ def within_reach(vertices, faces, path, every: int = 20) -> np.ndarray:
         # point compares with absolute tolerances, and on a facet 0.45 mm across it answered
         # 0.1 mm off the point over its middle (1 µm too far at r = 5 mm)
         a = near[:, 0]
-        size = np.linalg.norm(near - a[:, None], axis=2).max(axis=1)[:, None]
+        size = np.maximum(np.linalg.norm(near - a[:, None], axis=2).max(axis=1), np.finfo(float).tiny)[:, None]
         q = trimesh.triangles.closest_point((near - a[:, None]) / size[:, :, None], (c - a) / size)
         counts.append(int((np.linalg.norm(a + size * q - c, axis=1) <= reach).sum()))
     return np.array(counts)
