@@ -393,6 +393,45 @@ def test_the_bench_counts_the_triangles_within_a_ticks_reach():
 # The box tree (where no certificate holds)
 # ---------------------------------------------------------------------------------------
 
+@pytest.mark.parametrize("kind", ["slivers", "noisy_sphere"])
+def test_node_frames_match_each_nodes_first_triangle_and_vertices(kind):
+    """`node_frames` against a brute force node by node: each node's axes are its first
+    triangle's normal, longest edge (the first of equal ones) and their cross product, and
+    its extents the least and greatest projection on them of its triangles' vertices (those
+    of the leaves under it); a node with no triangle keeps zero axes and inverted extents."""
+    from softproxy.benchmarks import meshes
+    from softproxy.compiled.certificate import LEAF, box_tree, node_frames
+
+    v, f = getattr(meshes, kind)(1000)
+    t = v[f]
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    plane = np.column_stack([normal, (normal * t[:, 0]).sum(axis=1)])
+    some = np.flatnonzero(np.arange(len(f)) % 3 != 1)  # a tree over part of the mesh, as the long triangles'
+    order, _, _, size = box_tree(t[some].min(axis=1), t[some].max(axis=1), some)
+    axes, ext = node_frames(order, size, v, f, plane)
+    for node in range(1, 2 * size):
+        level = 1 << (node.bit_length() - 1)
+        leaves = size // level
+        items = order[(node - level) * leaves * LEAF:(node - level + 1) * leaves * LEAF]
+        if len(items) == 0:
+            assert not axes[node].any() and (ext[node, :, 0] == np.inf).all() and (ext[node, :, 1] == -np.inf).all()
+            continue
+        a, b, c = t[items[0]]
+        edges = [b - a, c - b, a - c]
+        longest = edges[int(np.argmax([e @ e for e in edges]))]
+        frame = np.array([normal[items[0]], longest / np.linalg.norm(longest),
+                          np.cross(normal[items[0]], longest / np.linalg.norm(longest))])
+        assert np.allclose(axes[node], frame, rtol=0.0, atol=1e-15), node
+        heights = t[items].reshape(-1, 3) @ frame.T
+        assert np.allclose(ext[node, :, 0], heights.min(axis=0), rtol=0.0, atol=1e-15), node
+        assert np.allclose(ext[node, :, 1], heights.max(axis=0), rtol=0.0, atol=1e-15), node
+    # two longest edges of exactly one length: the first, c2 - c1
+    axes, _ = node_frames(np.array([0]), 1, np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 2.0, 0.0]]),
+                          np.array([[0, 1, 2]]), np.array([[0.0, 0.0, 1.0, 0.0]]))
+    assert np.allclose(axes[1, 1], np.array([-0.5, 2.0, 0.0]) / math.sqrt(4.25), rtol=0.0, atol=1e-15)
+
+
 def tree_shape(v, f):
     """(MeshShape on explicit triangles on a turned box geom, brute force in the world frame)."""
     xml = ('<mujoco><worldbody><body pos="0.02 -0.01 0.03" euler="20 -30 40">'

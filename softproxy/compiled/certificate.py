@@ -298,33 +298,52 @@ def node_frames(order: np.ndarray, size: int, V: np.ndarray, F: np.ndarray, plan
     × 3 × 2) extents; an empty node's extents are inverted. A face that holds a long run of
     slivers behind it (a CAD cylinder's side, a flat face's fan) is seen to, where the node's
     axis-aligned box would stick out above its plane."""
-    n = len(order)
     axes = np.zeros((2 * size, 3, 3))
     ext = np.empty((2 * size, 3, 2))
     ext[:, :, 0], ext[:, :, 1] = np.inf, -np.inf
-    if n == 0:
-        return axes, ext
-    tri = F[order]
-    corners = V[tri]                          # (n, 3 vertices, 3)
-    edges = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 1], corners[:, 0] - corners[:, 2]], 1)
-    longest = edges[np.arange(n), np.argmax((edges * edges).sum(2), axis=1)]
-    u2 = longest / np.linalg.norm(longest, axis=1)[:, None]
-    u1 = plane[order, :3]
-    frames = np.stack([u1, u2, np.cross(u1, u2)], axis=1)   # per triangle, its own frame
-    span = size * LEAF                        # items under one node of the level
+    _fill_frames(np.ascontiguousarray(order, dtype=np.int64), size, V, F, plane, axes, ext)
+    return axes, ext
+
+
+@njit(cache=True, error_model="numpy")
+def _fill_frames(order, size, V, F, plane, axes, ext):
+    """`node_frames`' work, level by level: each node's items are a run of `order` (the leaves'
+    LEAF triangles under it), every vertex of each projected on its first triangle's axes
+    (numpy's version, one level at a time over all triangles, took 0.6 s of the 100k CAD
+    slivers' 4.5 s load)."""
+    n = len(order)
+    span = size * LEAF  # items under one node of the level
     level = 1
     while level <= size:
-        starts = np.arange(0, n, span)
-        nodes = level + np.arange(len(starts))
-        owner = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, n)))
-        frame = frames[starts]                # the node's first triangle's
-        proj = np.einsum("tvx,tax->tav", corners, frame[owner])  # (n, 3 axes, 3 vertices)
-        axes[nodes] = frame
-        ext[nodes, :, 0] = np.minimum.reduceat(proj.min(axis=2), starts, axis=0)
-        ext[nodes, :, 1] = np.maximum.reduceat(proj.max(axis=2), starts, axis=0)
+        node = level
+        for s in range(0, n, span):
+            t = order[s]
+            # the first triangle's longest edge (the first of equals), as c1-c0, c2-c1, c0-c2
+            best, ex, ey, ez = -1.0, 0.0, 0.0, 0.0
+            for e in range(3):
+                a, b = V[F[t, e]], V[F[t, (e + 1) % 3]]
+                dx, dy, dz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                d2 = dx * dx + dy * dy + dz * dz
+                if d2 > best:
+                    best, ex, ey, ez = d2, dx, dy, dz
+            length = math.sqrt(best)
+            ux, uy, uz = plane[t, 0], plane[t, 1], plane[t, 2]
+            vx, vy, vz = ex / length, ey / length, ez / length
+            axes[node, 0, 0], axes[node, 0, 1], axes[node, 0, 2] = ux, uy, uz
+            axes[node, 1, 0], axes[node, 1, 1], axes[node, 1, 2] = vx, vy, vz
+            axes[node, 2, 0], axes[node, 2, 1], axes[node, 2, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            for j in range(s, min(s + span, n)):
+                for k in range(3):
+                    w = F[order[j], k]
+                    for a in range(3):
+                        h = axes[node, a, 0] * V[w, 0] + axes[node, a, 1] * V[w, 1] + axes[node, a, 2] * V[w, 2]
+                        if h < ext[node, a, 0]:
+                            ext[node, a, 0] = h
+                        if h > ext[node, a, 1]:
+                            ext[node, a, 1] = h
+            node += 1
         level *= 2
         span //= 2
-    return axes, ext
 
 
 @njit(cache=True, error_model="numpy")
