@@ -76,7 +76,7 @@ from numba import njit
 
 from softproxy.compiled.ball import BALL_SLACK
 from softproxy.compiled.certificate import (
-    ABOVE_TOL, LEAF, _face_few, certificate_tables, heap_offer, heap_pop, static_clear,
+    ABOVE_TOL, LEAF, _face_few, certificate_tables, heap_offer, heap_pop, node_frames, static_clear,
 )
 from softproxy.compiled.finite import finite
 from softproxy.compiled.layout import (
@@ -139,53 +139,18 @@ tree walk it saves: ~3 µs an update)."""
 # Packing (numpy, at load)
 # ---------------------------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
 def tree_nodes(order, nlo, nhi, size, V, F, plane):
     """The nodes (2 size, NODE_WIDTH; node 0 unused) of a box tree over triangles (`box_tree`'s
     order, node boxes and size over the triangles' boxes; vertices V, faces F, planes): each
-    node's axis-aligned box and its box oriented by its first triangle (axes: that triangle's
-    normal, its longest edge, their cross product; the extents of the node's vertices along
-    each). An empty node's boxes are inverted (+inf..-inf)."""
-    n = len(order)
+    node's axis-aligned box and its box oriented by its first triangle (`node_frames`). An
+    empty node's boxes are inverted (+inf..-inf)."""
+    axes, ext = node_frames(order, size, V, F, plane)
     out = np.empty((2 * size, NODE_WIDTH))
     out[:, N_LO:N_LO + 3] = nlo
     out[:, N_HI:N_HI + 3] = nhi
-    out[:, N_AXES:N_AXES + 9] = 0.0
-    out[:, N_EXT:N_EXT + 3] = np.inf
-    out[:, N_EXT + 3:N_EXT + 6] = -np.inf
-    level, span = 1, size * LEAF
-    while level <= size:
-        for j in range(level, 2 * level):
-            s = (j - level) * span
-            if s >= n:
-                break
-            e = min(s + span, n)
-            t = order[s]
-            a, b, c = F[t, 0], F[t, 1], F[t, 2]
-            best, ex, ey, ez = -1.0, 0.0, 0.0, 0.0
-            for p, q in ((a, b), (b, c), (c, a)):
-                dx, dy, dz = V[q, 0] - V[p, 0], V[q, 1] - V[p, 1], V[q, 2] - V[p, 2]
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 > best:
-                    best, ex, ey, ez = d2, dx, dy, dz
-            length = math.sqrt(best)
-            ex, ey, ez = ex / length, ey / length, ez / length
-            nx, ny, nz = plane[t, 0], plane[t, 1], plane[t, 2]
-            axes = (nx, ny, nz, ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex)
-            for m in range(9):
-                out[j, N_AXES + m] = axes[m]
-            for i in range(s, e):
-                for w in range(3):
-                    v = F[order[i], w]
-                    x, y, z = V[v, 0], V[v, 1], V[v, 2]
-                    for m in range(3):
-                        h = axes[3 * m] * x + axes[3 * m + 1] * y + axes[3 * m + 2] * z
-                        if h < out[j, N_EXT + m]:
-                            out[j, N_EXT + m] = h
-                        if h > out[j, N_EXT + 3 + m]:
-                            out[j, N_EXT + 3 + m] = h
-        level *= 2
-        span //= 2
+    out[:, N_AXES:N_AXES + 9] = axes.reshape(2 * size, 9)
+    out[:, N_EXT:N_EXT + 3] = ext[:, :, 0]
+    out[:, N_EXT + 3:N_EXT + 6] = ext[:, :, 1]
     return out
 
 
