@@ -76,11 +76,14 @@ def assert_sends_safe(device, fmax, tmax):
     return w
 
 
-def _sigint_by_default() -> None:
-    """In the child before exec: SIGINT at its default, as a terminal's Ctrl-C finds it. A
-    shell that runs the tests in the background ignores SIGINT, children inherit that, and
-    Python then never raises KeyboardInterrupt."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+def _deadly_signals_by_default() -> None:
+    """In the child before exec: every signal whose default ends the process at that default and
+    none blocked, as a terminal finds them. A shell that runs the tests in the background ignores
+    SIGINT, `nohup` ignores SIGHUP, children inherit both, and the signal then never arrives."""
+    for sig in (signal.SIGHUP, signal.SIGINT, signal.SIGQUIT, signal.SIGTERM, signal.SIGUSR1,
+                signal.SIGUSR2, signal.SIGALRM, signal.SIGPIPE):
+        signal.signal(sig, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_SETMASK, [])
 
 
 @pytest.mark.parametrize("field", ["damping", "torsion_damping"])
@@ -293,7 +296,7 @@ def test_every_way_out_of_a_run_sends_zero_force(tmp_path, how, sig):
     its application raises: the last thing each finger was sent is zero, and the device was closed."""
     log = tmp_path / "sends.log"
     proc = subprocess.Popen([sys.executable, "-c", CHILD, str(log), how], stdout=subprocess.DEVNULL,
-                            preexec_fn=_sigint_by_default,
+                            preexec_fn=_deadly_signals_by_default,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         deadline = time.monotonic() + 120
