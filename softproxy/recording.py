@@ -11,28 +11,47 @@ falls behind and the ring is full, the tick does not wait; it drops the read and
 and the file shows the gap (below). `close()` (or `finish()`, or leaving a `with` block, or
 the interpreter exiting) drains the ring, writes the end record and closes the file.
 
-`load_recording` reads version 2 and the older version 1 (text) files. It refuses anything
-that is not a regular file (a FIFO, /dev/zero, a directory) before reading, refuses files
-over `MAX_FILE_BYTES` (2 GiB: about 3 hours of a two-finger device at 1 kHz; the writer
-stops there and counts the rest as dropped) and headers claiming more than `MAX_FINGERS`
-fingers, never sizes an array from a header's claim, and names the file and the first bad
-record of a malformed body. `softproxy.devices.replay.ReplayDevice` plays a recording back, read for
-read, so a lockstep run replayed from its recording reproduces the recorded run exactly.
+`load_recording` reads version 3 and the older versions 2 (binary, no checksums) and 1
+(text): the header's `version` says which, so old recordings keep replaying; only version 3
+can prove it is intact. It refuses anything that is not a regular file (a FIFO, /dev/zero, a
+directory) before reading, refuses files over `MAX_FILE_BYTES` (2 GiB: about 3 hours of a
+two-finger device at 1 kHz; the writer stops there and counts the rest as dropped) and
+headers claiming more than `MAX_FINGERS` fingers, never sizes an array from a header's claim,
+and names the file and the first bad record of a malformed body. The reads a recording
+claims to span (its end record's count, or its last read index + 1) are checked against
+the records the file holds, before anything replays them: at most `MAX_READS_PER_RECORD`
+reads per record (a recorder whose writer fell so far behind that it kept under 1 read in
+16 made a recording not worth replaying), and at most `MAX_CLAIMED_S` (24 h, the longest run
+a scene or `--duration` asks for) of reads at the header's rate. So a forged end record
+claiming 2^40 reads is one line, not decades of replay. `softproxy.devices.replay.ReplayDevice`
+plays a recording back, read for read, so a lockstep run replayed from its recording
+reproduces the recorded run exactly.
 
-File format, version 2:
+Checksums (version 3). The header line ends in `"crc32": "XXXXXXXX"}`: the CRC-32 (zlib) of
+the line as it would read without that member (`{...}`); each record ends in 8 bytes, the
+CRC-32 of the record's bytes before them (u32) and 4 zero bytes. Any flipped bit of a
+version-3 file is found: in the header (one line naming the header) or in record k (one
+line naming the record and its byte range), checked before the record's contents are
+trusted. The writer thread computes the checksums as it drains the ring, so the servo
+tick does no more work than before. Checking costs about 1 µs per record on load.
+
+File format, version 3:
     line 1: a JSON object ending in "\\n" (at most 64 KiB): {"format": "softproxy-recording",
-            "version": 2, "fingers": N, "record_bytes": 16 + 88 N, "byte_order": "little",
-            "scene": ..., "rate_hz": ...}. It does not say how many reads follow: the body does.
-    then fixed-size little-endian records of 16 + 88 N bytes, one per device read:
+            "version": 3, "fingers": N, "record_bytes": 24 + 88 N, "byte_order": "little",
+            "scene": ..., "rate_hz": ..., "crc32": "..."}. It does not say how many reads
+            follow: the body does.
+    then fixed-size little-endian records of 24 + 88 N bytes, one per device read:
             kind u32 (1 = a read, 2 = the end record), error u32 (1: the device raised on
             that read; the replay raises too), read i64 (the read's 0-based index), then per
             finger t x y z qw qx qy qz twist (9 float64, NaN as sent), buttons i64, valid u8,
-            7 zero bytes.
+            7 zero bytes; then crc32 u32 of the bytes before it, 4 zero bytes.
     Read indices increase; a gap is reads the recorder dropped (the writer fell behind or
     the file reached MAX_FILE_BYTES). The end record, written on close, has read = the
     number of reads the run made and dropped (i64) in the 8 bytes after its header; it is
     missing when the process was killed. A partial last record (killed mid-write) is
     dropped and reported (`Recording.truncated`).
+File format, version 2 (still read): as version 3 without the header's crc32 and without
+    the records' last 8 bytes (records of 16 + 88 N bytes).
 File format, version 1 (text, written at the end of a run; still read):
     line 1: {"format": "softproxy-recording", "version": 1, "fingers": N, "reads": R, ...}
     then R × N lines "read finger t x y z qw qx qy qz twist buttons valid error" (floats
@@ -45,10 +64,12 @@ import io
 import json
 import math
 import os
+import re
 import stat
 import struct
 import threading
 import weakref
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,35 +78,70 @@ import numpy as np
 from softproxy.device import Device, DeviceError, DeviceSample
 
 FORMAT = "softproxy-recording"
-VERSION = 2
-VERSIONS_READ = (1, 2)
+VERSION = 3
+VERSIONS_READ = (1, 2, 3)
 MAX_FINGERS = 16
 MAX_FILE_BYTES = 2 << 30  # 2 GiB: what load_recording reads, and where the writer stops
 MAX_HEADER_BYTES = 64 << 10
 MAX_BUFFER_BYTES = 64 << 20  # the ring's ceiling, whatever the rate and finger count
 FLUSH_INTERVAL_S = 0.05  # the writer drains and flushes at least this often (wall time)
 FINISH_TIMEOUT_S = 5.0  # how long close() waits for a writer stuck in a write
+MAX_READS_PER_RECORD = 16
+"""The most reads a recording may claim to span per read record it holds (its gaps are reads
+the recorder dropped; more than this and the claim, not the recording, is what would run)."""
+MAX_CLAIMED_S = 86_400.0
+"""The longest run (s) a recording may claim to span at its header's rate: 24 h, the longest
+run a scene file or `softproxy run --duration` asks for (softproxy.scene.MAX_DURATION_S)."""
+DEFAULT_RATE_HZ = 1000.0  # the rate assumed for a header without a usable rate_hz (Hz)
 
 KIND_READ, KIND_END = 1, 2
 _RECORD_HEAD = struct.Struct("<IIq")  # kind, error, read index
 _FINGER = struct.Struct("<9dq?7x")  # t x y z qw qx qy qz twist, buttons, valid
 _END_DROPPED = struct.Struct("<q")
+_TRAILER = struct.Struct("<I4x")  # version 3: crc32 of the record's bytes before it, 4 zero bytes
+_HEADER_CRC = re.compile(rb'^(.*), "crc32": "([0-9a-f]{8})"}$', re.DOTALL)  # the end of a version-3 header line
 _FLOATS = ("t", "x", "y", "z", "qw", "qx", "qy", "qz", "twist")
 FIELDS = ("read", "finger", *_FLOATS, "buttons", "valid", "error")  # a version-1 line
 _MIN_V1_LINE_BYTES = 2 * len(FIELDS)  # one character per field and a separator after each
-_RESERVED = ("format", "version", "fingers", "record_bytes", "byte_order", "reads")
+_RESERVED = ("format", "version", "fingers", "record_bytes", "byte_order", "reads", "crc32")
 
 
-def record_bytes(fingers: int) -> int:
-    """Size of one version-2 record (bytes) for a device of `fingers` fingers."""
-    return _RECORD_HEAD.size + fingers * _FINGER.size
+def record_bytes(fingers: int, version: int = VERSION) -> int:
+    """Size of one binary record (bytes) for a device of `fingers` fingers (version 3, or 2)."""
+    return _RECORD_HEAD.size + fingers * _FINGER.size + (_TRAILER.size if version >= 3 else 0)
 
 
-def _record_dtype(fingers: int) -> np.dtype:
+def _record_dtype(fingers: int, version: int = VERSION) -> np.dtype:
     finger = np.dtype([("v", "<f8", (len(_FLOATS),)), ("buttons", "<i8"), ("valid", "u1"), ("pad", "V7")])
-    dtype = np.dtype([("kind", "<u4"), ("error", "<u4"), ("read", "<i8"), ("f", finger, (fingers,))])
-    assert dtype.itemsize == record_bytes(fingers)
+    fields = [("kind", "<u4"), ("error", "<u4"), ("read", "<i8"), ("f", finger, (fingers,))]
+    if version >= 3:
+        fields += [("crc", "<u4"), ("spare", "<u4")]
+    dtype = np.dtype(fields)
+    assert dtype.itemsize == record_bytes(fingers, version)
     return dtype
+
+
+def header_line(header: dict) -> bytes:
+    """A version-3 header line: the JSON object with its own CRC-32 as the last member, and "\\n"."""
+    body = json.dumps(header)
+    return f'{body[:-1]}, "crc32": "{zlib.crc32(body.encode("utf-8")):08x}"}}\n'.encode("utf-8")
+
+
+def seal(buffer, start: int, count: int, size: int) -> None:
+    """Write the checksum trailer of `count` version-3 records of `size` bytes from byte `start`."""
+    view = memoryview(buffer)
+    body = size - _TRAILER.size
+    for base in range(start, start + count * size, size):
+        _TRAILER.pack_into(buffer, base + body, zlib.crc32(view[base:base + body]))
+
+
+def _checksums_bad(raw: np.ndarray, records: np.ndarray, size: int) -> np.ndarray:
+    """A mask over version-3 records: the stored CRC-32 (or the zero bytes after it) is not the record's."""
+    n = len(records)
+    view = memoryview(raw)
+    body = size - _TRAILER.size
+    found = np.fromiter((zlib.crc32(view[k * size:k * size + body]) for k in range(n)), dtype=np.uint32, count=n)
+    return (found != records["crc"]) | (records["spare"] != 0)
 
 
 class RecordingError(ValueError):
@@ -141,6 +197,8 @@ class _Writer:
         try:
             start = tail % self.capacity
             first = min(keep, self.capacity - start)
+            seal(self.ring, start * size, first, size)  # here, not in the tick: the tick only packs
+            seal(self.ring, 0, keep - first, size)
             if first:
                 self.file.write(self.view[start * size:(start + first) * size])
             if keep > first:
@@ -189,6 +247,7 @@ class _Writer:
                 end = bytearray(self.record_bytes)
                 _RECORD_HEAD.pack_into(end, 0, KIND_END, 0, reads)
                 _END_DROPPED.pack_into(end, _RECORD_HEAD.size, dropped)
+                seal(end, 0, 1, self.record_bytes)
                 self.file.write(end)
                 self.bytes += len(end)
             self.file.close()
@@ -234,7 +293,7 @@ class RecordingDevice:
         header = {"format": FORMAT, "version": VERSION, "fingers": fingers, "record_bytes": record_bytes(fingers),
                   "byte_order": "little", **meta}
         try:
-            header_line = (json.dumps(header) + "\n").encode("utf-8")
+            line = header_line(header)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"recording header: {exc}") from None
         rate = meta.get("rate_hz", 1000.0)
@@ -249,7 +308,7 @@ class RecordingDevice:
         self.reads = 0
         writer = _Writer(path, _open_for_writing(path), fingers, capacity)
         try:
-            writer.start(header_line)
+            writer.start(line)
         except OSError as exc:
             writer.file.close()
             raise RecordingError(f"{path}: cannot write the recording: {exc.strerror or exc}") from None
@@ -487,8 +546,13 @@ def _parse_header(path: str, start: bytes) -> tuple[dict, int]:
         raise RecordingError(f"{path}: not a {FORMAT} file (header format {str(got)[:40]!r})")
     version = header.get("version")
     if isinstance(version, bool) or version not in VERSIONS_READ:
-        raise RecordingError(f"{path}: format version {str(version)[:40]}; this softproxy reads versions "
+        raise RecordingError(f"{path}: header format version {str(version)[:40]}; this softproxy reads versions "
                              f"{', '.join(map(str, VERSIONS_READ))}")
+    if version >= 3:
+        sealed = _HEADER_CRC.match(start[:end])
+        if sealed is None or int(sealed[2], 16) != zlib.crc32(sealed[1] + b"}"):
+            raise RecordingError(f"{path}: line 1 (the header, bytes 0-{end}): checksum mismatch, the header is "
+                                 f"corrupt")
     fingers = header.get("fingers")
     if isinstance(fingers, bool) or not isinstance(fingers, int) or not 1 <= fingers <= MAX_FINGERS:
         raise RecordingError(f"{path}: header fingers must be an integer from 1 to {MAX_FINGERS}, "
@@ -497,12 +561,13 @@ def _parse_header(path: str, start: bytes) -> tuple[dict, int]:
 
 
 def _read_v2(path: str, header: dict, file, header_bytes: int, size: int) -> Recording:
-    fingers = header["fingers"]
-    size_one = record_bytes(fingers)
+    """Versions 2 and 3: fixed-size binary records (version 3 with a checksum each)."""
+    fingers, version = header["fingers"], header["version"]
+    size_one = record_bytes(fingers, version)
     if header.get("record_bytes") != size_one or header.get("byte_order") != "little":
         raise RecordingError(f"{path}: header record_bytes {str(header.get('record_bytes'))[:20]} and byte_order "
                              f"{str(header.get('byte_order'))[:20]} do not match {fingers} fingers' layout "
-                             f"({size_one}, little)")
+                             f"in version {version} ({size_one}, little)")
     whole = (size - header_bytes) // size_one  # sized from the file, never from a claim
     raw = np.empty(whole * size_one, dtype=np.uint8)
     file.seek(header_bytes)
@@ -513,11 +578,17 @@ def _read_v2(path: str, header: dict, file, header_bytes: int, size: int) -> Rec
             break  # the file shrank since fstat
         got += chunk
     truncated = (size - header_bytes) % size_one != 0 or got < len(raw)
-    records = raw[:got - got % size_one].view(_record_dtype(fingers))
+    records = raw[:got - got % size_one].view(_record_dtype(fingers, version))
+    corrupt = _checksums_bad(raw, records, size_one) if version >= 3 else np.zeros(len(records), dtype=bool)
     kind, index = records["kind"], records["read"]
     complete = len(records) > 0 and kind[-1] == KIND_END
     body = records[:-1] if complete else records
     n = len(body)
+    hits = np.flatnonzero(corrupt)
+    if hits.size:  # before anything the record says is believed: a flipped bit could make it say anything
+        k = int(hits[0])
+        raise RecordingError(f"{path}: record {k} (bytes {header_bytes + k * size_one}-"
+                             f"{header_bytes + (k + 1) * size_one - 1}): checksum mismatch, the record is corrupt")
     if complete and truncated:
         raise RecordingError(f"{path}: {size - header_bytes - n * size_one - size_one} bytes after the end record")
     ordered = np.empty(n, dtype=bool)
@@ -547,10 +618,26 @@ def _read_v2(path: str, header: dict, file, header_bytes: int, size: int) -> Rec
         if reads < last or dropped != reads - n:
             raise RecordingError(f"{path}: record {n} (the end record): says {reads} reads and {dropped} dropped, "
                                  f"but the file holds {n} reads up to read {last - 1}")
+    _check_claim(path, header, reads, n, f"record {n} (the end record)" if complete else f"record {n - 1}")
     fields = body["f"]
     return Recording(path=path, header=header, values=fields["v"], buttons=fields["buttons"], valid=fields["valid"],
                      error=body["error"] != 0, index=body["read"], reads=reads, dropped=dropped, complete=complete,
                      truncated=truncated)
+
+
+def _check_claim(path: str, header: dict, reads: int, held: int, where: str) -> None:
+    """RecordingError unless the `reads` a recording claims to span are bounded by the `held`
+    read records the file holds (MAX_READS_PER_RECORD each) and by MAX_CLAIMED_S at its rate:
+    a replay runs one tick per claimed read, so the claim is what a replay would cost."""
+    if reads > MAX_READS_PER_RECORD * max(held, 1):
+        raise RecordingError(f"{path}: {where}: claims {reads} reads, but the file holds {held} read records "
+                             f"(at most {MAX_READS_PER_RECORD} reads per record); the file is damaged or forged")
+    rate = header.get("rate_hz")
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (math.isfinite(rate) and rate > 0):
+        rate = DEFAULT_RATE_HZ
+    if reads > MAX_CLAIMED_S * rate + 1:
+        raise RecordingError(f"{path}: {where}: claims {reads} reads, {reads / rate:.4g} s at {rate:g} Hz, over the "
+                             f"{MAX_CLAIMED_S:g} s a recording may span")
 
 
 def _read_v1(path: str, header: dict, file, header_bytes: int, size: int) -> Recording:

@@ -13,6 +13,7 @@ import textwrap
 import threading
 import time
 import tracemalloc
+import zlib
 
 import numpy as np
 import pytest
@@ -20,7 +21,8 @@ import pytest
 from softproxy.devices.replay import ReplayDevice
 from softproxy import cli
 from softproxy.device import DeviceError, DeviceSample
-from softproxy.recording import (MAX_FILE_BYTES, RecordingDevice, RecordingError, load_recording, record_bytes)
+from softproxy.recording import (MAX_FILE_BYTES, MAX_READS_PER_RECORD, RecordingDevice, RecordingError, load_recording,
+                                 record_bytes, seal)
 from softproxy.run import open_device, run_scene
 from softproxy.scene import SceneError, load_scene
 
@@ -99,11 +101,14 @@ def test_replay_reproduces_the_recorded_run(recorded):
 
 
 def test_file_is_versioned_and_complete(recorded):
-    """Version 2 header without a read count; the body holds every read and the end record."""
+    """Version 3 header without a read count, sealed by its CRC-32; the body holds every read and the end record."""
     path, _ = recorded
     rec = load_recording(path)
-    header = json.loads(path.read_bytes().split(b"\n", 1)[0])
-    assert header["format"] == "softproxy-recording" and header["version"] == 2 and "reads" not in header
+    line = path.read_bytes().split(b"\n", 1)[0]
+    header = json.loads(line)
+    assert header["format"] == "softproxy-recording" and header["version"] == 3 and "reads" not in header
+    unsealed = {k: v for k, v in header.items() if k != "crc32"}
+    assert int(header["crc32"], 16) == zlib.crc32(json.dumps(unsealed).encode())
     assert header["record_bytes"] == record_bytes(2) and header["scene"] == "two_finger_grasp"
     assert rec.values.shape == (1501, 2, 9) and rec.valid.all()  # start read + 1500 ticks, all valid
     assert rec.complete and not rec.truncated and rec.dropped == 0 and rec.reads == rec.recovered == 1501
@@ -425,11 +430,23 @@ def test_an_unwritable_record_path_fails_before_the_run_in_one_line(tmp_path, ca
 # --- hostile and damaged files ----------------------------------------------------------------
 
 
-def v2_file(tmp_path, recorded, name="bad.rec"):
+def v3_file(tmp_path, recorded, name="bad.rec"):
     """A copy of the recorded file: (path, header bytes, records as a bytearray)."""
     data = recorded[0].read_bytes()
     cut = data.index(b"\n") + 1
     return tmp_path / name, data[:cut], bytearray(data[cut:])
+
+
+def v2_file(tmp_path, recorded, name="bad.rec"):
+    """The recorded file as version 2 wrote it (no checksums): (path, header bytes, records)."""
+    path, header, records = v3_file(tmp_path, recorded, name)
+    old = {k: v for k, v in json.loads(header).items() if k != "crc32"}
+    old.update(version=2, record_bytes=record_bytes(2, 2))
+    size = record_bytes(2)
+    body = bytearray()
+    for k in range(len(records) // size):
+        body += records[k * size:(k + 1) * size - 8]  # without the crc32 and its 4 zero bytes
+    return path, json.dumps(old).encode() + b"\n", body
 
 
 def write_v1(path, rec):
@@ -481,13 +498,13 @@ def test_corrupt_version_1_recordings_are_refused(recorded, tmp_path, mutate, wo
         assert w in message
 
 
-def _put(records, k, offset, fmt, value, size=record_bytes(2)):
+def _put(records, k, offset, fmt, value, size=record_bytes(2, 2)):
     import struct
 
     struct.pack_into(fmt, records, k * size + offset, value)
 
 
-@pytest.mark.parametrize(
+CORRUPT_BODIES = pytest.mark.parametrize(
     "mutate, words",
     [
         (lambda r: _put(r, 7, 0, "<I", 9), ["record 7 ", "kind"]),
@@ -501,8 +518,11 @@ def _put(records, k, offset, fmt, value, size=record_bytes(2)):
         (lambda r: r.__setitem__(slice(0, None), b"\xff" * len(r)), ["record 0 "]),  # garbage body
     ],
 )
+
+
+@CORRUPT_BODIES
 def test_corrupt_version_2_recordings_are_refused(recorded, tmp_path, mutate, words):
-    """Damaged binary bodies: one line naming the file and the first bad record."""
+    """Damaged binary bodies of the older format: one line naming the file and the first bad record."""
     path, header, records = v2_file(tmp_path, recorded)
     mutate(records)
     path.write_bytes(header + records)
@@ -511,9 +531,73 @@ def test_corrupt_version_2_recordings_are_refused(recorded, tmp_path, mutate, wo
         assert w in message
 
 
+@CORRUPT_BODIES
+def test_forged_version_3_records_are_refused_and_damaged_ones_named(recorded, tmp_path, mutate, words):
+    """The same damage in version 3: as it is, the first changed record's checksum names it;
+    resealed with valid checksums (a forgery, not a flipped bit), the record's contents are
+    still checked and the first bad one named."""
+    path, header, records = v3_file(tmp_path, recorded)
+    size = record_bytes(2)
+    v2_size = record_bytes(2, 2)
+    shifted = bytearray(len(records))  # the mutation's offsets are version 2's: apply it per record
+    whole = len(records) // size
+    flat = bytearray(b"".join(bytes(records[k * size:(k + 1) * size - 8]) for k in range(whole)))
+    mutate(flat)
+    if len(flat) != whole * v2_size:  # bytes appended after the end record
+        tail = flat[whole * v2_size:]
+        flat = flat[:whole * v2_size]
+    else:
+        tail = b""
+    for k in range(whole):
+        shifted[k * size:(k + 1) * size - 8] = flat[k * v2_size:(k + 1) * v2_size]
+        shifted[(k + 1) * size - 8:(k + 1) * size] = records[(k + 1) * size - 8:(k + 1) * size]
+    changed = next((k for k in range(whole) if shifted[k * size:(k + 1) * size] != records[k * size:(k + 1) * size]),
+                   None)
+    path.write_bytes(header + shifted + tail)
+    message = refusal(path)
+    if changed is not None:
+        assert f"record {changed} (bytes " in message and "checksum mismatch" in message
+    seal(shifted, 0, whole, size)
+    path.write_bytes(header + shifted + tail)
+    message = refusal(path)
+    for w in words:
+        assert w in message
+
+
+def test_every_flipped_bit_of_a_recording_is_found_and_named(tmp_path):
+    """Each single-bit flip of a version-3 file (every bit of its header, 300 random bits of
+    its records, every bit of its end record) is refused in one line naming the header or the
+    record that holds the flipped bit; version 2 accepted 186 of 200 such flips."""
+    path = tmp_path / "small.rec"
+    with RecordingDevice(_Script(), path, rate_hz=1000.0) as recorder:
+        for i in range(40):
+            recorder.read(i * 1e-3, [DeviceSample()])
+    data = path.read_bytes()
+    head = data.index(b"\n") + 1
+    size = record_bytes(1)
+    assert len(data) == head + 41 * size and load_recording(path).recovered == 40
+    rng = np.random.default_rng(49)
+    bits = [*range(head * 8), *rng.integers(head * 8, len(data) * 8, 300).tolist(),
+            *range((len(data) - size) * 8, len(data) * 8)]
+    flipped = tmp_path / "flipped.rec"
+    for bit in bits:
+        damaged = bytearray(data)
+        damaged[bit // 8] ^= 1 << (bit % 8)
+        flipped.write_bytes(damaged)
+        with pytest.raises(RecordingError) as err:
+            load_recording(flipped)
+        message = str(err.value)
+        assert "\n" not in message and str(flipped) in message
+        if bit // 8 < head:
+            assert "header" in message or "line 1" in message, (bit, message)
+        else:
+            k = (bit // 8 - head) // size
+            assert f"record {k} (bytes {head + k * size}-{head + (k + 1) * size - 1})" in message, (bit, message)
+
+
 def test_a_truncated_last_record_is_dropped_and_reported(recorded, tmp_path):
     """A file cut mid-record (a kill mid-write) replays its whole records; `truncated` says so."""
-    path, header, records = v2_file(tmp_path, recorded)
+    path, header, records = v3_file(tmp_path, recorded)
     path.write_bytes(header + records[:700 * record_bytes(2) + 50])
     rec = load_recording(path)
     assert rec.truncated and not rec.complete and rec.recovered == rec.reads == 700 and rec.dropped == 0
@@ -522,14 +606,15 @@ def test_a_truncated_last_record_is_dropped_and_reported(recorded, tmp_path):
 
 
 def test_claims_in_a_header_or_record_allocate_nothing(recorded, tmp_path):
-    """A v2 header claiming 10^12 reads is ignored (the body counts); a record claiming read 10^12
-    is a gap of dropped reads, replayed as failures without an array for them."""
+    """A v2 header claiming 10^12 reads is ignored (the body counts); a record claiming a later
+    read is a gap of dropped reads, replayed as failures without an array for them."""
     path, header, records = v2_file(tmp_path, recorded)
     claim = json.loads(header)
     claim["reads"] = 10**12
-    size = record_bytes(2)
+    size = record_bytes(2, 2)
     body = records[:5 * size]
-    _put(body, 4, 8, "<q", 10**12)
+    gap = 5 * MAX_READS_PER_RECORD - 1  # the largest last read 5 records may claim
+    _put(body, 4, 8, "<q", gap)
     path.write_bytes(json.dumps(claim).encode() + b"\n" + body)
     tracemalloc.start()
     try:
@@ -543,8 +628,55 @@ def test_claims_in_a_header_or_record_allocate_nothing(recorded, tmp_path):
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert rec.recovered == 5 and rec.reads == 10**12 + 1 and rec.dropped == 10**12 - 4
+    assert rec.recovered == 5 and rec.reads == gap + 1 and rec.dropped == gap - 4
     assert peak < 1 << 20
+
+
+@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("where, claim, words", [
+    ("end", 2**40, ["record 1501 (the end record)", f"claims {2**40} reads", "holds 1501 read records"]),
+    ("end", 1501 * MAX_READS_PER_RECORD + 1, ["the end record", "holds 1501 read records"]),
+    ("last", 10**12, ["record 1500", f"claims {10**12 + 1} reads"]),
+])
+def test_a_recordings_claims_are_bounded_by_what_the_file_holds(recorded, tmp_path, version, where, claim, words):
+    """An end record claiming 2^40 reads (decades of replay), or a last read far past the
+    records: refused in one line naming the record, at once, allocating nothing for the claim.
+    The end record's claim is forged consistently (dropped = reads - held), with valid checksums."""
+    import struct
+
+    path, header, records = (v2_file if version == 2 else v3_file)(tmp_path, recorded)
+    size = record_bytes(2, version)
+    if where == "end":
+        struct.pack_into("<qq", records, 1501 * size + 8, claim, claim - 1501)
+    else:
+        records = records[:1501 * size]  # no end record (a killed run): the last read index is the claim
+        struct.pack_into("<q", records, 1500 * size + 8, claim)
+    if version == 3:
+        seal(records, 0, len(records) // size, size)
+    path.write_bytes(header + records)
+    message = refusal(path)
+    for w in words:
+        assert w in message, message
+
+
+def test_a_recording_may_claim_no_more_than_a_day_at_its_rate(tmp_path):
+    """A recording spanning more than 24 h of reads at its header's rate is refused, even with
+    enough records to make its gaps plausible (here 10 records claiming 144 reads at 0.001 Hz)."""
+    path = tmp_path / "slow.rec"
+    with RecordingDevice(_Script(), path, rate_hz=0.001) as recorder:
+        for i in range(10):
+            recorder.read(float(i), [DeviceSample()])
+    assert load_recording(path).reads == 10
+    data = bytearray(path.read_bytes())
+    head = data.index(b"\n") + 1
+    size = record_bytes(1)
+    import struct
+
+    struct.pack_into("<qq", data, head + 10 * size + 8, 100, 90)  # 100 reads: 1e5 s at 0.001 Hz
+    seal(data, head + 10 * size, 1, size)
+    path.write_bytes(data)
+    message = refusal(path)
+    assert "record 10 (the end record)" in message and "86400 s" in message
 
 
 def test_what_is_not_a_recording_file_is_refused_in_one_line(recorded, tmp_path):
