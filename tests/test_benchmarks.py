@@ -37,24 +37,44 @@ def test_latency_bench(tmp_path):
 
 
 def test_the_pacer_alone_counts_what_it_misses():
-    """The empty paced loop the latency bench compares with counts a tick that ends after the
-    next deadline: started ten periods late it misses, paced from now it keeps up."""
+    """The empty paced loop the latency bench compares with counts a tick as missed exactly when
+    it ends after the next deadline. Each tick is bracketed by the test's own readings of the
+    same clock: one that began past the next deadline must be counted, one that returned
+    before it must not; started ten periods late the first nine are certain misses, and
+    paced from now (on an idle machine) none is."""
+    import time
+
     import numpy as np
 
     from softproxy.benchmarks.latency import _pacer_alone
-    from softproxy.compiled import native
     from softproxy.compiled.servo import LOOP
 
+    period_ns = 1_000_000
     loop = np.zeros(1, dtype=LOOP)
-    loop["period_ns"], loop["spin_ns"] = 1_000_000, 1_500_000
+    loop["period_ns"], loop["spin_ns"] = period_ns, 1_500_000
     counters = np.zeros(2, dtype=np.int64)
-    loop["next_ns"] = native.monotonic_ns() - 10_000_000
-    _pacer_alone(loop, counters, 20)
-    assert 8 <= counters[1] <= 20
-    counters[:] = 0
-    loop["next_ns"] = native.monotonic_ns() + 1_000_000
-    _pacer_alone(loop, counters, 5)
-    assert counters[1] <= 1  # a shared machine may take one
+    _pacer_alone(loop, counters, 1)  # compiled outside the count
+    for late in (10, 0):
+        counters[:] = 0
+        loop["next_ns"] = time.monotonic_ns() - late * period_ns
+        certain = possible = 0
+        for k in range(20):
+            deadline = int(loop["next_ns"][0]) + period_ns  # a tick ending after this missed
+            counted = int(counters[1])
+            before = time.monotonic_ns()  # the clock the pacer reads (test_native)
+            _pacer_alone(loop, counters, 1)
+            after = time.monotonic_ns()
+            missed = int(counters[1]) - counted
+            if before > deadline:
+                assert missed == 1, (late, k)
+            elif after <= deadline:
+                assert missed == 0, (late, k)
+            certain += before > deadline
+            possible += after > deadline
+        print(f"\nstarted {late} periods late: {certain} certain misses, {possible} possible, "
+              f"{int(counters[1])} counted")
+        if late:
+            assert certain >= 9  # ticks 0-8 began past their next deadline
 
 
 def test_peer_bench(tmp_path):

@@ -52,7 +52,8 @@ def test_four_fingers_lift_and_hold_the_box():
 
 def test_the_servo_thread_leaves_the_application_free_to_draw(tmp_path):
     """The servo runs 1000 paced ticks in its thread while the main thread renders frames of the
-    state it copied out (EGL offscreen); the last frame is written."""
+    state it copied out (EGL offscreen); the last frame is written. (How many frames fit in the
+    run's second depends on the machine's load: at least one was drawn while the servo ran.)"""
     png = tmp_path / "frame.png"
     try:
         out = run("servo_thread_render.py", 1.0, png)
@@ -61,5 +62,5 @@ def test_the_servo_thread_leaves_the_application_free_to_draw(tmp_path):
             pytest.skip(f"no EGL here: {exc}")
         raise
     assert "servo: 1000 ticks" in out
-    frames = int(re.search(r"drawn meanwhile: (\d+) frames", out).group(1))
-    assert frames >= 2 and png.stat().st_size > 1000
+    frames, copies = (int(v) for v in re.search(r"drawn meanwhile: (\d+) frames from (\d+) state copies", out).groups())
+    assert frames >= 1 and copies >= 1000 // 16 and png.stat().st_size > 1000
