@@ -93,10 +93,33 @@ def test_peer_bench(tmp_path):
 def test_stability_bench(tmp_path):
     data, text = bench(tmp_path, "stability")
     classes = {c["class"] for c in data["wall"]}
-    assert classes <= {"stable", "buzzing", "unstable"} and "stable" in classes
+    assert classes <= {"stable", "buzzing", "unstable"} and "stable" in classes and "unstable" in classes
+    assert {c["device"] for c in data["wall"]} == set(data["devices"]) and len(data["devices"]) == 4
     # Colgate's passivity bound is sufficient: no passive cell may be found unstable
-    assert not [c for c in data["wall"] if c["passive_by_colgate"] and c["class"] != "stable"]
+    assert not [c for c in data["wall"] if c["passive_by_colgate"] and c["class"] == "unstable"]
+    # the measured boundary (perfect encoder, no passivity controller) within 10 % of the analysis
+    agree = data["boundary_agreement"]
+    assert agree["compared"] > 0 and agree["within_10pct"] == agree["compared"], data["boundaries"]
     assert all(c["ok"] for c in data["extremes"]), data["extremes"]
+    assert "passivity controller: " in text and "boundary:" in text
+
+
+def test_the_measured_wall_boundary_lies_between_stable_and_unstable_cells():
+    """A small grid of the stability bench on the Falcon model at 1 kHz and 250 Hz: a wall at
+    half the analytic boundary is bounded, one at twice it (and the issue's K = 1e4 N/m,
+    B = 0 at 1 kHz, which the old Euler-integrated handle called stable) is unstable, and
+    the bisected boundary lies between them, within 10 % of the exact sampled-wall poles'
+    (Colgate & Schenkel 1997's loop; Gil et al. 2004's small-period form 2(b + B)/T)."""
+    from softproxy.benchmarks.stability import boundary_cell, wall_run
+
+    assert wall_run("Falcon", 1e4, 0.0, 1000.0, encoder=False)["class"] == "unstable"
+    for rate, B in ((1000.0, 2.0), (250.0, 0.0)):
+        b = boundary_cell("Falcon", rate, B, encoder=False)
+        K = b["analytic_K"]
+        assert wall_run("Falcon", 0.5 * K, B, rate, encoder=False)["bounded"]
+        assert wall_run("Falcon", 2.0 * K, B, rate, encoder=False)["class"] == "unstable"
+        assert 0.5 * K < b["measured_bracket"][0] < b["measured_K"] < b["measured_bracket"][1] < 2.0 * K
+        assert abs(b["measured_K"] / K - 1.0) <= 0.10, b
 
 
 def test_tradeoff_bench(tmp_path):
