@@ -426,7 +426,9 @@ class SimulatedDevice:
         under NUMBA_DISABLE_JIT=1."""
         if not dk.JIT:
             return None
-        return dk.device_io(_cfuncs(), self._arrays, self.fingers, self.read_error, STALL, STALL_S)
+        # the motor limits as the state the send kernel saturates at, read by the loop every tick
+        return dk.device_io(_cfuncs(), self._arrays, self.fingers, self.read_error, STALL, STALL_S,
+                            self._floats[F_MAX_FORCE:F_MAX_TORQUE + 1])
 
     @classmethod
     def from_config(cls, cfg: dict, *, source: str = "<config>") -> "SimulatedDevice":

@@ -55,19 +55,31 @@ class DeviceSample:
         """True when the sample is valid and every field a finite number. Fields that are
         numbers of another type (int, numpy scalars) are made floats in place, so what the
         engine reads is always a float; a field that is no number (None, str, an array,
-        10**400) or a `valid` that is no truth value marks the sample not valid. Never raises."""
+        10**400, a number whose conversion raises) or a `valid` that is no single truth value
+        marks the sample not valid. Never raises."""
+        try:
+            return self._usable()
+        except Exception:
+            try:
+                self.valid = False
+            except Exception:
+                pass
+            return False
+
+    def _usable(self) -> bool:
         x, y, z, tw, qw, qx, qy, qz = self.x, self.y, self.z, self.twist, self.qw, self.qx, self.qy, self.qz
         valid = self.valid
         if not (type(x) is float and type(y) is float and type(z) is float and type(tw) is float
                 and type(qw) is float and type(qx) is float and type(qy) is float and type(qz) is float):
             try:  # a device handing over ints or numpy scalars is fine; None, str, arrays, 10**400 are not
                 x, y, z, tw, qw, qx, qy, qz = (_scalar(v) for v in (x, y, z, tw, qw, qx, qy, qz))
-            except (TypeError, ValueError, OverflowError):
+            except Exception:  # (a __float__ of the device's own may raise anything)
                 self.valid = False
                 return False
             self.x, self.y, self.z, self.twist, self.qw, self.qx, self.qy, self.qz = x, y, z, tw, qw, qx, qy, qz
         if valid is not True:  # 1 and numpy's True say valid too; None, str, arrays, 10**400 do not
-            if not ((isinstance(valid, Integral) or getattr(valid, "dtype", None) == bool) and valid == 1):
+            if not ((isinstance(valid, Integral) or (getattr(valid, "dtype", None) == bool and valid.ndim == 0))
+                    and valid == 1):
                 self.valid = False
                 return False
             self.valid = True

@@ -22,14 +22,16 @@ MAX_SQUARE = 1e300
 def guard_wrench(fx, fy, fz, tx, ty, tz, finger_fmax, finger_tmax, device_fmax, device_tmax):
     """(ok, fx, fy, fz, tx, ty, tz): the wrench scaled, direction kept, into |F| ≤ the smaller
     force limit (N) and |M| ≤ the smaller torque limit (N·m) of the finger and the device;
-    ok False and all zero when any input is not finite or a limit is outside [0, MAX_LIMIT].
-    NaN fails every comparison, so each test below passes only on good numbers."""
-    fmax = finger_fmax if finger_fmax < device_fmax else device_fmax if device_fmax <= finger_fmax else math.nan
-    tmax = finger_tmax if finger_tmax < device_tmax else device_tmax if device_tmax <= finger_tmax else math.nan
+    ok False and all zero when any input is not finite or any of the four limits is outside
+    [0, MAX_LIMIT]. NaN fails every comparison, so each test below passes only on good numbers."""
     f2 = fx * fx + fy * fy + fz * fz
     t2 = tx * tx + ty * ty + tz * tz
-    if not (f2 <= MAX_SQUARE and t2 <= MAX_SQUARE and 0.0 <= fmax <= MAX_LIMIT and 0.0 <= tmax <= MAX_LIMIT):
+    # every limit on its own: a device limit of inf or 1e9 is a broken number, not "no clamp"
+    if not (f2 <= MAX_SQUARE and t2 <= MAX_SQUARE and 0.0 <= finger_fmax <= MAX_LIMIT
+            and 0.0 <= finger_tmax <= MAX_LIMIT and 0.0 <= device_fmax <= MAX_LIMIT and 0.0 <= device_tmax <= MAX_LIMIT):
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    fmax = finger_fmax if finger_fmax < device_fmax else device_fmax
+    tmax = finger_tmax if finger_tmax < device_tmax else device_tmax
     if f2 > fmax * fmax:
         s = fmax / math.sqrt(f2)
         fx, fy, fz = fx * s, fy * s, fz * s

@@ -271,7 +271,10 @@ class CompiledIO(NamedTuple):
     the address points into; keep this object alive while a kernel may call the cfuncs.
     `read_error(code)`: the one-line message for a code read or send returned.
     `stall_code`: the code meaning "no answer", after which the caller waits `stall_s` (s);
-    0 when the device never stalls.
+    0 when the device never stalls. `limits`: a float64 array [max_force (N), max_torque
+    (N·m)] the device keeps current, which a compiled loop reads every tick (a device that
+    derates mid-run is obeyed the next tick); None when the limits are constants of the
+    device's class.
     """
 
     read: object
@@ -282,6 +285,7 @@ class CompiledIO(NamedTuple):
     read_error: Callable[[int], str]
     stall_code: int = 0
     stall_s: float = 0.0
+    limits: np.ndarray | None = None
 
 
 def build_cfuncs(read_c, send_c) -> tuple:
@@ -292,13 +296,16 @@ def build_cfuncs(read_c, send_c) -> tuple:
 
 
 def device_io(cfuncs: tuple, arrays, fingers: int, read_error, stall_code: int = 0,
-              stall_s: float = 0.0) -> CompiledIO:
+              stall_s: float = 0.0, limits: np.ndarray | None = None) -> CompiledIO:
     """A device's CompiledIO: its (read, send) cfuncs over the state block of its first
-    STATE_ARRAYS `arrays`, made here so it always holds these arrays' addresses."""
+    STATE_ARRAYS `arrays`, made here so it always holds these arrays' addresses; `limits`
+    (float64, [max_force, max_torque], a view of its state) when they may change mid-run."""
     state = tuple(arrays[:STATE_ARRAYS])
     block = pack_state(*state)
+    if limits is not None and (limits.dtype != np.float64 or limits.shape != (2,)):
+        raise ValueError("device_io: limits must be a float64 array [max_force, max_torque]")
     return CompiledIO(cfuncs[0], cfuncs[1], np.uintp(block.ctypes.data), fingers, (block, *state), read_error,
-                      stall_code, stall_s)
+                      stall_code, stall_s, limits)
 
 
 class SampleBuffer:

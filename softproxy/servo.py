@@ -104,6 +104,33 @@ class TickStats:
 
 _open_loops: "weakref.WeakSet[ServoLoop]" = weakref.WeakSet()
 """Loops started and not yet closed: the exit hook closes them (zero force) at interpreter exit."""
+_claims: dict[int, "weakref.ref[ServoLoop]"] = {}
+"""id(device) -> the loop that drives it, for every loop built and not yet closed: a device
+belongs to one open loop at a time (two would send it two forces, and closing one would leave
+the other driving a closed device)."""
+_claims_lock = threading.Lock()
+JOIN_S = 1.0
+"""How long `close()` waits (s, beyond the device's stall time) for a servo thread to end its
+block before it sends zero force and closes the device regardless."""
+
+
+def _claim(device, loop: "ServoLoop") -> None:
+    """Make `loop` the one open loop of `device`; ValueError if another open loop drives it."""
+    with _claims_lock:
+        ref = _claims.get(id(device))
+        other = ref() if ref is not None else None
+        if other is not None and not other.closed and other.device is device:
+            raise ValueError(f"device {type(device).__name__} is already driven by an open ServoLoop: "
+                             "close that loop (or leave its with block) before building another on it")
+        _claims[id(device)] = weakref.ref(loop)
+
+
+def _release(device, loop: "ServoLoop") -> None:
+    """`loop` closed: `device` is free for another."""
+    with _claims_lock:
+        ref = _claims.get(id(device))
+        if ref is not None and ref() in (loop, None):
+            del _claims[id(device)]
 
 
 @atexit.register
@@ -113,13 +140,13 @@ def _close_open_loops() -> None:
 
 
 def _compiled_io(device):
-    """The device's `compiled_io()`, or None when it has none, or when its read or send is not
-    the one its compiled_io belongs with (replaced on the instance or in a subclass): then
-    the Python call is what the caller asked for."""
+    """The device's `compiled_io()`, or None when it has none, or when its read, send or limits
+    are not the ones its compiled_io belongs with (replaced on the instance or in a subclass):
+    then the Python call is what the caller asked for, and the limits are read every tick."""
     owner = next((c for c in type(device).__mro__ if "compiled_io" in vars(c)), None)
     if owner is None:
         return None
-    for name in ("read", "send"):
+    for name in ("read", "send", "max_force", "max_torque"):
         if name in vars(device) or getattr(type(device), name, None) is not getattr(owner, name, None):
             return None
     return device.compiled_io()
@@ -130,9 +157,11 @@ class ServoLoop:
 
     Use it as `with ServoLoop(...) as loop:` (or call `close()`): leaving sends zero force and
     closes the device. A loop left open is closed by an exit hook when the interpreter exits,
-    and while a loop is open SIGTERM and SIGHUP (where still at their defaults) end the
-    program through SystemExit, so the hook and every `finally` on the way run
-    (`softproxy.termination`; `handle_signals=False` leaves the signals alone).
+    and while a loop is open SIGTERM, SIGHUP, SIGQUIT and the other signals whose default
+    ends the process (where still at their defaults) end the program through SystemExit, so
+    the hook and every `finally` on the way run (`softproxy.termination`;
+    `handle_signals=False` leaves the signals alone). A device belongs to one open loop at
+    a time (ValueError otherwise).
 
     The loop sets `world.model.opt.timestep` to its period (1 / rate_hz): MuJoCo takes exactly
     one step per servo tick, which the coupling needs (each tick the proxies follow the bodies
@@ -208,7 +237,12 @@ class ServoLoop:
         size, at = self.rows.F.dtype.itemsize, self.rows.F.dtype.fields["sent_fx"][1]
         self._sent_slots = [((i * size + at) // 8, f.params.device_finger) for i, f in enumerate(fingers)]
         self.error = None  # what ended a run_in_thread, if it failed
+        self._thread = None  # the thread inside run() (or started to run it), while one is
+        self._idle = threading.Event()  # clear while run() is in progress, in whatever thread
+        self._idle.set()
+        self._limit_array = np.zeros(2)  # [max_force, max_torque] for a compiled block whose device keeps none
         self._compile()
+        _claim(device, self)  # (a loop dropped unclosed leaves a dead reference: the device is free)
 
     # -- views of the state record ---------------------------------------------------------
     @property
@@ -259,8 +293,9 @@ class ServoLoop:
         self._paced_done = entry(kernel.paced_done, (self.state, stats.counters), with_names)
         if self.io is not None:
             io = self.io
+            limits = io.limits if io.limits is not None else self._limit_array
             self._block_args = ((self.state, m, d, io.read, io.send, io.address, samples,
-                                 np.uintp(samples.ctypes.data), self._device_of) + self._world_args()
+                                 np.uintp(samples.ctypes.data), limits, self._device_of) + self._world_args()
                                 + self._end_args[3:5] + self._end_args[8:])
             self._block = entry(kernel.run_ticks, self._block_args + (1, False), with_names)
 
@@ -287,24 +322,59 @@ class ServoLoop:
             for f in self.fingers:
                 f.placed = False
             return
+        usable = self._usable_samples()
         for f in self.fingers:
-            s = self.samples[f.params.device_finger]
-            if not s.usable():
+            j = f.params.device_finger
+            if not usable[j]:
                 f.placed = False  # placed at its first good sample instead
             else:
+                s = self.samples[j]
                 f.place(s.x, s.y, s.z)
 
+    def _usable_samples(self) -> list[bool]:
+        """Which of the device's samples are usable (`DeviceSample.usable`); never raises, whatever
+        the device put in the list: a slot holding anything but a DeviceSample, or missing
+        (the list shortened), is not usable and gets a fresh DeviceSample back for the next read."""
+        samples, n = self.samples, len(self._slots)
+        usable = [False] * n
+        broken = len(samples) != n
+        for j in range(min(n, len(samples)) if broken else n):
+            try:
+                s = samples[j]
+                if isinstance(s, DeviceSample):
+                    usable[j] = s.usable() is True
+                else:
+                    broken = True
+            except Exception:
+                broken = True
+        if broken:
+            try:
+                kept = [s if isinstance(s, DeviceSample) else DeviceSample() for s in list(samples)[:n]]
+            except Exception:
+                kept = []
+            samples[:] = kept + [DeviceSample() for _ in range(n - len(kept))]
+        return usable
+
     def _limits(self) -> None:
+        """The device's limits now, as the floats the guard takes: NaN (zero force, a fault)
+        for anything that is not a number, a property that raises included."""
         st = self.state[0]
-        st.fmax = as_limit(self.device.max_force)
-        st.tmax = as_limit(self.device.max_torque)
+        try:
+            st.fmax = as_limit(self.device.max_force)
+        except Exception:
+            st.fmax = math.nan
+        try:
+            st.tmax = as_limit(self.device.max_torque)
+        except Exception:
+            st.tmax = math.nan
+        self._limit_array[0], self._limit_array[1] = st.fmax, st.tmax
 
     def tick(self) -> None:
         """One servo tick at loop time `self.t`; advances time by one period."""
         if not self._started or self.closed:
             self.start()
-        self._limits()
         if self.compiled_block:
+            self._limits()
             self._run_block(1, False)
         else:
             self._python_tick()
@@ -331,6 +401,7 @@ class ServoLoop:
         """One tick with the device called from Python: read, the compiled tick up to the
         sends, the sends, the sensor channels, the rest of the compiled tick."""
         start = native.monotonic_ns()
+        self._limits()  # every tick: a device may derate, or its limits turn to garbage, mid-run
         ok = True
         try:
             self.device.read(self.t, self.samples)
@@ -349,10 +420,12 @@ class ServoLoop:
 
     def _take_samples(self) -> None:
         """The device's DeviceSamples into the SAMPLE rows the tick reads; a sample that is not
-        usable (not valid, or a field that is no finite number) is marked not valid."""
+        usable (not valid, a field that is no finite number, no DeviceSample at all) is marked
+        not valid."""
         floats, flags = self._floats, self._bytes
-        for (k, valid), s in zip(self._slots, self.samples):
-            if s.usable():  # every field is now a finite float
+        usable = self._usable_samples()
+        for (k, valid), s, good in zip(self._slots, self.samples, usable):
+            if good:  # every field is now a finite float
                 floats[k + 1] = s.x
                 floats[k + 2] = s.y
                 floats[k + 3] = s.z
@@ -366,8 +439,12 @@ class ServoLoop:
                 flags[valid] = 0
 
     def _sends(self) -> None:
-        """Each finger's device finger is sent what the tick computed for it (guarded, clamped)."""
+        """Each finger's device finger is sent what the tick computed for it (guarded, clamped);
+        zero once the loop is closing (`close()` from another thread)."""
         floats, device = self._sent, self.device
+        if self.state[0].halt:
+            self._zero_sends()
+            return
         for k, j in self._sent_slots:
             try:
                 device.send(j, floats[k], floats[k + 1], floats[k + 2], floats[k + 3], floats[k + 4], floats[k + 5])
@@ -395,12 +472,17 @@ class ServoLoop:
         """
         if every < 1:
             raise ValueError(f"every must be >= 1 tick, got {every!r}")
+        me = threading.current_thread()
+        running = self._thread
+        if running is not None and running is not me and not self._idle.is_set():
+            raise RuntimeError(f"this ServoLoop is already running in thread {running.name!r}")
+        self._thread = me
+        self._idle.clear()
         gc_was_enabled = gc.isenabled()
         st = self.state[0]
         try:
             if not self._started or self.closed:
                 self.start()
-            self._limits()
             if realtime:
                 self.paced = True
                 st.watching = self.overrun_watchdog is not False
@@ -410,13 +492,14 @@ class ServoLoop:
             block_s = FAST_BLOCK_S if self.rate_hz > FAST_RATE_HZ else BLOCK_S
             block = every if on_tick is not None else max(1, int(block_s * self.rate_hz))
             left = ticks
-            while left > 0 and not st.stop:
+            while left > 0 and not st.stop and not st.halt:
                 n = min(block, left)
                 if self.compiled_block:
+                    self._limits()  # the kernel reads them every tick (from the device's own state if it keeps them)
                     done = self._run_block(n, realtime)
                 else:
                     done = 0
-                    while done < n and not st.stop:
+                    while done < n and not st.stop and not st.halt:
                         if realtime:
                             self._pace(self.state)
                         self._python_tick()
@@ -432,7 +515,11 @@ class ServoLoop:
             st.watching = self.overrun_watchdog is True
             if gc_was_enabled:
                 gc.enable()
-            self.stop()
+            try:
+                if not st.halt:  # (closing: close() sends the zero once this run is over)
+                    self.stop()
+            finally:
+                self._idle.set()
 
     def request_stop(self) -> None:
         """Ask a `run` in progress (in another thread) to end after the tick it is in;
@@ -445,13 +532,22 @@ class ServoLoop:
         without the GIL, so this thread can draw or log meanwhile; it must not touch
         `world.data` (MuJoCo steps it) until the thread has ended: read state in `on_tick`,
         which runs on the servo thread between blocks. A failure in the run is kept in
-        `error` and the safe state is sent as always. `priority` (SCHED_FIFO, 1–99) and `cpu`
+        `error` and the safe state is sent as always. `close()` (a `with` block's end, an
+        exception, a termination signal in the main thread, the exit hook) stops the thread
+        before it sends zero force: nothing is sent after `close()` returns. `priority` (SCHED_FIFO, 1–99) and `cpu`
         ask for real-time scheduling of the servo thread (`softproxy.scheduling`); what the OS
         granted is kept in `scheduling`."""
         self.error = None
         self.scheduling = None
         if priority is not None:
             check_priority(priority)  # here, in the caller's thread, not in the servo thread
+        running = self._thread
+        if running is not None and not self._idle.is_set():
+            raise RuntimeError(f"this ServoLoop is already running in thread {running.name!r}")
+        if not self._started or self.closed:
+            # here, in the caller's (main) thread: only there can the termination signals be
+            # taken over, so that SIGTERM and the rest reach `close()`, which stops this thread
+            self.start()
 
         def servo() -> None:
             try:
@@ -462,8 +558,12 @@ class ServoLoop:
                     self.run(ticks, realtime=realtime, on_tick=on_tick, every=every)
             except BaseException as exc:
                 self.error = exc
+            finally:
+                self._idle.set()
 
         thread = threading.Thread(target=servo, name="softproxy-servo", daemon=True)
+        self._thread = thread
+        self._idle.clear()  # running from now on: close() waits for this thread's run to end
         thread.start()
         return thread
 
@@ -472,29 +572,64 @@ class ServoLoop:
         for f in self.fingers:
             try:
                 self.device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            except Exception:
+            except BaseException:
                 pass
 
+    def _zero_sends(self) -> None:
+        """Zero force to every finger, each one whatever the others' sends raise: a device's
+        error is counted; a BaseException (KeyboardInterrupt, an application's SystemExit out
+        of `send`) is raised again once every finger has had its zero."""
+        device, first = self.device, None
+        for f in self.fingers:
+            try:
+                device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            except Exception as exc:
+                self._send_failed(exc)
+            except BaseException as exc:
+                first = first or exc
+        if first is not None:
+            raise first
+
+    def _end_run_elsewhere(self) -> None:
+        """A run in another thread is asked to end and waited for (its own way out sends zero
+        too), up to JOIN_S beyond the device's stall time; past that, noted in
+        `last_device_error`, and the caller goes on to the safe state regardless."""
+        thread = self._thread
+        if thread is None or thread is threading.current_thread() or self._idle.is_set():
+            return
+        self.state[0].stop = True
+        wait = JOIN_S + (self.io.stall_s if self.io is not None else 0.0)
+        if self._idle.wait(wait):
+            self.state[0].stop = False  # (the run it asked to end is over: the next run is not stopped)
+        else:
+            self.last_device_error = (f"the servo thread {thread.name!r} did not end within {wait:g} s: zero force "
+                                      "sent from this thread regardless")
+
     def stop(self) -> None:
-        """The safe state: zero force to every finger first, then no finger wrench left on the
-        bodies. Termination signals wait until the zero force is sent (`termination.deferred`)."""
+        """The safe state: a run in another thread ended first, then zero force to every finger,
+        then no finger wrench left on the bodies. Termination signals wait until the zero force
+        is sent (`termination.deferred`)."""
         with termination.deferred():
-            device = self.device
-            for f in self.fingers:
-                try:
-                    device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-                except Exception as exc:
-                    self._send_failed(exc)
-            self.world.clear_wrenches()
-            for f in self.fingers:
-                f.clear_output()
+            self._end_run_elsewhere()
+            try:
+                self._zero_sends()
+            finally:
+                self.world.clear_wrenches()
+                for f in self.fingers:
+                    f.clear_output()
 
     def close(self) -> None:
-        """`stop()`, then close the device; the loop cannot tick again. Safe to call twice."""
+        """`stop()`, then close the device; the loop cannot tick again. From any thread: a run in
+        another thread sends only zero from the moment this is called, and has ended (or been
+        waited for JOIN_S) before the zero force goes out, so nothing is sent after `close()`
+        returns. Safe to call twice."""
         if self.closed:
             return
         with termination.deferred():
             self.closed = True
+            st = self.state[0]
+            st.halt = True  # a block running elsewhere sends zero from its next send on, then ends
+            st.stop = True
             _open_loops.discard(self)
             try:
                 self.stop()
@@ -503,10 +638,12 @@ class ServoLoop:
                     self.device.close()
                 except Exception as exc:  # the zero force went out first; say what closing said
                     self.last_device_error = f"closing the device: {exc or type(exc).__name__}"
-                if self._signals is not None:
-                    self._signals()
-                if self._unregister_fatal is not None:
-                    self._unregister_fatal()
+                finally:
+                    _release(self.device, self)
+                    if self._signals is not None:
+                        self._signals()
+                    if self._unregister_fatal is not None:
+                        self._unregister_fatal()
 
     def __enter__(self) -> "ServoLoop":
         return self

@@ -1,11 +1,17 @@
 """Termination signals become an orderly exit, so that a driven motor is always sent zero force.
 
-By default SIGTERM (`kill PID`, a service stop) and SIGHUP (a closed terminal) end a Python
-process on the spot: no `finally` block runs, no exit hook, and a haptic device keeps the
-last force it was sent. While a servo loop is open (`ServoLoop.start` to `close`), the
-handlers this module installs turn them into `SystemExit(128 + signal number)` (the exit
-status a shell reports for the signal), and SIGINT into `KeyboardInterrupt` as Python does,
-so every `finally`, `with` block and exit hook on the way out runs and sends zero force.
+By default SIGTERM (`kill PID`, a service stop), SIGHUP (a closed terminal), SIGQUIT
+(Ctrl-\\), SIGUSR1/2, SIGALRM and the other signals whose default action ends the process
+(`HANDLED`) end a Python process on the spot: no `finally` block runs, no exit hook, and a
+haptic device keeps the last force it was sent. While a servo loop is open
+(`ServoLoop.start` to `close`), the handlers this module installs turn each into
+`SystemExit(128 + signal number)` (the exit status a shell reports for the signal), and
+SIGINT into `KeyboardInterrupt` as Python does, so every `finally`, `with` block and exit
+hook on the way out runs and sends zero force (a servo thread is stopped first:
+`ServoLoop.close`). SIGPIPE and SIGXFSZ are ignored by Python itself (a write then raises);
+they are taken over only where an application set them back to their default. The faults a
+program raises on itself (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP, SIGSYS) are not:
+a Python handler cannot run before the process dies of them.
 
 A signal that arrives while a loop is sending its zero force (inside `deferred()`) is held
 until that is done and raised then: a second Ctrl-C cannot cut the safe state short.
@@ -21,8 +27,12 @@ import signal
 import threading
 from contextlib import contextmanager
 
-HANDLED = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP", "SIGINT") if hasattr(signal, name))
-"""The signals turned into exceptions (SIGHUP does not exist on Windows)."""
+_ENDING = ("SIGTERM", "SIGHUP", "SIGINT", "SIGQUIT", "SIGUSR1", "SIGUSR2", "SIGALRM", "SIGPIPE", "SIGVTALRM",
+           "SIGPROF", "SIGIO", "SIGPWR", "SIGSTKFLT", "SIGXCPU", "SIGXFSZ")
+HANDLED = tuple(getattr(signal, name) for name in _ENDING if hasattr(signal, name)) + (
+    tuple(range(signal.SIGRTMIN, signal.SIGRTMAX + 1)) if hasattr(signal, "SIGRTMIN") else ())
+"""The signals turned into exceptions: every one a process can catch whose default action
+ends it, the real-time signals included (those a platform lacks are left out)."""
 
 _installed: dict[int, object] = {}  # signal -> the handler it had before ours
 _users = 0  # open loops relying on the handlers
@@ -58,7 +68,10 @@ def install() -> bool:
         return False
     for sig in HANDLED:
         if sig not in _installed and signal.getsignal(sig) is _default(sig):
-            _installed[sig] = signal.signal(sig, _handler)
+            try:
+                _installed[sig] = signal.signal(sig, _handler)
+            except (OSError, ValueError):  # a signal this platform reserves: left as it is
+                pass
     if not _installed:
         return False
     _users += 1

@@ -267,6 +267,9 @@ CHILD = textwrap.dedent("""
         while True:
             loop.tick()
             time.sleep(0.0005)
+    elif how == "thread":  # the servo in its own thread, the main thread waiting on it (no with, no close)
+        thread = loop.run_in_thread(60_000, realtime=True)
+        thread.join()
     elif how == "raises":
         def boom(lp):
             if lp.ticks == 3000:
@@ -289,11 +292,13 @@ def _last_sends(log: str) -> dict:
 @pytest.mark.parametrize("how, sig", [
     ("run", signal.SIGTERM), ("run", signal.SIGHUP), ("run", signal.SIGINT),
     ("embedded", signal.SIGTERM), ("embedded", signal.SIGHUP), ("cli", signal.SIGTERM), ("cli", signal.SIGHUP),
-    ("raises", None),
+    ("thread", signal.SIGTERM), ("thread", signal.SIGQUIT), ("thread", signal.SIGUSR1), ("cli", signal.SIGQUIT),
+    ("cli", signal.SIGUSR1), ("run", signal.SIGALRM), ("raises", None),
 ])
 def test_every_way_out_of_a_run_sends_zero_force(tmp_path, how, sig):
-    """A process running the grasp (holding ~3 N per finger) is killed, hung up, interrupted, or
-    its application raises: the last thing each finger was sent is zero, and the device was closed."""
+    """A process running the grasp (holding ~3 N per finger), in the main thread or in a servo
+    thread, is killed, hung up, interrupted, sent SIGQUIT, SIGUSR1 or SIGALRM, or its application
+    raises: the last thing each finger was sent is zero, and the device was closed."""
     log = tmp_path / "sends.log"
     proc = subprocess.Popen([sys.executable, "-c", CHILD, str(log), how], stdout=subprocess.DEVNULL,
                             preexec_fn=_deadly_signals_by_default,
@@ -322,7 +327,7 @@ def test_every_way_out_of_a_run_sends_zero_force(tmp_path, how, sig):
     assert all(w == [0.0] * 6 for w in last.values())
     assert text.rstrip().endswith("close")
     assert sends > 2000  # it had been holding the box
-    if sig in (signal.SIGTERM, signal.SIGHUP):
+    if sig not in (None, signal.SIGINT):
         assert code == 128 + sig
 
 

@@ -10,8 +10,9 @@ and `end_tick` around its own read and sends, so both paths share every line of 
 but the device I/O.
 
 The loop's scalar state is one `LOOP` record (`loop`, an array of one): loop time, period, the watchdog, the fault
-counters, the device's last error codes and a `stop` flag another thread may set to end a
-block early (the kernel reads it every tick), and, while `profile` is set, the time of each
+counters, the device's last error codes, a `stop` flag another thread may set to end a
+block early (the kernel reads it every tick), a `halt` flag that makes every later send zero
+(the loop is closing: only zero may reach the device), and, while `profile` is set, the time of each
 stage of the last tick (`STAGES`; the device's stages only in a compiled block). Tick statistics go into the ring buffers of
 `softproxy.servo.TickStats` (durations in s) and its counters [count, misses].
 """
@@ -45,6 +46,7 @@ LOOP = np.dtype([
     ("watching", np.bool_),  # the overrun watchdog is on
     ("audit", np.bool_),  # measure every proxy's depth inside the shapes (slow)
     ("stop", np.bool_),  # set from outside: end the block after the current tick
+    ("halt", np.bool_),  # set by close(): every send from now on is zero, whoever makes it
     ("profile", np.bool_),  # time the stages of each tick into stage_ns
     ("mark", np.int64),  # when the last stage ended (ns), while profiling
     ("stage_ns", np.int64, (len(STAGES),)),  # the last tick's stages (ns), while profiling
@@ -138,21 +140,24 @@ def end_tick(loop, m, d, xfrc, xipos, wrench, bodies, counts, durations, periods
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_ticks(loop, m, d, read, send, io, samples, samples_at, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch,
-              wrench, bodies, counts, xfrc, xipos, durations, periods, counters, n, paced):
+def run_ticks(loop, m, d, read, send, io, samples, samples_at, limits, device_of, S, T, C, xpos, xmat, cvel, F, near,
+              scratch, wrench, bodies, counts, xfrc, xipos, durations, periods, counters, n, paced):
     """Up to n ticks (fewer if `L.stop` is set), paced in real time or not; returns how many
     ran. `read`/`send`: the device's cfuncs over its state at `io`; `samples` its SAMPLE rows
-    (at address `samples_at`). A read that fails renders no finger (each holds) and counts a
-    device_error; one that stalled waits the device's stall time first."""
+    (at address `samples_at`); `limits` its [max_force (N), max_torque (N·m)], read every
+    tick. A read that fails renders no finger (each holds) and counts a device_error; one
+    that stalled waits the device's stall time first."""
     L = loop[0]
     rows = samples.shape[0]
     done = 0
-    while done < n and not L.stop:
+    while done < n and not L.stop and not L.halt:
         if paced:
             pace(loop)
         start = monotonic_ns()
         L.mark = start
         code = read(io, L.t, samples_at, rows)
+        L.fmax = limits[0]  # a device that derates mid-run is obeyed from this tick on
+        L.tmax = limits[1]
         _stage(L, READ_STAGE)
         if code != 0:
             L.device_error += 1
@@ -163,7 +168,10 @@ def run_ticks(loop, m, d, read, send, io, samples, samples_at, device_of, S, T, 
                    bodies, counts)
         for i in range(F.shape[0]):
             f = F[i]
-            code = send(io, device_of[i], f.sent_fx, f.sent_fy, f.sent_fz, f.sent_tx, f.sent_ty, f.sent_tz)
+            if L.halt:  # closing from another thread: this block may send nothing but zero
+                code = send(io, device_of[i], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            else:
+                code = send(io, device_of[i], f.sent_fx, f.sent_fy, f.sent_fz, f.sent_tx, f.sent_ty, f.sent_tz)
             if code != 0:
                 L.send_error += 1
                 L.send_code = code
