@@ -25,6 +25,20 @@ ran them (timings aside).
 
 A cell that raises is caught where it runs and comes back as an `Outcome` whose `error` is one
 line (exception, message, where) with its parameters; the other cells are not disturbed.
+
+A signal is not a cell's failure: it is someone stopping the work. A termination signal
+(SIGTERM from `timeout` or a service stop, SIGHUP, SIGQUIT, ...) that reaches a cell, in this
+process or in a pool worker, or a worker killed by SIGKILL or one of those signals, stops
+the whole sweep: `SweepStopped` (one line naming the cell and the signal; `status` is the
+shell's 128 + signal number), the pool's workers ended, Ray's tasks cancelled. The same
+signals sent to this process while it waits on a pool or Ray end the sweep the same way
+(`softproxy.termination` turns them into an orderly exit while a sweep runs, as it does
+while a servo loop runs). A crash of the cell's own making (SIGSEGV, SIGABRT, an exit
+status) is that cell's failure, as above.
+
+`--workers N` is capped at the CPUs this process may run on (`cpu_count()`): more processes
+than cores only make every cell slower and the machine unresponsive. `--oversubscribe` lifts
+the cap for whoever knows better (cells that mostly wait).
 """
 
 from __future__ import annotations
@@ -32,6 +46,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import signal
 import socket
 import sys
 import time
@@ -41,19 +56,64 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Callable, Iterator, Sequence
 
+from softproxy import termination
+
 CLUSTER_EXTRA = "pip install 'softproxy[cluster]'"
 """How to get Ray (the `cluster` extra of pyproject.toml)."""
 RAY_RETRIES = 1
 """Times Ray runs a cell again whose worker died: once covers a lost node; a cell that kills its
 worker every time is reported as failed, not run four times (Ray's default)."""
 RAY_WAIT_S = 1.0
-RAY_CONNECT_S = 5.0
-"""How long a cluster address may take to accept a connection (s) before --ray gives up on it."""
 """Longest wait for a Ray result before looking again (s): how late Ctrl-C may be seen."""
+RAY_CONNECT_S = 3.0
+"""How long a cluster address may take to accept a connection (s) before --ray gives up on it."""
+WORKER_STOP_S = 2.0
+"""How long a pool's workers get to end after SIGTERM when a sweep stops (s), before SIGKILL."""
+STOPPING = frozenset(termination.HANDLED) - {signal.SIGINT} | {signal.SIGKILL}
+"""Signals that, ending a cell's process or reaching a cell, stop the whole sweep (someone
+stopping the work, not the cell failing). SIGINT (Ctrl-C) stops it too, as KeyboardInterrupt."""
 
 
 class BackendError(ValueError):
     """A backend that cannot be used (bad flag, Ray missing or unreachable); one line naming the flag."""
+
+
+class SweepStopped(RuntimeError):
+    """A signal stopped a cell or the sweep: the sweep ends as a whole. One line; `status` is the
+    exit status a shell gives for the signal (128 + its number)."""
+
+    def __init__(self, message: str, sig: int) -> None:
+        super().__init__(message)
+        self.signal = sig
+        self.status = 128 + sig
+
+
+def cpu_count() -> int:
+    """The CPUs this process may run on (its affinity mask where the platform has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def signal_of(exc: BaseException) -> int | None:
+    """The signal number behind a SystemExit that `softproxy.termination` raised for a signal,
+    else None (a cell's own sys.exit is not a signal, whatever its code)."""
+    if not isinstance(exc, SystemExit):
+        return None
+    tb = exc.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code is termination._raise.__code__:
+            return exc.code - 128 if isinstance(exc.code, int) else None
+        tb = tb.tb_next
+    return None
+
+
+def _signal_name(sig: int) -> str:
+    try:
+        return signal.Signals(sig).name
+    except ValueError:
+        return f"signal {sig}"
 
 
 @dataclass(frozen=True)
@@ -64,20 +124,36 @@ class Backend:
 
     workers: int = 0
     ray: str | None = None
+    asked: int | None = None  # --workers as given, when the CPU count capped it
 
     @classmethod
-    def from_flags(cls, workers: int | None = None, ray: str | None = None, command: str = "softproxy") -> "Backend":
+    def from_flags(cls, workers: int | None = None, ray: str | None = None, command: str = "softproxy",
+                   oversubscribe: bool = False) -> "Backend":
         """The backend of `--workers N` / `--ray [ADDRESS]`; BackendError (one line naming the
-        flag and the fix) for a bad count, both flags together, or Ray not installed."""
+        flag and the fix) for a bad count, both flags together, or Ray not installed. N is
+        capped at `cpu_count()` unless `oversubscribe` (`--oversubscribe`); `note` says so."""
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise BackendError(f"{command}: --workers must be a number of worker processes >= 1, got {workers!r}")
         if workers is not None and ray is not None:
             raise BackendError(f"{command}: give --workers N (a local pool) or --ray [ADDRESS] (Ray decides its "
                                f"own parallelism), not both")
+        if oversubscribe and workers is None:
+            raise BackendError(f"{command}: --oversubscribe lets --workers N exceed the CPU count; give --workers N")
         if ray is not None:
             ray = ray.strip()
             _import_ray(f"{command}: --ray")
-        return cls(workers=workers or 0, ray=ray)
+        asked = None
+        if workers is not None and not oversubscribe and workers > cpu_count():
+            asked, workers = workers, cpu_count()
+        return cls(workers=workers or 0, ray=ray, asked=asked)
+
+    @property
+    def note(self) -> str | None:
+        """One line saying that --workers was capped (None if it was not)."""
+        if self.asked is None:
+            return None
+        return (f"--workers {self.asked} capped at the {self.workers} CPU(s) this process may use; "
+                f"add --oversubscribe to start {self.asked} worker processes anyway")
 
     def describe(self) -> str:
         """One phrase for reports: "serial", "a pool of 2 worker processes", "Ray (this machine)"."""
@@ -127,11 +203,14 @@ def _worker_name() -> str:
 
 def run_cell(fn: Callable, index: int, params: dict) -> Outcome:
     """Run one cell where this is called, catching what it raises (SystemExit included: a cell
-    must not end its worker); KeyboardInterrupt still stops the sweep."""
+    must not end its worker); KeyboardInterrupt, and the SystemExit of a termination signal
+    (`signal_of`), still stop the sweep."""
     start = time.perf_counter()
     try:
         value = fn(**params)
     except (Exception, SystemExit) as exc:
+        if signal_of(exc) is not None:
+            raise
         message = " ".join(str(exc).split()) or "(no message)"
         return Outcome(index, params, error=f"{type(exc).__name__}: {message}{_where(exc)}",
                        trace="".join(traceback.format_exception(exc)), seconds=time.perf_counter() - start,
@@ -162,10 +241,34 @@ def each_outcome(fn: Callable, cells: Sequence[dict], backend: Backend = Backend
     elif backend.workers:
         source = _pool_outcomes(fn, cells, backend.workers)
     else:
-        source = (run_cell(fn, i, params) for i, params in enumerate(cells))
-    for done, outcome in enumerate(source, 1):
-        if progress is not None:
-            progress(done, len(cells), outcome)
+        source = _serial_outcomes(fn, cells)
+    installed = termination.install()  # a signal to this process: an orderly stop (workers ended)
+    try:
+        for done, outcome in enumerate(source, 1):
+            if progress is not None:
+                progress(done, len(cells), outcome)
+            yield outcome
+    except SystemExit as exc:
+        sig = signal_of(exc)
+        if sig is None:
+            raise
+        source.close()  # the pool's workers ended, Ray's tasks cancelled, before the line is said
+        raise SweepStopped(f"stopped by {_signal_name(sig)}", sig) from None
+    finally:
+        source.close()
+        if installed:
+            termination.uninstall()
+
+
+def _serial_outcomes(fn: Callable, cells: list[dict]) -> Iterator[Outcome]:
+    for i, params in enumerate(cells):
+        try:
+            outcome = run_cell(fn, i, params)
+        except SystemExit as exc:
+            sig = signal_of(exc)
+            if sig is None:
+                raise
+            raise SweepStopped(f"cell {i} was stopped by {_signal_name(sig)}; the sweep stops", sig) from None
         yield outcome
 
 
@@ -178,6 +281,11 @@ _started = None  # in a pool worker: the shared flags, one per cell, set when th
 def _init_worker(started) -> None:
     global _started
     _started = started
+    termination.install()  # kept for the worker's life: a signal to it reaches the cell as SystemExit
+
+
+def _stopped(index: int, sig: int, how: str) -> SweepStopped:
+    return SweepStopped(f"cell {index}'s worker process {how} {_signal_name(sig)}; the sweep stops", sig)
 
 
 def _pool_cell(fn: Callable, index: int, params: dict) -> Outcome:
@@ -187,6 +295,7 @@ def _pool_cell(fn: Callable, index: int, params: dict) -> Outcome:
 
 def _alone(fn: Callable, index: int, params: dict, conn) -> None:
     """A cell in a process of its own (a suspect after a worker died): its outcome down `conn`."""
+    termination.install()
     conn.send(run_cell(fn, index, params))
     conn.close()
 
@@ -202,13 +311,30 @@ def _run_alone(context, fn: Callable, index: int, params: dict) -> Outcome:
     except EOFError:  # the process ended without sending: it died running the cell
         outcome = None
     finally:
+        if sys.exc_info()[0] is not None:  # this process is being stopped: so is the cell's
+            process.terminate()
         process.join()
         reader.close()
+    code = process.exitcode
+    for sig in STOPPING:
+        if code in (-sig, 128 + sig):
+            raise _stopped(index, sig, "was ended by" if code < 0 else "stopped on")
     if outcome is None:
         outcome = Outcome(index, params, error=f"its worker process died running it (exit status "
                                                f"{process.exitcode}: a crash, or the process ended itself)",
                           worker=f"{socket.gethostname()}:{process.pid}")
     return outcome
+
+
+def _end(processes: list, timeout: float = WORKER_STOP_S) -> None:
+    """Make sure the pool's worker processes are gone: those left `timeout` s after SIGTERM get SIGKILL."""
+    deadline = time.monotonic() + timeout
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+    for process in processes:
+        if process.is_alive():
+            process.kill()
+            process.join(timeout)
 
 
 def _pool_outcomes(fn: Callable, cells: list[dict], workers: int) -> Iterator[Outcome]:
@@ -224,9 +350,11 @@ def _pool_outcomes(fn: Callable, cells: list[dict], workers: int) -> Iterator[Ou
         started = context.Array("b", len(cells), lock=False)
         pool = ProcessPoolExecutor(max_workers=min(workers, len(left)), mp_context=context,
                                    initializer=_init_worker, initargs=(started,))
-        broken = False
+        broken = finished = False
+        processes: list = []
         try:
             futures = {pool.submit(_pool_cell, fn, i, cells[i]): i for i in sorted(left)}
+            processes = list(getattr(pool, "_processes", {}).values())  # to learn how a dead one ended
             pending = set(futures)
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -236,10 +364,25 @@ def _pool_outcomes(fn: Callable, cells: list[dict], workers: int) -> Iterator[Ou
                     except BrokenProcessPool:
                         broken = True
                         continue
+                    except SystemExit as exc:  # a signal reached the cell in its worker
+                        sig = signal_of(exc) or (exc.code - 128 if isinstance(exc.code, int) else signal.SIGTERM)
+                        raise _stopped(futures[future], sig, "was stopped by") from None
                     left.discard(outcome.index)
                     yield outcome
+            finished = True
         finally:
-            pool.shutdown(wait=not broken, cancel_futures=True)
+            if not finished:  # stopped (a signal, an error, the caller gave up): end the workers now
+                for process in processes:
+                    process.terminate()
+            pool.shutdown(wait=not broken and finished, cancel_futures=True)
+            if broken or not finished:  # a worker the pool ended mid-cell may hang sending its result
+                _end(processes)
+                pool.shutdown(wait=True)  # its workers gone: its queues and their semaphores freed
+        # The pool ends the workers left when one dies with SIGTERM: a SIGKILL is from outside.
+        killed = [p for p in processes if p.exitcode == -signal.SIGKILL]
+        if broken and killed:
+            index = min((i for i in left if started[i]), default=min(left))
+            raise _stopped(index, signal.SIGKILL, "was ended by")
         suspects = sorted(i for i in left if started[i])
         if broken and not suspects:  # died before any cell began (an import failing, say): blame them all
             suspects = sorted(left)
@@ -257,17 +400,38 @@ def _import_ray(flag: str):
 
 
 def _probe(address: str) -> None:
-    """BackendError unless HOST:PORT of `address` (`ray://HOST:PORT` or `HOST:PORT`) accepts a
-    connection within RAY_CONNECT_S: Ray itself retries an address that is down for minutes."""
+    """BackendError unless `address` (`HOST:PORT` of a Ray head's GCS, or `ray://HOST:PORT` of
+    its client server) accepts a connection and answers as Ray within RAY_CONNECT_S each. Ray
+    itself retries an address that is down, or that something else answers, for 20 s to
+    minutes, logging each try to stderr; this asks once, quietly."""
+    client = address.startswith("ray://")
     target = address.removeprefix("ray://")
     host, colon, port = target.rpartition(":")
     if not colon or not port.isdigit():
         return  # "auto", or a form Ray resolves itself
+    fix = "give the address of a running cluster (ray start --head prints it)"
     try:
         socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_S).close()
     except OSError as exc:
-        raise BackendError(f"--ray {address}: cannot reach {host}:{port} ({exc.strerror or exc}); give the address "
-                           f"of a running cluster (ray start --head prints it)") from None
+        raise BackendError(f"--ray {address}: cannot reach {host}:{port} ({exc.strerror or exc}); {fix}") from None
+    import grpc  # Ray's own dependency, and its stubs: one call, with a deadline
+    from ray.core.generated import gcs_service_pb2, gcs_service_pb2_grpc, ray_client_pb2, ray_client_pb2_grpc
+
+    channel = grpc.insecure_channel(target)
+    try:
+        if client:
+            ray_client_pb2_grpc.RayletDriverStub(channel).ClusterInfo(
+                ray_client_pb2.ClusterInfoRequest(type=ray_client_pb2.ClusterInfoType.PING), timeout=RAY_CONNECT_S)
+        else:
+            gcs_service_pb2_grpc.NodeInfoGcsServiceStub(channel).GetClusterId(
+                gcs_service_pb2.GetClusterIdRequest(), timeout=RAY_CONNECT_S)
+    except grpc.RpcError as exc:
+        what = "a Ray client server" if client else "a Ray head (its GCS)"
+        said = " ".join(str(exc.details() or exc.code()).split())[:120]
+        raise BackendError(f"--ray {address}: {host}:{port} is not {what} ({exc.code().name}: {said}); "
+                           f"{fix}{'' if client else '; a Ray client address is ray://HEAD:10001'}") from None
+    finally:
+        channel.close()
 
 
 _ray_address: str | None = None  # the address this module connected Ray to ("" = started here)

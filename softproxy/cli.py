@@ -395,13 +395,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if name not in benches:
             print(f"softproxy bench: no benchmark {name!r}; have: {', '.join(sorted(benches))}, all", file=sys.stderr)
             return 2
-    from softproxy.cells import Backend, BackendError
+    from softproxy.cells import Backend, BackendError, SweepStopped
 
     try:  # the grids of stability and tradeoff run their cells on this (softproxy.cells)
-        args.backend = Backend.from_flags(args.workers, args.ray, "softproxy bench")
+        args.backend = Backend.from_flags(args.workers, args.ray, "softproxy bench", args.oversubscribe)
     except BackendError as exc:
         print(exc, file=sys.stderr)
         return 2
+    if args.backend.note:
+        print(f"softproxy bench: note: {args.backend.note}", file=sys.stderr)
     if not _check_out_folder("bench", args.out):
         return 2
     for name in names:
@@ -410,6 +412,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
         except BackendError as exc:  # Ray that cannot start or be reached
             print(f"softproxy bench: {exc}", file=sys.stderr)
             return 2
+        except SweepStopped as exc:
+            print(f"softproxy bench: {name}: {exc}", file=sys.stderr)
+            return exc.status
         if code:
             return code
     return 0
@@ -417,14 +422,16 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def cmd_replay_batch(args: argparse.Namespace) -> int:
     """Replay recordings under variations of the engine; one table, a summary and a chart."""
-    from softproxy.cells import Backend, BackendError
+    from softproxy.cells import Backend, BackendError, SweepStopped
     from softproxy.replay_batch import BatchError, report, run_batch, write
 
     try:
-        backend = Backend.from_flags(args.workers, args.ray, "softproxy replay-batch")
+        backend = Backend.from_flags(args.workers, args.ray, "softproxy replay-batch", args.oversubscribe)
     except BackendError as exc:
         print(exc, file=sys.stderr)
         return 2
+    if backend.note:
+        print(f"softproxy replay-batch: note: {backend.note}", file=sys.stderr)
     if not _check_out_folder("replay-batch", args.out):
         return 2
     try:
@@ -432,6 +439,9 @@ def cmd_replay_batch(args: argparse.Namespace) -> int:
     except (BatchError, BackendError) as exc:
         print(f"softproxy replay-batch: {exc}", file=sys.stderr)
         return 2
+    except SweepStopped as exc:  # a signal: the batch stops as a whole, nothing written
+        print(f"softproxy replay-batch: {exc}", file=sys.stderr)
+        return exc.status
     paths = write(result, args.out)
     if args.json:
         print(json.dumps(result["summary"], indent=2))
@@ -595,7 +605,10 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_backend_flags(p: argparse.ArgumentParser, what: str) -> None:
     """--workers N and --ray [ADDRESS]: where `what` run (softproxy.cells; serial without either)."""
     p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help=f"run {what} in N worker processes (default: serially, in this process)")
+                   help=f"run {what} in N worker processes (default: serially, in this process); at most "
+                        f"one per CPU unless --oversubscribe")
+    p.add_argument("--oversubscribe", action="store_true",
+                   help="let --workers N start more worker processes than there are CPUs")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help=f"run {what} as Ray tasks: on a Ray started here, or on the cluster at ADDRESS "
                         f"(auto, HOST:6379, ray://HOST:10001); needs pip install 'softproxy[cluster]'")

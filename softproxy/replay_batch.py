@@ -48,7 +48,7 @@ from softproxy.cells import Backend, Outcome, each_outcome
 from softproxy.device import DeviceError, DeviceSample
 from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
-from softproxy.recording import Recording, RecordingDevice, RecordingError, read_header
+from softproxy.recording import Recording, RecordingDevice, RecordingError, load_recording, read_header
 from softproxy.run import check_device_fingers, open_device, run_scene
 from softproxy.scene import SceneError, load_scene
 from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ
@@ -169,7 +169,9 @@ def _varied(scene, variation: dict, where: str):
 def plan(inputs: list[str], specs: list[str], scene: str | None = None) -> tuple[list[dict], list[str]]:
     """The cells of a batch (recording-major: the unvaried replay, then each variation in the
     order given) and the recordings' names; BatchError (one line) for anything that would make
-    every replay of a recording fail: a path, a file that is no recording, a scene, a variation."""
+    every replay of a recording fail: a path, a file that is no recording or is damaged (each
+    is read whole and checked, checksums and the reads it claims included, before any replay
+    starts), a scene, a variation."""
     variations = [{"label": UNVARIED, "model": None, "rate": None, "fingers": {}}]
     for spec in specs:
         v = parse_variation(spec)
@@ -186,6 +188,10 @@ def plan(inputs: list[str], specs: list[str], scene: str | None = None) -> tuple
             header = read_header(path)
         except RecordingError as exc:
             raise BatchError(f"{exc}; replay only recordings made by softproxy run --record") from None
+        try:
+            load_recording(path)  # the body: damage, and what it claims (a replay runs a tick per claimed read)
+        except RecordingError as exc:
+            raise BatchError(f"{exc}; leave it out of the batch") from None
         scene_name = scene or header.get("scene")
         if not isinstance(scene_name, str) or not scene_name:
             raise BatchError(f"{name}: its header names no scene; give the scene it was recorded on with --scene")

@@ -10,7 +10,7 @@ import pytest
 
 from softproxy.benchmarks import stability
 from softproxy import cli
-from softproxy.cells import Backend, BackendError, run_cells
+from softproxy.cells import Backend, BackendError, SweepStopped, cpu_count, run_cells
 
 # A few real cells of `bench stability` (a hand-held handle against a wall) and one whose
 # stiffness FingerParams refuses.
@@ -44,6 +44,15 @@ def dies(i: int) -> int:
     if i == 2:
         os._exit(3)  # as a MuJoCo error inside the tick ends a process
     return i * i
+
+
+def signalled(i: int, sig: int) -> int:
+    """Cell 2 sends `sig` to its own process, as `timeout` or `kill` would, and waits for it."""
+    if i == 2:
+        os.kill(os.getpid(), sig)
+        for _ in range(3000):  # the signal's handler (or its default action) ends this
+            time.sleep(0.01)
+    return i
 
 
 def check_outcomes(outcomes):
@@ -150,14 +159,90 @@ def test_bench_backend_flag_errors(argv, says, capsys, monkeypatch, tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-def test_an_unreachable_cluster_is_one_line_and_quick():
-    """--ray at an address where nothing listens: BackendError naming it within seconds (Ray
-    itself would retry for minutes)."""
-    pytest.importorskip("ray")
-    start = time.monotonic()
+def test_an_unreachable_cluster_is_one_line_and_ray_never_tries_it(monkeypatch):
+    """--ray at an address where nothing listens, or where something that is not Ray answers
+    (an HTTP server here; a proxy in some networks): BackendError naming it, without entering
+    ray.init, which would retry for 20 s to minutes and log every try to stderr."""
+    ray = pytest.importorskip("ray")
+    import http.server
+    import threading
+
+    def no_init(*args, **kwargs):
+        raise AssertionError("ray.init was called for an address that is not Ray")
+
+    monkeypatch.setattr(ray, "init", no_init)
     with pytest.raises(BackendError, match=r"--ray 127.0.0.1:1: cannot reach 127.0.0.1:1"):
         run_cells(stability.cell, WALL[:1], Backend(ray="127.0.0.1:1"))
-    assert time.monotonic() - start < 10.0
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    port = server.server_address[1]
+    try:
+        for address, what in ((f"127.0.0.1:{port}", "is not a Ray head"),
+                              (f"ray://127.0.0.1:{port}", "is not a Ray client server")):
+            with pytest.raises(BackendError) as err:
+                run_cells(stability.cell, WALL[:1], Backend(ray=address))
+            message = str(err.value)
+            assert f"--ray {address}: 127.0.0.1:{port} {what}" in message and "\n" not in message
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def test_workers_are_capped_at_the_cpu_count_unless_asked():
+    """--workers 1000 starts one worker per CPU (and says so in one line); --oversubscribe lets
+    it start 1000; --oversubscribe without --workers is a mistake."""
+    capped = Backend.from_flags(1000, None, "softproxy bench")
+    assert capped.workers == cpu_count() and capped.asked == 1000
+    assert "--workers 1000 capped at the" in capped.note and "--oversubscribe" in capped.note
+    assert Backend.from_flags(1000, None, "softproxy bench", oversubscribe=True).workers == 1000
+    assert Backend.from_flags(1, None, "softproxy bench").note is None
+    with pytest.raises(BackendError, match="--oversubscribe .* give --workers N"):
+        Backend.from_flags(None, None, "softproxy bench", oversubscribe=True)
+
+
+STOP_SCRIPT = """
+import os, signal, sys, time
+from softproxy.cells import SweepStopped, run_cells
+ran = []
+def cell(i):
+    ran.append(i)
+    if i == 1:
+        os.kill(os.getpid(), signal.SIGTERM)  # as `timeout` does, mid-cell
+        for _ in range(3000):
+            time.sleep(0.01)
+    return i
+try:
+    run_cells(cell, [{"i": i} for i in range(4)])
+except SweepStopped as exc:
+    print(exc.status, ran, exc)
+"""
+
+
+def test_a_signal_to_a_serial_sweep_stops_it_as_a_whole(tmp_path):
+    """SIGTERM reaching a cell run in this process is no failure of that cell: the sweep stops
+    there (no later cell runs), one line naming the cell and the signal, status 143."""
+    import subprocess
+
+    done = subprocess.run([sys.executable, "-c", STOP_SCRIPT], capture_output=True, text=True, timeout=120,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    status, ran, message = done.stdout.strip().split(" ", 2)
+    assert status == "143" and ran == "[0," and message.startswith("1]")
+    assert "cell 1 was stopped by SIGTERM; the sweep stops" in message
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGKILL"])
+def test_a_signal_that_kills_a_pool_cell_stops_the_sweep(sig):
+    """A worker process signalled mid-cell (SIGTERM turned into an orderly exit there, or
+    SIGKILL): the sweep stops with 128 + the signal, instead of re-running the cell alone
+    and going on as it does for a crash of the cell's own making."""
+    import signal
+
+    number = getattr(signal, sig)
+    with pytest.raises(SweepStopped) as err:
+        run_cells(signalled, [{"i": i, "sig": int(number)} for i in range(6)], Backend(workers=2))
+    assert err.value.status == 128 + number and sig in str(err.value) and "the sweep stops" in str(err.value)
 
 
 @pytest.mark.slow

@@ -91,13 +91,53 @@ def test_table_is_the_same_on_every_backend(serial, recordings, backend):
     assert other["summary"]["outcomes_sha256"] == serial["summary"]["outcomes_sha256"]
 
 
-def test_a_broken_recording_fails_alone(recordings, tmp_path, capsys):
-    """A recording whose body is garbage fails its cells, named with the error; the rest complete;
-    the CLI writes the table, chart and summary and exits 1."""
-    broken = tmp_path / "broken.rec"
+@pytest.mark.parametrize("damage, says", [
+    ("garbage", "broken.rec: record 0 (bytes "),  # a body of 0x07 bytes: checksum mismatch
+    ("claim", "broken.rec: record 1501 (the end record): claims 1099511627776 reads"),
+    ("bit", "broken.rec: record 700 (bytes "),
+])
+def test_a_damaged_recording_stops_the_batch_before_it_runs(recordings, tmp_path, capsys, damage, says):
+    """A recording with a garbage body, an end record claiming 2^40 reads (decades of replay),
+    or one flipped bit: exit 2 and one line naming the file and the record, before any replay."""
+    import struct
+
+    from softproxy.recording import record_bytes, seal
+
     good = recordings / "000_two_finger_grasp.rec"
-    header = good.read_bytes().split(b"\n", 1)[0] + b"\n"
-    broken.write_bytes(header + b"\x07" * 1000)
+    data = good.read_bytes()
+    head = data.index(b"\n") + 1
+    body = bytearray(data[head:])
+    size = record_bytes(2)
+    if damage == "garbage":
+        body = b"\x07" * 1000
+    elif damage == "claim":
+        assert len(body) == 1502 * size
+        struct.pack_into("<qq", body, 1501 * size + 8, 2**40, 2**40 - 1501)
+        seal(body, 1501 * size, 1, size)
+    else:
+        body[700 * size + 50] ^= 0x10
+    broken = tmp_path / "broken.rec"
+    broken.write_bytes(data[:head] + bytes(body))
+    out = tmp_path / "out"
+    code = cli.main(["replay-batch", str(good), str(broken), "--vary", "model=point", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and says in err and err.count("\n") == 1, err
+    assert not out.exists() or not list(out.iterdir())
+
+
+def test_a_recording_too_short_to_replay_fails_alone(recordings, tmp_path, capsys):
+    """A sound recording of a single read fails its cells, named with the error; the rest complete;
+    the CLI writes the table, chart and summary and exits 1."""
+    from softproxy.devices.simulated import SimulatedDevice  # noqa: F401 (the scene's device type)
+    from softproxy.recording import RecordingDevice
+    from softproxy.device import DeviceSample
+
+    good = recordings / "000_two_finger_grasp.rec"
+    broken = tmp_path / "broken.rec"
+    scene = load_scene("two_finger_grasp")
+    device = open_device("sim", scene)
+    with RecordingDevice(device, broken, scene=scene.name, rate_hz=1000.0) as recorder:
+        recorder.read(0.0, [DeviceSample(), DeviceSample()])
     out = tmp_path / "out"
     code = cli.main(["replay-batch", str(good), str(broken), "--vary", "model=point", "--out", str(out)])
     assert code == 1
@@ -108,7 +148,7 @@ def test_a_broken_recording_fails_alone(recordings, tmp_path, capsys):
         (False, "model=point", "ok"), (False, "recorded", "ok"),
         (True, "model=point", "failed"), (True, "recorded", "failed")]
     error = next(r["error"] for r in rows if r["status"] == "failed")
-    assert error.startswith("RecordingError") and "broken.rec: record 0" in error
+    assert error.startswith("RecordingError") and "broken.rec: holds 1 read(s), too few to replay" in error
     summary = json.loads((out / "replay_batch.json").read_text())
     assert len(summary["failed"]) == 2 and summary["by_variation"]["model=point"]["replays"] == 1
     assert (out / "replay_batch.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
