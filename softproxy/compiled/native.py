@@ -9,6 +9,9 @@ The compiled tick runs a block of servo ticks, MuJoCo's half-steps included, in 
   cached kernel holds no process address. From plain Python, and under `NUMBA_DISABLE_JIT=1`,
   the same names call the same C functions through ctypes: one kernel source for both modes,
   bit-identical to `mujoco.mj_step1/2` on the same model and data.
+- `mj_jac` and `mj_solveM` the same way, their arrays passed as addresses: a body's
+  Jacobian at a world point, and x = M⁻¹ y with the factorisation of M (`qLD`) that
+  mj_step1 (its mj_fwdPosition) and mj_forward leave in the mjData.
 - `monotonic_ns()`: CLOCK_MONOTONIC in ns, the clock of `time.monotonic_ns()` on Linux, so a
   kernel and Python compare times. In a kernel it calls libc's `clock_gettime` on the stack
   (no allocation, no GIL), so a kernel can spin until a deadline; `sleep_until_ns(deadline)`
@@ -50,6 +53,7 @@ from collections.abc import Callable
 
 import llvmlite.binding as llvm
 import mujoco
+import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
@@ -117,6 +121,59 @@ def addresses(model, data) -> tuple[int, int]:
         raise RuntimeError("the MjData given to softproxy.compiled.native.addresses was made for another MjModel; "
                            "pass the model the data was made from")
     return m_addr, d_addr
+
+
+
+# -- kinematics and the mass matrix ------------------------------------------------------
+
+_JAC_SIGNATURE = types.void(types.uintp, types.uintp, types.uintp, types.uintp, types.uintp, types.int32)
+"""void mj_jac(const mjModel*, const mjData*, mjtNum* jacp, mjtNum* jacr, const mjtNum point[3], int body)."""
+
+_mj_jac_c = _lib.mj_jac
+_mj_jac_c.argtypes = (ctypes.c_void_p,) * 5 + (ctypes.c_int,)
+_mj_jac_c.restype = None
+_mj_jac_external = types.ExternalFunction("mj_jac", _JAC_SIGNATURE)
+
+
+def mj_jac(m_addr, d_addr, jacp_addr, jacr_addr, point_addr, body):
+    """MuJoCo's `mj_jac`: the 3×nv translation (`jacp`) and rotation (`jacr`) Jacobians of the
+    world point at `point_addr` (3 float64, m) moving with `body`, written row-major as float64
+    at `jacp_addr` and `jacr_addr` (either may be 0: not computed). Uses xpos, cdof and
+    subtree_com of the mjData, so valid after mj_step1/mj_forward. Addresses are ints
+    (`array.ctypes.data`); the caller owns the sizes (3·nv each) and 0 <= body < nbody."""
+    _mj_jac_c(int(m_addr), int(d_addr), int(jacp_addr) or None, int(jacr_addr) or None, int(point_addr), int(body))
+
+
+@overload(mj_jac, inline="never")
+def _compiled_mj_jac(m_addr, d_addr, jacp_addr, jacr_addr, point_addr, body):
+    def impl(m_addr, d_addr, jacp_addr, jacr_addr, point_addr, body):
+        _mj_jac_external(np.uintp(m_addr), np.uintp(d_addr), np.uintp(jacp_addr), np.uintp(jacr_addr),
+                         np.uintp(point_addr), np.int32(body))
+    return impl
+
+
+_SOLVE_M_SIGNATURE = types.void(types.uintp, types.uintp, types.uintp, types.uintp, types.int32)
+"""void mj_solveM(const mjModel*, mjData*, mjtNum* x, const mjtNum* y, int n)."""
+
+_mj_solveM_c = _lib.mj_solveM
+_mj_solveM_c.argtypes = (ctypes.c_void_p,) * 4 + (ctypes.c_int,)
+_mj_solveM_c.restype = None
+_mj_solveM_external = types.ExternalFunction("mj_solveM", _SOLVE_M_SIGNATURE)
+
+
+def mj_solveM(m_addr, d_addr, x_addr, y_addr, n):
+    """MuJoCo's `mj_solveM`: x = M⁻¹ y for `n` vectors of nv float64 each, stored one after the
+    other (an n×nv row-major array) at `y_addr`, written at `x_addr` (the same address solves in
+    place). M⁻¹ comes from the mjData's L'DL factorisation (qLD, qLDiagInv), so this is valid
+    after mj_step1/mj_forward at the current qpos. The caller owns the sizes (n·nv each)."""
+    _mj_solveM_c(int(m_addr), int(d_addr), int(x_addr), int(y_addr), int(n))
+
+
+@overload(mj_solveM, inline="never")
+def _compiled_mj_solveM(m_addr, d_addr, x_addr, y_addr, n):
+    def impl(m_addr, d_addr, x_addr, y_addr, n):
+        _mj_solveM_external(np.uintp(m_addr), np.uintp(d_addr), np.uintp(x_addr), np.uintp(y_addr), np.int32(n))
+    return impl
 
 
 # -- the monotonic clock -----------------------------------------------------------------
