@@ -72,6 +72,8 @@ MAX_INPUT_SCALE = 1e3
 MAX_OUTPUT_SCALE = 1e9
 """Largest `scale` of an output field (counts per N or per N·m: 1e9 is a count per nN)."""
 FLOAT32_MAX = 3.4028234663852886e38
+MAX_PROFILE_BYTES = 1 << 20
+"""Largest profile file read (bytes): the shipped ones are under 4 KiB."""
 
 
 class ProfileError(ValueError):
@@ -206,6 +208,12 @@ def _fail(source: str, field: str, expected: str, got) -> ProfileError:
     return ProfileError(f"{source}: {field} must be {expected}, got {got!r}")
 
 
+def _one_of(options):
+    """A check that a value is one of `options`' names: a string first (a list or a table where a
+    name goes is a mistake to name, not a TypeError from a dict lookup)."""
+    return lambda v: isinstance(v, str) and v in options
+
+
 def _is_int(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
@@ -256,10 +264,10 @@ def _field_common(source: str, where: str, spec: dict, limit: int) -> tuple[int,
     offset = _get(source, spec, where, "offset", lambda v: _is_int(v) and v >= 0, "an integer >= 0")
     if offset is None:
         raise ProfileError(f"{source}: {where}.offset is required")
-    type_name = _get(source, spec, where, "type", lambda v: v in TYPES, f"one of {list(TYPES)}")
+    type_name = _get(source, spec, where, "type", _one_of(TYPES), f"one of {list(TYPES)}")
     if type_name is None:
         raise ProfileError(f"{source}: {where}.type is required")
-    endian = _get(source, spec, where, "endian", lambda v: v in ENDIAN, "\"little\" or \"big\"", "little")
+    endian = _get(source, spec, where, "endian", _one_of(ENDIAN), "\"little\" or \"big\"", "little")
     if offset + TYPES[type_name][1] > limit:
         raise _fail(source, f"{where}.offset", f"such that the {type_name} ends within the report's "
                     f"{limit} payload bytes", offset)
@@ -348,7 +356,7 @@ def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
     stem = Path(source).stem if source.endswith(".toml") else "profile"
     name = _get(source, doc, "", "name", lambda v: isinstance(v, str) and v.strip() != "", "a non-empty string", stem)
     description = _get(source, doc, "", "description", lambda v: isinstance(v, str), "a string", "")
-    mode = _get(source, doc, "", "mode", lambda v: v in MODES, f"one of {list(MODES)}", "position")
+    mode = _get(source, doc, "", "mode", _one_of(MODES), f"one of {list(MODES)}", "position")
     nonneg = lambda v: _is_num(v) and v >= 0  # noqa: E731
     max_force = float(_get(source, doc, "", "max_force", lambda v: nonneg(v) and v <= MAX_FORCE_N,
                            f"a finite number >= 0 and <= {MAX_FORCE_N:g} (N; what the device renders safely)", 0.0))
@@ -383,7 +391,7 @@ def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
     _check_keys(source, "input", inp, {"max_bytes", "reporting", "stale_ms", "report"}, {"report"})
     max_bytes = _get(source, inp, "input", "max_bytes", lambda v: _is_int(v) and 1 <= v <= 4096,
                      "an integer 1..4096 (bytes, report id included)", 64)
-    reporting = _get(source, inp, "input", "reporting", lambda v: v in REPORTING, f"one of {list(REPORTING)}",
+    reporting = _get(source, inp, "input", "reporting", _one_of(REPORTING), f"one of {list(REPORTING)}",
                      "periodic")
     stale_ms = float(_get(source, inp, "input", "stale_ms", nonneg, "a finite number >= 0 (ms; 0 = never stale)",
                           50.0 if reporting == "periodic" else 0.0))
@@ -543,11 +551,20 @@ def load_profile(name_or_path, base: Path | None = None) -> Profile:
     path = find_profile(name_or_path, base)
     try:
         with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
+            data = fh.read(MAX_PROFILE_BYTES + 1)
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if len(data) > MAX_PROFILE_BYTES:
+        raise ProfileError(f"{path}: over {MAX_PROFILE_BYTES} bytes; a profile is a short TOML file")
+    try:
+        doc = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ProfileError(f"{path}: not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x}); a profile is a "
+                           f"TOML file in UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise ProfileError(f"{path}: not valid TOML: {exc}") from None
-    except OSError as exc:
-        raise ProfileError(f"{path}: cannot read: {exc}") from None
+    except RecursionError:
+        raise ProfileError(f"{path}: not valid TOML: nested too deeply") from None
     return parse_profile(doc, str(path))
 
 
@@ -700,6 +717,58 @@ def _output_plan(profile: Profile) -> list:
     return plan
 
 
+_SNAP_COUNTS = 1e-9
+"""A value this close to a whole count (in counts) is that count: float noise (5 N x 1000
+counts/N giving 4999.999999999999) must not cost a whole count."""
+_CLAMP_MARGIN = 1.0 - 1e-12
+"""Where the fallback aims, as a fraction of the limit (see `build_output`)."""
+
+
+def _toward_zero(v: float, is_int: bool, snap: bool):
+    """A field's value in counts, rounded toward zero: integers truncated (after snapping float
+    noise to the whole count when `snap`), float32 to the float32 at or inside `v`."""
+    if not is_int:
+        return _float32_toward_zero(v)
+    n = round(v)
+    if snap and abs(v - n) <= _SNAP_COUNTS:
+        return int(n)
+    return int(v)
+
+
+def _float32_toward_zero(v: float) -> float:
+    """The float32 nearest `v` that is not farther from zero than `v` (packing rounds to nearest)."""
+    f = _F32.unpack(_F32.pack(v))[0]
+    if abs(f) > abs(v):  # then f != 0: one less in its bit pattern is one float32 nearer zero, either sign
+        f = _F32.unpack(_U32.pack(_U32.unpack(_F32.pack(f))[0] - 1))[0]
+    return f
+
+
+_F32, _U32 = struct.Struct("<f"), struct.Struct("<I")
+
+
+def _wrench_counts(plan: list, vals: list[float], axis, snap: bool) -> tuple[list, float, float]:
+    """Each wrench field's value (counts), and |F| (N) and |T| (N·m) as a device decodes them
+    (fields of one source add up, as `parse_output` readers would render them)."""
+    counts = []
+    force, torque = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+    for _, _, index, factor, lo, hi, is_int in plan:
+        if index < 0:
+            counts.append(None)
+            continue
+        v = factor * vals[index]
+        v = _toward_zero(lo if v < lo else hi if v > hi else v, is_int, snap)
+        counts.append(v)
+        rendered = v / factor
+        if index < 3:
+            force[index] += rendered
+        elif index < 6:
+            torque[index - 3] += rendered
+        else:  # the torque about the finger axis
+            for i in range(3):
+                torque[i] += rendered * axis[i]
+    return counts, math.hypot(*force), math.hypot(*torque)
+
+
 def zero_output(profile: Profile, sequence: int = 0) -> bytes:
     """The zero-force, motors-disabled output report (enable = 0)."""
     return build_output(profile, sequence, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, enable=False)
@@ -714,7 +783,11 @@ def build_output(profile: Profile, sequence: int, fx: float, fy: float, fz: floa
     gives the zero-force report with enable = 0. Otherwise |F| is clamped to max_force and
     |T| to max_torque (the profile's, or lower ones given here; 0 = nothing rendered), then
     each field to its count limits. `twist` fields carry the torque about the profile's
-    finger axis.
+    finger axis. Counts are rounded toward zero (integers truncated, float32 fields to the
+    float32 at or inside the value; a value within `_SNAP_COUNTS` of a whole count is that
+    count), and the wrench the report decodes to is checked against the limits: should the
+    snap have lifted it over one, it is built again aiming `_CLAMP_MARGIN` under the limits
+    without the snap. A device never decodes more than the clamp, not even by a rounding.
     """
     out = profile.output
     if out is None:
@@ -734,30 +807,30 @@ def build_output(profile: Profile, sequence: int, fx: float, fy: float, fz: floa
         enable = False
     else:
         vals = [float(v) for v in vals]
-        for i0, limit in ((0, fmax), (3, tmax)):
-            a, b, c = vals[i0:i0 + 3]
-            m = math.hypot(a, b, c)
-            if m > limit:
-                k = limit / m if limit > 0.0 and math.isfinite(m) else 0.0  # |F| overflowed: direction unknown
-                vals[i0:i0 + 3] = [a * k, b * k, c * k]
-    ax, ay, az = profile.finger_axis
-    vals.append(vals[3] * ax + vals[4] * ay + vals[5] * az)  # index 6: the torque about the finger axis
     plan = profile.plans.get("output")
     if plan is None:
         plan = profile.plans["output"] = _output_plan(profile)
+    axis = profile.finger_axis
+    counts = None
+    for margin, snap in ((1.0, True), (_CLAMP_MARGIN, False)):
+        clamped = list(vals)
+        for i0, limit in ((0, fmax * margin), (3, tmax * margin)):
+            a, b, c = clamped[i0:i0 + 3]
+            m = math.hypot(a, b, c)
+            if m > limit:
+                k = limit / m if limit > 0.0 and math.isfinite(m) else 0.0  # |F| overflowed: direction unknown
+                clamped[i0:i0 + 3] = [a * k, b * k, c * k]
+        clamped.append(clamped[3] * axis[0] + clamped[4] * axis[1] + clamped[5] * axis[2])  # 6: about the finger
+        counts, force, torque = _wrench_counts(plan, clamped, axis, snap)
+        if force <= fmax and torque <= tmax:
+            break
     buf = bytearray(1 + out.size)
     buf[0] = out.id
-    for pack, offset, index, factor, lo, hi, is_int in plan:
+    for (pack, offset, index, _, _, hi, _), v in zip(plan, counts):
         if index == _SEQUENCE:
             v = int(sequence) & hi
         elif index == _ENABLE:
             v = 1 if enable else 0
-        else:
-            v = factor * vals[index]
-            v = lo if v < lo else hi if v > hi else v
-            if is_int:
-                v = int(round(v))
-                v = lo if v < lo else hi if v > hi else v
         pack(buf, offset, v)
     return bytes(buf)
 
