@@ -259,7 +259,7 @@ class SoftFingerProxy(RecordView):
         slips = self.torsion.slip_events if self.torsion is not None else 0
         rec = self._rec
         rec["torque"] = rec["tx"] = rec["ty"] = rec["tz"] = 0.0
-        rec["stwist"] = 0.0
+        rec["twist_prev"] = rec["body_turn"] = 0.0
         if model is None:
             if self.torsion is not None:
                 self.torsion.release()

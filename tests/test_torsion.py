@@ -286,8 +286,10 @@ def test_never_nan(samples, name, k_tau, saturate):
 def test_the_finger_renders_the_seed_law_about_the_contact_normal():
     """002 soft-finger proxy, eq 39/40 in the finger: pressing on a floor (n = +z) while the
     device twists back and forth past the limit, the finger's torque every tick is SeedLaw's
-    spring torque for the finger's own normal force P, plus the damping b_τ/dt of the change
-    in α_p - α_s, bounded by the larger of the limit and the spring (and max_torque); the
+    spring torque for the finger's own normal force P, plus, on a tick it does not slip, the
+    damping -b_τ·α̇_s of the device's twist rate relative to the floor (which does not turn;
+    never of the proxy's own jump), bounded by the larger of the limit and the spring (and
+    max_torque); the
     twist proxy starts at the twist contact was made with; tx, ty, tz is M·n; leaving the
     floor ends the torque and the contact. Eq 39 every tick: restick_time 0."""
     m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom type="plane" size="1 1 .1"/></worldbody></mujoco>')
@@ -303,7 +305,7 @@ def test_the_finger_renders_the_seed_law_about_the_contact_normal():
     assert f.torsion.in_contact and f.torsion.alpha_0 == 0.1 and f.torque == 0.0
     law.touch(0.1)
     law.step(0.1, f.normal_force)
-    last = 0.0
+    last = 0.1
     slips = 0
     for k in range(1, 200):
         twist = 0.1 + 0.05 * math.sin(0.05 * k)
@@ -311,10 +313,10 @@ def test_the_finger_renders_the_seed_law_about_the_contact_normal():
         assert f.update(0.0, 0.0, 0.005 - P / 1000.0, twist, dt)
         assert f.normal_force == pytest.approx(P, rel=1e-9)
         spring = law.step(twist, f.normal_force)
-        stretch = law.alpha_p - twist
+        damping = 0.0 if law.slipping else -params.torsion_damping / dt * (twist - last)
         bound = min(max(law.limit(f.normal_force), abs(spring)), params.max_torque)
-        M = max(-bound, min(bound, spring + params.torsion_damping / dt * (stretch - last)))
-        last = stretch
+        M = max(-bound, min(bound, spring + damping))
+        last = twist
         assert f.torque == pytest.approx(M, rel=1e-9, abs=1e-15), k
         assert (f.tx, f.ty, f.tz) == (0.0, 0.0, f.torque)
         slips = law.slips

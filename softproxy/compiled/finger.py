@@ -3,9 +3,11 @@
 Each finger is a 4-DOF soft-finger proxy (seed 002 §7): the god-object position
 (`softproxy.compiled.godobject`) plus the twist α_p about the contact normal n, coupled to
 the device by a virtual spring-damper, F = k(x_p - x_d) + b(v_s - v_d) and
-M = k_τ(α_p - α_g) + b_τ d/dt(α_p - α_g). The damper acts on the device's velocity v_d
-relative to the touched surface's v_s under the proxy, never on the proxy's own motion,
-which jumps (breaking free of friction, dropping off an edge): |b(v_s - v_d)| is bounded by
+M = k_τ(α_p - α_g) + b_τ(ω_b - α̇_s), the torsional damper on the device's twist rate
+relative to the touched body's spin ω_b about n while stuck (none while slipping: dynamic
+friction acts). The damper acts on the device's velocity v_d relative to the touched
+surface's v_s under the proxy, never on the proxy's own motion, which jumps (breaking free
+of friction, dropping off an edge): |b(v_s - v_d)| is bounded by
 b times the device's speed relative to the surface, a proxy jump renders only its spring
 force, and the damper dissipates (docs/coupling.md). F and M are what the finger feels; the
 touched body gets -F at the contact point and -M·n. The device's twist α_s is taken about the
@@ -28,7 +30,7 @@ from numba import njit
 from softproxy import device_guard
 from softproxy.compiled import godobject
 from softproxy.compiled.finite import finite
-from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_TRAVEL
+from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_SPIN, RESTICK_TRAVEL, restick_travel
 from softproxy.compiled.shapes import shape_distance, shape_to_world
 from softproxy.fingertip import P_MAX
 
@@ -126,7 +128,7 @@ def torsion_step(f, alpha_s, P, dt):
             f.slip_travel += stretch * f.slip_dir - slack
             f.alpha_p = alpha_s + f.slip_dir * slack
         # the stop watch: time since α_p last slid RESTICK_TRAVEL of the offset
-        if f.slip_travel >= RESTICK_TRAVEL * slack:
+        if f.slip_travel >= restick_travel(RESTICK_TRAVEL * slack, RESTICK_SPIN, f.torsion_restick):
             f.slip_idle = f.slip_travel = 0.0
         else:
             f.slip_idle += dt
@@ -175,6 +177,7 @@ def clear_output(f):
     f.body = -1
     f.normal_force = 0.0
     f.valid = False
+    f.twist_prev = math.nan  # the torsional damper starts afresh at the next rendered tick
 
 
 @njit(cache=True, error_model="numpy")
@@ -183,7 +186,9 @@ def _follow_body(S, cvel, f):
     drags α_p, signed."""
     if f.has_torsion and f.in_contact:
         b = int(S[int(f.touched)].body)
-        torsion_follow(f, cvel[b, 0] * f.nx + cvel[b, 1] * f.ny + cvel[b, 2] * f.nz, f.dt)
+        omega_n = cvel[b, 0] * f.nx + cvel[b, 1] * f.ny + cvel[b, 2] * f.nz
+        torsion_follow(f, omega_n, f.dt)
+        f.body_turn = omega_n * f.dt
 
 
 @njit(cache=True, error_model="numpy")
@@ -229,6 +234,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     virtual coupling, torsion. False when the sample was not used (a spike held back, a
     position outside the workspace, a non-finite twist): the finger then renders zero force."""
     f.dt = dt
+    f.body_turn = 0.0
     if f.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
         _follow_body(S, cvel, f)
     if not f.placed:
@@ -269,7 +275,6 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     f.valid = True
     if not f.contact:
         f.was_sticking = False
-        f.stwist = 0.0
         if f.has_torsion and f.in_contact:
             torsion_release(f)
         f.fx = f.fy = f.fz = 0.0
@@ -326,11 +331,17 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
         return True
     if not f.in_contact:
         torsion_touch(f, twist)
-        f.stwist = 0.0
+        f.twist_prev = twist
     M = torsion_step(f, twist, P, dt)
-    stretch = f.alpha_p - twist
-    M += f.b_tau / dt * (stretch - f.stwist)
-    f.stwist = stretch
+    if not finite(f.twist_prev):  # the first rendered tick after one that rendered nothing
+        f.twist_prev = twist
+    # the torsional damper acts on the finger's twist rate relative to the touched body's spin
+    # about n, b_τ(ω_body - α̇_s), as the translational one on the device's velocity relative
+    # to the surface: never on the proxy's own jump when it slips (which flipped the torque's
+    # sign for a tick at every slip). Slipping, dynamic friction acts, not the damper.
+    if not f.slipping:
+        M += f.b_tau / dt * (f.body_turn - (twist - f.twist_prev))
+    f.twist_prev = twist
     # the damping never takes |M| past what friction holds (the static limit, or the spring
     # torque where that is larger), nor past the clamp
     limit, torque = f.limit, abs(f.spring_torque)
@@ -449,7 +460,9 @@ def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratc
     FIXED (welded to the world), TOUCHED and PUSHED (body lists, lengths in `counts`).
     Returns (refused, unsafe): how many valid samples were refused (not finite, or refused by
     their finger: spikes, garbage positions, a non-finite twist), and how many wrenches were
-    not finite (zeroed before they reached a body or the device)."""
+    not finite (zeroed before they reached a body or the device). The touched body gets the
+    reaction of exactly the wrench the device is sent, after every clamp (the finger's, the
+    device's, the soft start's), so both sides of the coupling exchange the same energy."""
     refused = 0
     unsafe = 0
     for i in range(F.shape[0]):
@@ -468,13 +481,14 @@ def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratc
             elif not finite(f.fx + f.fy + f.fz + f.tx + f.ty + f.tz):
                 unsafe += 1
                 clear_output(f)
-            if f.body >= 0.0:
-                push(wrench, bodies, counts, int(f.body), -f.fx, -f.fy, -f.fz,
-                      f.px, f.py, f.pz, -f.tx, -f.ty, -f.tz)
         if check:
             audit(S, T, C, xpos, xmat, f)
         if not _clamp_for_device(f, safe, fmax, tmax):
             unsafe += 1
+            clear_output(f)
+        if f.body >= 0.0:  # one wrench for both sides: the body gets the reaction of what the device is sent
+            push(wrench, bodies, counts, int(f.body), -f.sent_fx, -f.sent_fy, -f.sent_fz,
+                 f.px, f.py, f.pz, -f.sent_tx, -f.sent_ty, -f.sent_tz)
     return refused, unsafe
 
 

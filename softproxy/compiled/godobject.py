@@ -84,6 +84,23 @@ moving: Karnopp's zero-velocity band, |v| < 0.1 × offset / restick_time (1.6 mm
 μ_d·depth = 0.8 mm; 6.5 mrad/s for a CH torsion at P = 1 N, k_τ = 2), averaged over the
 re-stick time so that a device's counts, a force's noise (which moves a slipping proxy a
 bounded amount, on new extremes only) and rounding do not keep a stopped contact slipping."""
+RESTICK_SPEED, RESTICK_SPIN = 3e-4, 3e-3
+"""Slide (m/s) and spin (rad/s): the zero-velocity band's upper bound, whatever the
+offset. RESTICK_TRAVEL alone scales the band with the dynamic offset, which grows with the
+depth and the grip: at 10 N a CH torsion's band reached 69 mrad/s and a steady twist at
+20-50 mrad/s stuck and slipped a dozen times in 5 s with a 40 % torque ripple; a slide 2 mm
+deep re-stuck below 2 mm/s. A slipping contact now stays slipping while it slides at least
+the smaller of the two: down to 0.3 mm/s and 3 mrad/s at any grip (docs/friction.md)."""
+
+
+@njit(cache=True, error_model="numpy")
+def restick_travel(offset_travel, speed, restick_time):
+    """The slide a slipping contact must add up within its re-stick time to count as still
+    moving: RESTICK_TRAVEL of its dynamic offset (`offset_travel`), or `speed` (RESTICK_SPEED,
+    RESTICK_SPIN) for the re-stick time, whichever is smaller (m or rad)."""
+    band = speed * restick_time
+    return offset_travel if offset_travel < band else band
+
 
 TOUCH_TOL = 1e-6
 """A proxy sphere within this distance (m) of a shape's surface touches it, for choosing the
@@ -1058,7 +1075,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
             g.slide_idle = g.slide_travel = 0.0
         g.slide_travel += slide - g.mu_d * depth
     if slipping:  # the stop watch: time since the proxy last slid RESTICK_TRAVEL of its offset
-        if g.slide_travel >= RESTICK_TRAVEL * g.mu_d * depth:
+        if g.slide_travel >= restick_travel(RESTICK_TRAVEL * g.mu_d * depth, RESTICK_SPEED, g.slide_restick):
             g.slide_idle = g.slide_travel = 0.0
         else:
             g.slide_idle += dt

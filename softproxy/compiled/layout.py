@@ -170,7 +170,8 @@ FINGER = np.dtype([
     ("dt", np.float64),                                           # the last tick's period (s)
     ("ramp", np.float64),                                         # soft start: fraction of the clamps in force
     ("xd", np.float64), ("yd", np.float64), ("zd", np.float64),   # device position (m, world)
-    ("stwist", np.float64),                                       # last torsional stretch (rad)
+    ("twist_prev", np.float64),                                   # last tick's device twist (rad), for the damper
+    ("body_turn", np.float64),                                    # the touched body's turn about n this tick (rad)
     ("fx", np.float64), ("fy", np.float64), ("fz", np.float64),   # force on the finger (N, world)
     ("torque", np.float64),                                       # M about n (N·m)
     ("tx", np.float64), ("ty", np.float64), ("tz", np.float64),   # M·n (N·m)
