@@ -47,6 +47,7 @@ import mujoco
 from softproxy.finger import FingerParams
 from softproxy.fingertip import MODELS
 from softproxy.fingertip_sensors import SensingSpec, TactileSpec
+from softproxy.mjcf_files import ModelFileError, check_model_files
 from softproxy.geometry import GEOM_GROUPS, MESH_SURFACES, exclusions, unsupported_geoms, unsupported_message
 from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ
 
@@ -106,6 +107,10 @@ class Scene:
     def load_model(self) -> mujoco.MjModel:
         """Compile the scene's MJCF and check that the servo loop can run it (see the module
         docstring); SceneError naming the file, the culprits and the fix otherwise."""
+        try:
+            check_model_files(self.mjcf)  # a mesh that is a FIFO would block MuJoCo's loader forever
+        except ModelFileError as exc:
+            raise SceneError(str(exc)) from None
         try:
             model = mujoco.MjModel.from_xml_path(str(self.mjcf))
         except Exception as exc:  # mujoco raises ValueError with the XML error in it
