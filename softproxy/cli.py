@@ -18,6 +18,8 @@ from pathlib import Path
 
 from softproxy.fingertip import MODELS
 
+OUTPUT_SUFFIXES = {"--snapshot": (".png", "a PNG image"), "--video": (".mp4", "an MP4 video (H.264)")}
+"""The file name ending each output flag of `softproxy run` takes (checked before the run)."""
 MAX_BENCH_S = 3600.0
 """Longest benchmark duration (--duration, --paced), s: benchmarks keep per-tick arrays."""
 _NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
@@ -141,9 +143,18 @@ def _check_run_flags(args: argparse.Namespace) -> dict | None:
     if faults and args.device != "sim":
         raise ValueError(f"--faults: only the simulated device injects faults; use it with --device sim "
                          f"(got --device {args.device})")
-    for flag, path in (("--snapshot", args.snapshot), ("--video", args.video), ("--record", args.record)):
-        if path:
-            _check_output(flag, path)
+    outputs = [(flag, path) for flag, path in (("--snapshot", args.snapshot), ("--video", args.video),
+                                               ("--record", args.record)) if path]
+    for flag, path in outputs:
+        _check_output(flag, path)
+        suffix = OUTPUT_SUFFIXES.get(flag)
+        if suffix and Path(path).suffix.lower() != suffix[0]:
+            raise ValueError(f"{flag} {path}: writes {suffix[1]}; give a file name ending in {suffix[0]} "
+                             f"(e.g. {flag} {Path(path).with_suffix(suffix[0]).name})")
+    for i, (flag, path) in enumerate(outputs):
+        for other, later in outputs[i + 1:]:
+            if os.path.realpath(path) == os.path.realpath(later):
+                raise ValueError(f"{flag} and {other} both name {path}; give each its own file")
     return faults
 
 
@@ -262,7 +273,12 @@ def cmd_run(args: argparse.Namespace) -> int:
             if bar is not None:
                 bar.close()
         if views is not None:
-            views.save()
+            try:
+                views.save()
+            except (OSError, ValueError) as exc:  # a disk that filled up during the run, say
+                print(f"softproxy run: writing {args.snapshot or args.video} failed after the run: "
+                      f"{' '.join(str(getattr(exc, 'strerror', None) or exc).split())}", file=sys.stderr)
+                return 1
         if args.json:
             print(json.dumps(result, indent=2))
         else:
@@ -623,7 +639,31 @@ def _version() -> str:
         return "(not installed)"
 
 
+def _standard_streams_open() -> None:
+    """Put /dev/null where stdin, stdout or stderr is closed (`softproxy run ... >&-`): no file
+    opened later (a recording, a device) can take their numbers, and Python has a stream to
+    write to; what would have been printed there goes nowhere, and the command runs as asked."""
+    for fd, mode in ((0, os.O_RDONLY), (1, os.O_WRONLY), (2, os.O_WRONLY)):
+        try:
+            os.fstat(fd)
+        except OSError:
+            try:
+                devnull = os.open(os.devnull, mode)
+            except OSError:
+                continue
+            if devnull != fd:
+                os.dup2(devnull, fd)
+                os.close(devnull)
+    for name, fd, mode in (("stdout", 1, "w"), ("stderr", 2, "w")):
+        if getattr(sys, name) is None:
+            try:
+                setattr(sys, name, open(fd, mode, closefd=False))
+            except OSError:
+                pass
+
+
 def main(argv: list[str] | None = None) -> int:
+    _standard_streams_open()
     args = build_parser().parse_args(argv)
     try:
         code = args.func(args)

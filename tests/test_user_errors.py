@@ -104,7 +104,7 @@ def test_a_bad_run_flag_is_named(capsys, no_loop, flags, words):
 def test_an_unwritable_output_is_refused_before_the_run(capsys, no_loop, tmp_path, flag):
     """An output file in a folder that does not exist (or that is a folder) is refused before
     anything runs, naming the flag and the path."""
-    missing = str(tmp_path / "no_such_folder" / "out.file")
+    missing = str(tmp_path / "no_such_folder" / {"--snapshot": "out.png", "--video": "out.mp4"}.get(flag, "out.rec"))
     one_line_error(capsys, RUN + [flag, missing], [flag, missing, "cannot write"])
     one_line_error(capsys, RUN + [flag, str(tmp_path)], [flag, str(tmp_path), "folder"])
     assert list(tmp_path.iterdir()) == []  # the check left nothing behind
@@ -307,6 +307,57 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path, argv):
         os.close(write_end)
     assert out.stderr == ""
     assert out.returncode == 141
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--snapshot", "{tmp}/shot.txt"], ["--snapshot", "shot.txt", "ending in .png", "shot.png"]),
+    (["--snapshot", "{tmp}/shot"], ["--snapshot", "ending in .png"]),
+    (["--video", "{tmp}/run.gif"], ["--video", "run.gif", "ending in .mp4"]),
+    (["--record", "{tmp}/same.png", "--snapshot", "{tmp}/same.png"], ["--snapshot and --record both name"]),
+])
+def test_an_output_of_the_wrong_format_is_refused_before_the_run(capsys, no_loop, tmp_path, flags, words):
+    """`--snapshot shot.txt` (it failed with a traceback after the run), a video that is no
+    .mp4, two outputs on one file: one line naming the flag before anything runs."""
+    one_line_error(capsys, RUN + [f.format(tmp=tmp_path) for f in flags], words)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_recording_claiming_more_than_it_holds_is_refused_before_the_run(capsys, no_loop, one_finger_recording,
+                                                                            tmp_path):
+    """`softproxy run --device replay:FILE` with an end record claiming 2^40 reads (with valid
+    checksums): one line naming the file and the record, exit 2, before any loop is built."""
+    import struct
+
+    from softproxy.recording import record_bytes, seal
+
+    data = bytearray(one_finger_recording.read_bytes())
+    size = record_bytes(1)
+    end = len(data) - size
+    struct.pack_into("<qq", data, end + 8, 2**40, 2**40 - 21)  # 21 reads held: the start's and 20 ticks
+    seal(data, end, 1, size)
+    forged = tmp_path / "forged.rec"
+    forged.write_bytes(data)
+    one_line_error(capsys, ["run", "knob", "--headless", "--device", f"replay:{forged}"],
+                   [f"--device replay:{forged}", "(the end record): claims 1099511627776 reads"])
+
+
+def _close_stdout() -> None:
+    os.close(1)  # in the child, before exec: its stdout is closed, as `softproxy run ... >&-` leaves it
+
+
+@pytest.mark.parametrize("argv", [["models"], ["run", "knob", "--headless", "--duration", "0.05", "--json"],
+                                  ["run", "knob", "--headless", "--duration", "0.05", "--record", "{tmp}/r.rec"]])
+def test_a_closed_stdout_ends_quietly(tmp_path, argv):
+    """With stdout closed the command runs as asked, prints no traceback (it raised
+    AttributeError on sys.stdout.flush) and exits 0; a file it opens does not take stdout's
+    number (a recording then replays)."""
+    from softproxy.recording import load_recording
+
+    out = subprocess.run([sys.executable, "-m", "softproxy.cli", *(a.format(tmp=tmp_path) for a in argv)],
+                         stderr=subprocess.PIPE, text=True, timeout=300, preexec_fn=_close_stdout)
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr
+    if "--record" in argv:
+        assert load_recording(tmp_path / "r.rec").recovered == 51
 
 
 def test_run_scene_refuses_a_bad_duration_or_rate_before_building(no_loop):
