@@ -12,8 +12,9 @@
    - **unstable**: NaN, the device's force clamp reached, the handle leaving the wall's
      surface (a separation), or an oscillation that grows: the handle's oscillation energy about its
      rest point, E = ½mv² + ½(K + K_h)(z − z_eq)², fitted as E ∝ e^{2σt} with σ > 0;
-   - **buzzing**: bounded (σ ≤ 0, in contact) but ringing: the ring decays slower than
-     σ = −5 /s (it takes over 0.46 s to fall to a tenth), or the encoder's share of the force
+   - **buzzing**: bounded (σ ≤ 0, in contact) but ringing: the ring decays at less than half
+     the rate its damping alone would give, (b + b_h + B)/2m (the hold's lag has eaten over
+     half the damping: K above about half the boundary), or the encoder's share of the force
      (the force sent less the one the true positions would give) has a peak-to-peak over the
      last 20 % of the run above 5 % of the mean force (quantisation noise through K and B/T);
    - **stable**: otherwise.
@@ -43,6 +44,7 @@ import functools
 import inspect
 import json
 import math
+import textwrap
 
 import mujoco
 import numpy as np
@@ -61,7 +63,7 @@ from softproxy.world import World
 WALL_XML = '<mujoco><worldbody><geom name="wall" type="plane" size="1 1 .1"/></worldbody></mujoco>'
 HAND = Hand()
 KICK_S = 0.06        # s: the tap, once the hand's push has built (over 0.05 s)
-SIGMA_RING = 5.0     # 1/s: a bounded ring decaying slower than this (> 0.46 s to a tenth) is buzzing
+DAMPING_LEFT = 0.5   # a bounded ring decaying slower than this share of its damping's rate is buzzing
 KICK_DEPTH = 0.2     # the tap's ring, as a fraction of the handle's rest depth in the wall
 RIPPLE = 0.05        # the encoder's late peak-to-peak share of the force, over its mean, above which a cell buzzes
 BOUNDARY_RTOL = 0.02  # the measured boundary is bisected until its bracket is this narrow
@@ -129,7 +131,9 @@ def wall_run(device: str, K: float, B: float, rate: float, encoder: bool = True,
     # what the encoder adds: the force sent against the one the true positions would give
     true_F = np.clip(-K * z[1:] - B * rate * (z[1:] - z[:-1]), 0.0, profile.max_force_N)
     quantised = float(np.ptp((F[1:] - true_F)[tail]) / mean) if finite and mean > 0 else math.inf
-    ringing = (sigma is not None and sigma > -SIGMA_RING) or quantised > RIPPLE
+    # the ring's own decay rate, were the wall rendered without the hold's lag: (b + b_h + B)/2m
+    undelayed = (profile.damping_Nspm + HAND.damping_Nspm + B) / (2.0 * profile.mass_kg)
+    ringing = (sigma is not None and sigma > -DAMPING_LEFT * undelayed) or quantised > RIPPLE
     cls = "unstable" if not bounded else "buzzing" if ringing else "stable"
     window = t[-1] - KICK_S
     work_after = float(np.sum(F[after][:-1] * np.diff(z[after]))) if finite else math.nan
@@ -402,6 +406,10 @@ def chart(result: dict):
             Bc = np.linspace(0.0, p.damping_Nspm, 20)
             ax.plot(Bc, [max(colgate_boundary(B, p.damping_Nspm, period), 1.0) for B in Bc], "b--", lw=1.2,
                     label="passive below: b > KT/2 + |B| (device b)")
+            b_all = p.damping_Nspm + HAND.damping_Nspm
+            Bh = np.linspace(0.0, b_all, 20)
+            ax.plot(Bh, [max(colgate_boundary(B, b_all, period), 1.0) for B in Bh], color="lightblue", ls="--",
+                    lw=1.2, label="the same, the hand's damping counted")
             for b in result["boundaries"]:
                 if b["device"] == name and b["rate_hz"] == rate and b["measured_K"] and b["passivity"] is not True:
                     ax.errorbar(b["B"] + (0.3 if b["encoder"] else -0.3), b["measured_K"],
@@ -430,7 +438,7 @@ def chart(result: dict):
     note = ("green stable, orange buzzing, red unstable; circles: passivity controller on (or not available), "
             "squares: off; ^ measured boundary (perfect encoder), v (device's encoder)")
     row[1].axis("off")
-    row[1].text(0.0, 0.5, note, wrap=True, fontsize=8)
+    row[1].text(0.0, 0.5, textwrap.fill(note, 50), fontsize=8, va="center")
     for ax in row[2:]:
         ax.axis("off")
     return fig

@@ -119,3 +119,39 @@ def test_every_profile_says_where_each_figure_comes_from():
         for figure in ("mass_kg", "damping_Nspm", "resolution_m", "max_force_N", "vendor_stiffness_Npm",
                        "driver_stiffness_Npm"):
             assert len(p.sources.get(figure, "")) > 20, (name, figure)
+
+
+def test_the_wall_grid_runs_the_passivity_controller_on_and_off_when_the_engine_has_one(monkeypatch):
+    """`bench stability` asks ServoLoop's signature once: with a `passivity` parameter every wall
+    cell and boundary runs with it on and off and passes it through; without, once, as is."""
+    from softproxy.benchmarks import stability
+
+    seen = []
+    engine = stability.ServoLoop
+
+    class WithController(engine):
+        def __init__(self, *args, passivity: bool = True, **kwargs):
+            seen.append(passivity)
+            kwargs.pop("passivity", None)
+            super().__init__(*args, **kwargs)
+
+    class WithoutController(engine):
+        def __init__(self, world, fingers, device, rate_hz=1000.0, **kwargs):
+            super().__init__(world, fingers, device, rate_hz, **kwargs)
+
+    monkeypatch.setattr(stability, "ServoLoop", WithoutController)
+    stability.passivity_modes.cache_clear()
+    try:
+        assert stability.passivity_modes() == (None,)
+        walls = [c for c in stability.grid() if c["kind"] in ("wall", "boundary")]
+        assert {c["passivity"] for c in walls} == {None}
+        monkeypatch.setattr(stability, "ServoLoop", WithController)
+        stability.passivity_modes.cache_clear()
+        assert stability.passivity_modes() == (True, False)
+        walls_on_off = [c for c in stability.grid() if c["kind"] in ("wall", "boundary")]
+        assert len(walls_on_off) == 2 * len(walls)
+        assert {c["passivity"] for c in walls_on_off} == {True, False}
+        stability.wall_run("Falcon", 1000.0, 2.0, 250.0, passivity=False)
+        assert seen == [False]
+    finally:
+        stability.passivity_modes.cache_clear()
