@@ -6,6 +6,7 @@ or load a shipped scene with `load_scene` and `build`. Nothing here imports GL, 
 the `devices` package.
 """
 
+from softproxy import working_folder  # noqa: F401  (first: nothing from the working folder runs)
 from softproxy.device import Device, DeviceError, DeviceSample
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import MODELS, FingertipModel, model

@@ -663,6 +663,16 @@ def _standard_streams_open() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line; its status. Every Python it starts (the viewer, a pool's or Ray's
+    workers, and what those start) runs with PYTHONSAFEPATH=1: nothing from the working folder
+    (softproxy.working_folder)."""
+    from softproxy.working_folder import safe_path_for_children
+
+    with safe_path_for_children():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     _standard_streams_open()
     args = build_parser().parse_args(argv)
     try:

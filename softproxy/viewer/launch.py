@@ -100,6 +100,7 @@ class ViewerProcess:
             args += ["--max-seconds", str(max_seconds)]
         env = dict(os.environ)
         env.setdefault("LP_NUM_THREADS", "1")
+        env["PYTHONSAFEPATH"] = "1"  # and every Python the viewer starts (GLFW's probe): nothing from the folder
         self.proc = subprocess.Popen(viewer_command(args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                      env=env)
 
