@@ -4,6 +4,10 @@ Read for read, the samples come back exactly as recorded — NaN, invalid sample
 failures included — so a lockstep run replayed from its recording gives the same result.
 Forces sent to it go nowhere. Past the end of the recording it holds the last sample.
 
+A recording is checked whole before its first read (`softproxy.recording.load_recording`):
+its checksums (version 3) and the reads it claims against the records it holds, so a
+damaged or forged file is one RecordingError naming the record, never a replay of it.
+
 An incomplete recording still replays: a read the recorder dropped (its writer fell
 behind) raises DeviceError on that read, so the run renders zero force that tick and
 counts a device error naming the read; a recording cut short by a kill replays up to its
