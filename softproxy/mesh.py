@@ -46,7 +46,8 @@ from tqdm import tqdm
 
 from softproxy.compiled.ball import BALL_ABOVE, BALL_LIFT, ball_lists
 from softproxy.compiled.certificate import (
-    STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, node_frames, vertex_tables,
+    STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, node_boxes, node_frames, point_frames,
+    vertex_tables,
 )
 from softproxy.compiled.layout import GEOM_MESH, PATCH_RECORDS, T_INV
 from softproxy.compiled.mesh import PATCH_KEEP, tree_nodes
@@ -288,18 +289,27 @@ class MeshTables:
         side the triangles within it rising above the face's plane (`face_lists`), per vertex
         its sin β table (`vertex_tables`), each a walk of a box tree over the triangles."""
         n, nv = self.triangles, len(self.vpos)
-        # short triangles are found through their vertices, long ones in a tree of their own
+        # short triangles are found through their vertices, long ones in a tree of their own;
+        # so are the triangles of a hub (a vertex of more than HUB_FAN: a cap's fan of
+        # slivers), whose fan a face's walk would otherwise read whole for each face near it
         edge = self.edges[:, :, 6].max(axis=1)
         long_edge = min(LONG_EDGES * float(np.median(edge)), 0.5 * kept)
-        vertex_tree = box_tree(self.vpos, self.vpos)
-        long = np.flatnonzero(edge > long_edge)
+        hub = np.diff(self.fan_start) > HUB_FAN
+        is_long = (edge > long_edge) | hub[self.tv].any(axis=1)
+        long = np.flatnonzero(is_long)
         long_tree = box_tree(self.tlo[long], self.thi[long], long)
         # a face's walk finds the short triangles through their vertices and the long ones in
         # their own tree, so it needs only the short triangles' vertices (a CAD part of
         # slivers has none: its faces walked every vertex within 18 mm for nothing)
-        short = np.unique(self.tv[edge <= long_edge])
-        short_tree = vertex_tree if len(short) == nv else box_tree(self.vpos[short], self.vpos[short], short)
+        short = np.unique(self.tv[~is_long])
+        short_tree = box_tree(self.vpos[short], self.vpos[short], short)
         frames = node_frames(long_tree[0], long_tree[3], self.vpos, self.tv, self.plane)
+        # a vertex's walk: one tree over every vertex, each with its reach boxes
+        item_vertex, wlo, whi = reach_boxes(self.vpos, self.tv, self.tlo, self.thi, self.centre, edge, long_edge)
+        order, vlo, vhi, vsize = box_tree(self.vpos[item_vertex], self.vpos[item_vertex], extent=(whi - wlo).max(axis=1))
+        vorder, wlo, whi = item_vertex[order], wlo[order], whi[order]
+        rlo, rhi = node_boxes(np.arange(len(order)), vsize, wlo, whi)
+        vframes = point_frames(vorder, vsize, self.vpos, self.vcone[:, :3])
         clear = np.empty((n, 2), dtype=np.int64)
         listed = np.full((n, 2, STATIC_ABOVE), -1, dtype=np.int64)
         keep = VERTEX_READ + 1
@@ -307,7 +317,8 @@ class MeshTables:
         ids = np.empty((nv, keep), dtype=np.int64)
         counts = np.empty(nv, dtype=np.int64)
         common = (self.tlo, self.thi, self.centre, self.rhos)
-        trees = (*vertex_tree, *long_tree, kept, long_edge, *frames)
+        vertex_trees = (self.fan_start, self.fan, edge, vorder, vlo, vhi, rlo, rhi, wlo, whi, vsize,
+                        *vframes, kept, long_edge)
         face_trees = (*short_tree, *long_tree, kept, long_edge, *frames)
         scratch = threading.local()  # per worker: a stamp per triangle and one per vertex
 
@@ -323,13 +334,13 @@ class MeshTables:
 
         def vertices(s: int, e: int) -> int:
             vertex_tables(np.arange(s, e), self.vpos, self.tv, self.vcone, self.ring_start, self.ring_to, *common,
-                          *trees, worker().mark, s, sines[s:e], ids[s:e], counts[s:e])
+                          *vertex_trees, worker().mark, s, sines[s:e], ids[s:e], counts[s:e])
             return e - s
 
         # the ball certificates, once the plane's are known, where those do not hold: on the
         # short triangles of a mesh too dense for a patch to hold a resting proxy's contact
         radius = ball_radius(kept)
-        fine = (edge <= long_edge) & dense(self.tri, radius)
+        fine = ~is_long & dense(self.tri, radius)
         built = bool(fine.any())
         bcount = np.full((n, 2), -1, dtype=np.int64)
         blisted = np.full((n, 2, BALL_ABOVE if built else 0), -1, dtype=np.int64)
@@ -361,6 +372,32 @@ class MeshTables:
         self.kept = kept
 
 
+def reach_boxes(vpos, tv, tlo, thi, centre, edge, long_edge):
+    """The reach boxes of the vertices (`vertex_tables`): per vertex, its position grown by
+    long_edge (m), and, one box per octant of the directions from it to the centres of its
+    long triangles (longest edge `edge` over long_edge), grown by the boxes of those: a
+    height field's bottom corner, with a wall going up and a fan sliver going 10 m under
+    the field, has two boxes, not one that holds a quarter of the field's surface. Returns
+    (the vertex of each box, lower corners, upper corners), every vertex at least once."""
+    nv = len(vpos)
+    stretched = np.flatnonzero(edge > long_edge)
+    corner = tv[stretched].reshape(-1)
+    triangle = np.repeat(stretched, 3)
+    d = centre[triangle] - vpos[corner]
+    key = corner * 8 + (d[:, 0] < 0.0) + 2 * (d[:, 1] < 0.0) + 4 * (d[:, 2] < 0.0)
+    order = np.argsort(key, kind="stable")
+    key, triangle = key[order], triangle[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.zeros(0, dtype=np.int64)
+    plain = np.ones(nv, dtype=bool)
+    plain[key[starts] // 8] = False
+    vertex = np.concatenate([key[starts] // 8, np.flatnonzero(plain)]).astype(np.int64)
+    lo = np.concatenate([np.minimum.reduceat(tlo[triangle], starts, axis=0) if len(starts) else np.zeros((0, 3)),
+                         vpos[plain]])
+    hi = np.concatenate([np.maximum.reduceat(thi[triangle], starts, axis=0) if len(starts) else np.zeros((0, 3)),
+                         vpos[plain]])
+    return vertex, np.minimum(lo, vpos[vertex] - long_edge), np.maximum(hi, vpos[vertex] + long_edge)
+
+
 def dense(tri: np.ndarray, radius: float) -> bool:
     """Whether a mesh (rows of T: `tri`) is too dense for the patches to hold a resting
     proxy of `radius` (m): the band within PATCH_KEEP of it on a flat surface, 2π radius
@@ -386,6 +423,9 @@ LONG_EDGES = 4.0
 """A triangle whose longest edge is over this many times the mesh's median (or half the
 certificates' reach) is long: the certificates find it in a tree of long triangles, the
 others through their vertices."""
+HUB_FAN = 64
+"""A vertex of more triangles than this is a hub (a cap's or a pole's fan): its triangles are
+found by the certificates in the tree of long triangles, not through its fan."""
 BUILD_CHUNK = 4096
 """Faces or vertices per compiled call while building certificates (the progress bar's step)."""
 BUILD_THREADS = 8

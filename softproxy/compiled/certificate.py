@@ -249,6 +249,14 @@ entries below its tilt's sine (never less than 1e-12, `_vertex_few`), all of the
 VERTEX_READ. Its walk stops there (a concave, noisy or flat neighbourhood)."""
 STACK = 256
 """Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
+FAN_CHECK = 64
+"""A vertex beyond reach + long_edge of a vertex whose table is being built is taken when one
+of its long triangles may come within reach: its fan is searched for one, unless it holds
+more than this many triangles (a cap's hub), when it is taken unchecked."""
+GRADE = 16.0
+"""Items of a box tree whose sizes differ by about this factor or more are kept apart
+(`box_tree`); on a mesh of one tessellation every item has one grade and the tree is in
+Morton order alone."""
 
 
 def _spread(q: np.ndarray) -> np.ndarray:
@@ -260,12 +268,32 @@ def _spread(q: np.ndarray) -> np.ndarray:
     return q
 
 
-def box_tree(lo: np.ndarray, hi: np.ndarray, ids: np.ndarray | None = None):
-    """A box tree over items with boxes lo..hi (n × 3, m): the items in Morton order of their
-    boxes' centres, LEAF a leaf, leaves paired level by level into a complete binary tree
-    (node 1 the root, node j's children 2j and 2j + 1, leaf j node `size + j`). Returns (item
-    ids in that order (`ids[...]` when given), node lower corners, node upper corners, size);
-    an empty node's box is inverted (+inf..-inf), an empty tree has one empty leaf."""
+def grades(size: np.ndarray) -> np.ndarray:
+    """Per item of `size` (m, e.g. its box's longest side), its grade: how many factors of
+    GRADE its size lies above or below the median's, rounded, counted from the lowest (0). A
+    size of 0 takes the lowest grade."""
+    size = np.asarray(size, dtype=np.float64)
+    out = np.zeros(len(size), dtype=np.int64)
+    sized = size > 0.0
+    if not sized.any():
+        return out
+    out[sized] = np.rint(np.log(size[sized] / float(np.median(size[sized]))) / math.log(GRADE))
+    out[~sized] = out[sized].min()
+    return out - out.min()
+
+
+def box_tree(lo: np.ndarray, hi: np.ndarray, ids: np.ndarray | None = None, extent: np.ndarray | None = None):
+    """A box tree over items with boxes lo..hi (n × 3, m): the items by grade of their size
+    (`grades` of `extent` (m), by default each box's longest side), then in Morton order of their boxes'
+    centres, LEAF a leaf, leaves paired level by level into a complete binary tree (node 1
+    the root, node j's children 2j and 2j + 1, leaf j node `size + j`). Returns (item ids in
+    that order (`ids[...]` when given), node lower corners, node upper corners, size); an
+    empty node's box is inverted (+inf..-inf), an empty tree has one empty leaf.
+
+    By grade first, so that a few items far larger than the rest (a height field's bottom,
+    a fan of slivers metres long under a field of centimetre cells) share leaves and nodes
+    with each other rather than widen every node along their way: in Morton order alone a
+    leaf holding one of them had a box metres wide, and every walk nearby opened it."""
     n = len(lo)
     ids = np.arange(n) if ids is None else np.asarray(ids, dtype=np.int64)
     if n == 0:
@@ -274,21 +302,33 @@ def box_tree(lo: np.ndarray, hi: np.ndarray, ids: np.ndarray | None = None):
     centre = 0.5 * (lo + hi)
     q = np.floor((centre - low) / max(float((high - low).max()), 1e-300) * (2 ** 21 - 1))
     code = _spread(q[:, 0]) | (_spread(q[:, 1]) << np.uint64(1)) | (_spread(q[:, 2]) << np.uint64(2))
-    order = np.argsort(code, kind="stable")
+    grade = grades((hi - lo).max(axis=1) if extent is None else extent)
+    order = np.lexsort((code, grade))  # stable: by grade, then by code, then as given
     leaves = -(-n // LEAF)
     size = 1 << max(0, int(leaves - 1).bit_length())
+    nlo, nhi = node_boxes(order, size, lo, hi)
+    return ids[order], nlo, nhi, size
+
+
+def node_boxes(order: np.ndarray, size: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The boxes (lower, upper corners; 2 size × 3, m) of the nodes of a box tree whose items,
+    in tree order `order` (indices into lo, hi), have boxes lo..hi: a leaf's LEAF items, a
+    node its children's; an empty node's box inverted (+inf..-inf)."""
+    n = len(order)
+    leaves = -(-n // LEAF)
     nlo = np.full((2 * size, 3), np.inf)
     nhi = np.full((2 * size, 3), -np.inf)
-    starts = np.arange(0, n, LEAF)
-    nlo[size:size + leaves] = np.minimum.reduceat(lo[order], starts, axis=0)
-    nhi[size:size + leaves] = np.maximum.reduceat(hi[order], starts, axis=0)
+    if n:
+        starts = np.arange(0, n, LEAF)
+        nlo[size:size + leaves] = np.minimum.reduceat(lo[order], starts, axis=0)
+        nhi[size:size + leaves] = np.maximum.reduceat(hi[order], starts, axis=0)
     level = size
     while level > 1:
         parent = np.arange(level // 2, level)
         nlo[parent] = np.minimum(nlo[2 * parent], nlo[2 * parent + 1])
         nhi[parent] = np.maximum(nhi[2 * parent], nhi[2 * parent + 1])
         level //= 2
-    return ids[order], nlo, nhi, size
+    return nlo, nhi
 
 
 def node_frames(order: np.ndarray, size: int, V: np.ndarray, F: np.ndarray, plane: np.ndarray):
@@ -341,6 +381,61 @@ def _fill_frames(order, size, V, F, plane, axes, ext):
                             ext[node, a, 0] = h
                         if h > ext[node, a, 1]:
                             ext[node, a, 1] = h
+            node += 1
+        level *= 2
+        span //= 2
+
+
+def point_frames(order: np.ndarray, size: int, V: np.ndarray, normal: np.ndarray):
+    """Per node of a box tree over vertices (`box_tree`'s order and size): a box oriented by
+    its first vertex (axes: that vertex's normal, the chord to the node's last vertex square
+    to it, their cross product; the extents of the node's vertices along each), as
+    `node_frames` gives for triangles. A run of vertices along a finely divided rim or over
+    a smooth patch is thin across, where its axis-aligned box, turned 45° to it, is not."""
+    axes = np.zeros((2 * size, 3, 3))
+    ext = np.empty((2 * size, 3, 2))
+    ext[:, :, 0], ext[:, :, 1] = np.inf, -np.inf
+    _fill_point_frames(np.ascontiguousarray(order, dtype=np.int64), size, V, normal, axes, ext)
+    return axes, ext
+
+
+@njit(cache=True, error_model="numpy")
+def _fill_point_frames(order, size, V, N, axes, ext):
+    """`point_frames`' work, level by level: each node's vertices are a run of `order`."""
+    n = len(order)
+    span = size * LEAF  # items under one node of the level
+    level = 1
+    while level <= size:
+        node = level
+        for s in range(0, n, span):
+            e = min(s + span, n)
+            w0, w1 = order[s], order[e - 1]
+            ux, uy, uz = N[w0, 0], N[w0, 1], N[w0, 2]
+            length = math.sqrt(ux * ux + uy * uy + uz * uz)
+            if length < 0.5:  # a vertex of no triangle: no normal
+                ux, uy, uz = 0.0, 0.0, 1.0
+            else:
+                ux, uy, uz = ux / length, uy / length, uz / length
+            dx, dy, dz = V[w1, 0] - V[w0, 0], V[w1, 1] - V[w0, 1], V[w1, 2] - V[w0, 2]
+            along = dx * ux + dy * uy + dz * uz
+            dx, dy, dz = dx - along * ux, dy - along * uy, dz - along * uz
+            length = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if length < 1e-300 or length < 1e-9 * (abs(dx) + abs(dy) + abs(dz) + abs(along)):
+                # no chord square to the normal: any direction square to it
+                dx, dy, dz = (uz, 0.0, -ux) if abs(ux) > 0.5 or abs(uz) > 0.5 else (0.0, uz, -uy)
+                length = math.sqrt(dx * dx + dy * dy + dz * dz)
+            vx, vy, vz = dx / length, dy / length, dz / length
+            axes[node, 0, 0], axes[node, 0, 1], axes[node, 0, 2] = ux, uy, uz
+            axes[node, 1, 0], axes[node, 1, 1], axes[node, 1, 2] = vx, vy, vz
+            axes[node, 2, 0], axes[node, 2, 1], axes[node, 2, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            for j in range(s, e):
+                w = order[j]
+                for a in range(3):
+                    h = axes[node, a, 0] * V[w, 0] + axes[node, a, 1] * V[w, 1] + axes[node, a, 2] * V[w, 2]
+                    if h < ext[node, a, 0]:
+                        ext[node, a, 0] = h
+                    if h > ext[node, a, 1]:
+                        ext[node, a, 1] = h
             node += 1
         level *= 2
         span //= 2
@@ -486,6 +581,12 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
                     h = nx * V[w, 0] + ny * V[w, 1] + nz * V[w, 2] - off
                     if -ABOVE_TOL <= h <= ABOVE_TOL:
                         continue
+                    # w's fan is read for the side w rises on, while that side is open: a
+                    # triangle of it rising on the other side has a vertex rising there,
+                    # read in turn (a cap's hub is not read 25,000 triangles a face)
+                    up = h > 0.0
+                    if (up and front < 0) or (not up and back < 0):
+                        continue
                     g = 0.0
                     for k in range(3):
                         e = V[w, k] - qhi[k] if V[w, k] > qhi[k] else qlo[k] - V[w, k] if V[w, k] < qlo[k] else 0.0
@@ -496,6 +597,8 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
                         t = fan[f]
                         if tstamp[t] != stamp and _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
                             front, back = _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp)
+                            if (up and front < 0) or (not up and back < 0):
+                                break
         count[j, 0], count[j, 1] = front, back
 
 
@@ -549,10 +652,11 @@ def _sift_down(hs, hw, m):
 
 
 @njit(cache=True, error_model="numpy")
-def _least_sine(lo, hi, px, py, pz, ax, ay, az, av):
+def _least_sine(lo, hi, px, py, pz, ax, ay, az, av, rise):
     """The least sin β a point w of box lo..hi can have, -(w - p)·a / |w - p|: its lowest
-    numerator over the farthest distance when that is >= 0, over the nearest when < 0 (-1
-    when p is in the box), less a rounding's margin."""
+    numerator (-rise at most: rise, how high another box about the same points rises over
+    the plane through p square to a) over the farthest distance when that is >= 0, over the
+    nearest when < 0 (-1 when p is in the box), less a rounding's margin."""
     near2 = 0.0
     far2 = 0.0
     top = 0.0
@@ -562,7 +666,7 @@ def _least_sine(lo, hi, px, py, pz, ax, ay, az, av):
         f = max(pk - lo[k], hi[k] - pk)
         far2 += f * f
         top += ak * hi[k] if ak > 0.0 else ak * lo[k]
-    low = av - top
+    low = max(av - top, -rise)
     if low >= 0.0:
         bound = low / math.sqrt(far2) if far2 > 0.0 else 1.0
     elif near2 > 0.0:
@@ -573,32 +677,65 @@ def _least_sine(lo, hi, px, py, pz, ax, ay, az, av):
 
 
 @njit(cache=True, error_model="numpy")
-def _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep):
-    """Offer vertex w to the max-heap of the least sin β (rounded down to 1/SINE_GRID) hs[:m],
-    hw[:m] of at most `keep` entries; returns the new m."""
+def _sine(w, V, px, py, pz, ax, ay, az):
+    """Vertex w's sin β seen from p (axis a), rounded down to 1/SINE_GRID."""
     ux, uy, uz = V[w, 0] - px, V[w, 1] - py, V[w, 2] - pz
     s = -(ux * ax + uy * ay + uz * az) / math.sqrt(ux * ux + uy * uy + uz * uz)
-    s = math.floor((s + 1.0) * SINE_GRID) / SINE_GRID - 1.0
-    return heap_offer(hs, hw, m, keep, s, w)
+    return math.floor((s + 1.0) * SINE_GRID) / SINE_GRID - 1.0
+
+
+@njit(cache=True, error_model="numpy")
+def _long_near(w, v, p, F, fan_start, fan, longest, long_edge, tlo, thi, centre, rho, reach):
+    """Whether vertex w has a long triangle (longest edge over long_edge) in its fan that may
+    come within `reach` (m) of point p (box and bounding ball) and is not one of vertex v's
+    own; True, unchecked, when w's fan holds more than FAN_CHECK triangles."""
+    if fan_start[w + 1] - fan_start[w] > FAN_CHECK:
+        return True
+    for f in range(fan_start[w], fan_start[w + 1]):
+        t = fan[f]
+        if longest[t] <= long_edge or F[t, 0] == v or F[t, 1] == v or F[t, 2] == v:
+            continue
+        if _gap2(tlo[t], thi[t], p, p) > reach * reach:
+            continue
+        ex, ey, ez = centre[t, 0] - p[0], centre[t, 1] - p[1], centre[t, 2] - p[2]
+        if math.sqrt(ex * ex + ey * ey + ez * ez) - rho[t] <= reach:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho, vorder, vlo, vhi, vsize, lorder, llo,
-                  lhi, lsize, reach, long_edge, laxes, lext, mark, stamp0, sines, ids, counts):
+def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho, fan_start, fan, longest, vorder,
+                  vlo, vhi, rlo, rhi, wlo, whi, vsize, vaxes, vext, reach, long_edge, mark, stamp0, sines, ids, counts):
     """Per vertex v of `verts` (ids): among the vertices w of the triangles within `reach` (m)
     of it but its fan, w other than v and the ends of its edges, the VERTEX_READ + 1 of least
     sin β (β: the angle of w - v below the plane square to v's cone axis), rounded down to
-    1/SINE_GRID, ascending: sines[j], ids[j], their number counts[j]. Every vertex within
-    reach + long_edge is taken (the vertex tree: a superset of the short triangles' vertices,
-    which only makes a table more cautious), and the vertices of the long triangles within
-    reach (the long tree). A walk nearest box first that, once the table is full, leaves out
-    the boxes that cannot hold a lower sin β. A vertex whose walk opens more than BUDGET
-    leaves, or whose full table is all below DEAD_SINE, gets a table that certifies nothing
-    (VERTEX_READ + 1 entries at sin β = -1: every query reads past VERTEX_READ, and the box tree
-    serves it). `mark` (one int per vertex) is
-    scratch, stamped from stamp0 + 1 on."""
+    1/SINE_GRID, ascending: sines[j], ids[j], their number counts[j].
+
+    One walk of a box tree whose items are the vertices' reach boxes (`softproxy.mesh.
+    reach_boxes`: a vertex's position grown by long_edge, and by the boxes of its long
+    triangles, those whose longest edge (`longest`) is over long_edge, one box per octant
+    they lie in), each at its vertex: vorder (the vertex of each item, in tree order), wlo..whi
+    (its box), vsize; per node vlo..vhi the box of its items' vertices, vaxes, vext their box
+    oriented by the first (`point_frames`), rlo..rhi the box of its items' reach boxes. A
+    short triangle within reach has every vertex within reach + long_edge, and every such
+    vertex is taken (a superset, which only makes a table more cautious); a vertex farther
+    out is taken when one of its long triangles may come within reach (`_long_near`).
+
+    Nearest node first (a heap: a depth-first walk went down a far subtree whose box held v
+    and spent its budget there before it reached v's neighbours). Once the table is full, the
+    nodes that cannot hold a lower sin β are left out, by their vertices' boxes, axis-aligned
+    and oriented: they stay tight where a run of long slivers' boxes, whose near ends lie
+    beside v, do not (the triangles' tree walked before opened ~20,000 slivers a vertex on a
+    cylinder of 25,000 sections), and the oriented one stays thin along a finely divided rim
+    where the axis-aligned one, turned 45° to it, does not. A vertex whose walk opens more
+    than BUDGET leaves, or whose full table is all below DEAD_SINE, gets a table that
+    certifies nothing (VERTEX_READ + 1 entries at sin β = -1: every query reads past
+    VERTEX_READ, and the box tree serves it). `mark` (one int per vertex) is scratch,
+    stamped from stamp0 + 1 on."""
     keep = sines.shape[1]
-    stack = np.empty(STACK, np.int64)
+    room = 2 * vsize + 2  # every node waits at most once a walk
+    gaps = np.empty(room)
+    waiting = np.empty(room, np.int64)
     vreach2 = (reach + long_edge) ** 2
     reach2 = reach * reach
     p = np.empty(3)
@@ -615,50 +752,42 @@ def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho,
         hs, hw = sines[j], ids[j]
         m = 0
         leaves = 0
-        for tree in range(2):
-            order, nlo, nhi, size = (vorder, vlo, vhi, vsize) if tree == 0 else (lorder, llo, lhi, lsize)
-            limit2 = vreach2 if tree == 0 else reach2
-            stack[0] = 1
-            sp = 1
-            while sp > 0 and leaves <= BUDGET:
-                if m == keep and hs[0] < DEAD_SINE:
-                    leaves = BUDGET + 1  # already a table no query can pass: stop here
-                    break
-                sp -= 1
-                node = stack[sp]
-                lo, hi = nlo[node], nhi[node]
-                if lo[0] > hi[0] or _gap2(lo, hi, p, p) > limit2:
+        # nearest node first (a heap of those waiting, by -gap²): the table fills with the
+        # nearest vertices, whose sin β leaves out the rest soonest
+        w_count = heap_offer(gaps, waiting, 0, room, -_gap2(vlo[1], vhi[1], p, p), 1)
+        while w_count > 0:
+            if m == keep and hs[0] < DEAD_SINE:
+                leaves = BUDGET + 1  # already a table no query can pass: stop here
+                break
+            _, node, w_count = heap_pop(gaps, waiting, w_count)
+            lo, hi = vlo[node], vhi[node]
+            if lo[0] > hi[0] or _gap2(rlo[node], rhi[node], p, p) > reach2:
+                continue
+            if m == keep and _least_sine(lo, hi, px, py, pz, ax, ay, az, av,
+                                         _oriented_heights(vaxes, vext, node, ax, ay, az, av)[0]) >= hs[0]:
+                continue
+            if node < vsize:
+                for child in range(2 * node, 2 * node + 2):
+                    if vlo[child, 0] <= vhi[child, 0] and _gap2(rlo[child], rhi[child], p, p) <= reach2:
+                        w_count = heap_offer(gaps, waiting, w_count, room, -_gap2(vlo[child], vhi[child], p, p), child)
+                continue
+            leaves += 1
+            if leaves > BUDGET:
+                break
+            first = (node - vsize) * LEAF
+            for item in range(first, min(len(vorder), first + LEAF)):
+                w = vorder[item]
+                if mark[w] == stamp:
                     continue
-                if m == keep and _least_sine(lo, hi, px, py, pz, ax, ay, az, av) >= hs[0]:
+                near = _gap2(V[w], V[w], p, p) <= vreach2
+                if not near and _gap2(wlo[item], whi[item], p, p) > reach2:
                     continue
-                if node < size:
-                    a, b = 2 * node, 2 * node + 1
-                    if _gap2(nlo[a], nhi[a], p, p) < _gap2(nlo[b], nhi[b], p, p):
-                        a, b = b, a
-                    stack[sp] = a      # the nearer child last: walked first
-                    stack[sp + 1] = b
-                    sp += 2
-                    continue
-                leaves += 1
-                first = (node - size) * LEAF
-                for item in range(first, min(len(order), first + LEAF)):
-                    if tree == 0:
-                        w = order[item]
-                        if mark[w] != stamp and _gap2(V[w], V[w], p, p) <= vreach2:
-                            mark[w] = stamp
-                            m = _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep)
-                        continue
-                    t = order[item]
-                    if F[t, 0] == v or F[t, 1] == v or F[t, 2] == v or _gap2(tlo[t], thi[t], p, p) > reach2:
-                        continue
-                    ex, ey, ez = centre[t, 0] - px, centre[t, 1] - py, centre[t, 2] - pz
-                    if math.sqrt(ex * ex + ey * ey + ez * ez) - rho[t] > reach:
-                        continue
-                    for c in range(3):
-                        w = F[t, c]
-                        if mark[w] != stamp:
-                            mark[w] = stamp
-                            m = _offer(w, V, px, py, pz, ax, ay, az, hs, hw, m, keep)
+                s = _sine(w, V, px, py, pz, ax, ay, az)
+                if m == keep and s >= hs[0]:
+                    continue  # the table keeps lower ones
+                if near or _long_near(w, v, p, F, fan_start, fan, longest, long_edge, tlo, thi, centre, rho, reach):
+                    mark[w] = stamp
+                    m = heap_offer(hs, hw, m, keep, s, w)
         if leaves > BUDGET:
             for c in range(keep):
                 hs[c], hw[c] = -1.0, v
