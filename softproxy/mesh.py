@@ -46,7 +46,7 @@ from tqdm import tqdm
 
 from softproxy.compiled.ball import BALL_ABOVE, BALL_LIFT, ball_lists
 from softproxy.compiled.certificate import (
-    STATIC_ABOVE, VERTEX_READ, box_tree, face_lists, node_boxes, node_frames, point_frames,
+    STATIC_ABOVE, VERTEX_READ, apex_frames, box_tree, face_lists, node_boxes, node_frames, point_frames,
     vertex_tables,
 )
 from softproxy.compiled.layout import GEOM_MESH, PATCH_RECORDS, T_INV
@@ -304,6 +304,7 @@ class MeshTables:
         short = np.unique(self.tv[~is_long])
         short_tree = box_tree(self.vpos[short], self.vpos[short], short)
         frames = node_frames(long_tree[0], long_tree[3], self.vpos, self.tv, self.plane)
+        apexes = apex_frames(long_tree[0], long_tree[3], self.vpos, self.tv, frames)
         # a vertex's walk: one tree over every vertex, each with its reach boxes
         item_vertex, wlo, whi = reach_boxes(self.vpos, self.tv, self.tlo, self.thi, self.centre, edge, long_edge)
         order, vlo, vhi, vsize = box_tree(self.vpos[item_vertex], self.vpos[item_vertex], extent=(whi - wlo).max(axis=1))
@@ -319,7 +320,7 @@ class MeshTables:
         common = (self.tlo, self.thi, self.centre, self.rhos)
         vertex_trees = (self.fan_start, self.fan, edge, vorder, vlo, vhi, rlo, rhi, wlo, whi, vsize,
                         *vframes, kept, long_edge)
-        face_trees = (*short_tree, *long_tree, kept, long_edge, *frames)
+        face_trees = (*short_tree, *long_tree, kept, long_edge, *apexes)
         scratch = threading.local()  # per worker: a stamp per triangle and one per vertex
 
         def worker():

@@ -386,6 +386,71 @@ def _fill_frames(order, size, V, F, plane, axes, ext):
         span //= 2
 
 
+def apex_frames(order: np.ndarray, size: int, V: np.ndarray, F: np.ndarray, frames):
+    """Per node of a box tree over triangles, its oriented box (`node_frames`' `frames`),
+    and its axis-aligned box, of the node's vertices but its apex: a vertex every triangle
+    of the node has (-1: none, and the boxes of all of them). Returns (axes, extents, lower
+    corners, upper corners, apex). A node of a fan (a cone's slivers about its tip, a cap's about its
+    hub) is a thin wedge whose boxes stick out far beside its tip; its tip apart, they hold
+    only the rim's arc, so a face beside the tip sees the node behind its plane from its
+    boxes and the tip alone."""
+    axes, ext = frames[0], frames[1].copy()
+    lo = np.full((2 * size, 3), np.inf)
+    hi = np.full((2 * size, 3), -np.inf)
+    apex = np.full(2 * size, -1, dtype=np.int64)
+    _fill_apex(np.ascontiguousarray(order, dtype=np.int64), size, V, F, axes, ext, lo, hi, apex)
+    return axes, ext, lo, hi, apex
+
+
+@njit(cache=True, error_model="numpy")
+def _fill_apex(order, size, V, F, axes, ext, lo, hi, apex):
+    """`apex_frames`' work, level by level: each node's apex, and its extents along its axes
+    and its box over its vertices but that one (the others keep their extents; their box is
+    the node's own, not filled in here)."""
+    n = len(order)
+    span = size * LEAF
+    level = 1
+    while level <= size:
+        node = level
+        for s in range(0, n, span):
+            e = min(s + span, n)
+            t0 = order[s]
+            common = -1
+            for c in range(3):
+                w = F[t0, c]
+                every = True
+                for j in range(s + 1, e):
+                    t = order[j]
+                    if F[t, 0] != w and F[t, 1] != w and F[t, 2] != w:
+                        every = False
+                        break
+                if every:
+                    common = w
+                    break
+            if common >= 0:
+                apex[node] = common
+                for a in range(3):
+                    ext[node, a, 0], ext[node, a, 1] = np.inf, -np.inf
+                for j in range(s, e):
+                    for k in range(3):
+                        w = F[order[j], k]
+                        if w == common:
+                            continue
+                        for a in range(3):
+                            h = axes[node, a, 0] * V[w, 0] + axes[node, a, 1] * V[w, 1] + axes[node, a, 2] * V[w, 2]
+                            if h < ext[node, a, 0]:
+                                ext[node, a, 0] = h
+                            if h > ext[node, a, 1]:
+                                ext[node, a, 1] = h
+                            if V[w, a] < lo[node, a]:
+                                lo[node, a] = V[w, a]
+                            if V[w, a] > hi[node, a]:
+                                hi[node, a] = V[w, a]
+            node += 1
+        level *= 2
+        span //= 2
+
+
 def point_frames(order: np.ndarray, size: int, V: np.ndarray, normal: np.ndarray):
     """Per node of a box tree over vertices (`box_tree`'s order and size): a box oriented by
     its first vertex (axes: that vertex's normal, the chord to the node's last vertex square
@@ -517,17 +582,19 @@ def _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder, vlo, vhi, vsize, lorder, llo, lhi,
-               lsize, reach, long_edge, laxes, lext, tstamp, stamp0, count, listed):
+               lsize, reach, long_edge, laxes, lext, alo, ahi, apex, tstamp, stamp0, count, listed):
     """Per face of `faces` (ids) and side (front, back), the triangles within `reach` (m) of it
     (box and bounding ball within reach of its own) that rise above its plane on that side (a
     vertex higher than ABOVE_TOL): their number in count[j, side] and the triangles in
     listed[j, side], or -1 when more than STATIC_ABOVE do (a concave patch) or the walk
     opens more than BUDGET leaves. Short triangles are found through their rising vertices
     within reach + long_edge of the face (the vertex tree vorder/vlo/vhi/vsize), long ones in
-    the long tree (lorder/llo/lhi/lsize; its nodes' oriented boxes laxes, lext from
-    `node_frames`); a walk leaves out boxes beyond reach and boxes wholly behind the plane on
-    every side still open (by the box, and for the long tree by the oriented box too). `tstamp` (one int per triangle) is
-    scratch, stamped from stamp0 + 1 on."""
+    the long tree (lorder/llo/lhi/lsize; `apex_frames` gives its nodes' apex, their oriented
+    boxes laxes, lext and boxes alo..ahi but the apex); a walk leaves out boxes beyond reach
+    and boxes wholly behind the plane on every side still open (by the box, and for the long
+    tree by the apex and the boxes of the rest too: a cone's face sees its ~25,000 slivers
+    about the tip within reach, each node a wedge whose boxes rose above its plane beside the
+    tip). `tstamp` (one int per triangle) is scratch, stamped from stamp0 + 1 on."""
     stack = np.empty(STACK, np.int64)
     vreach2 = (reach + long_edge) ** 2
     reach2 = reach * reach
@@ -555,6 +622,11 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
                 top, bottom = _heights(lo, hi, nx, ny, nz, off)
                 if tree == 1:
                     t2, b2 = _oriented_heights(laxes, lext, node, nx, ny, nz, off)
+                    a = apex[node]
+                    if a >= 0:  # the rest's boxes, and the apex
+                        t3, b3 = _heights(alo[node], ahi[node], nx, ny, nz, off)
+                        h = nx * V[a, 0] + ny * V[a, 1] + nz * V[a, 2] - off
+                        t2, b2 = max(min(t2, t3), h), min(max(b2, b3), h)
                     top, bottom = min(top, t2), max(bottom, b2)
                 if not ((front >= 0 and top > ABOVE_TOL) or (back >= 0 and bottom < -ABOVE_TOL)):
                     continue
