@@ -267,7 +267,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                                finger_model=args.finger_model, realtime=realtime, record=args.record,
                                on_built=views.on_built if views else None, on_tick=on_tick,
                                every=1 if views is not None and views.video is not None else 10,  # video frames on time
-                               priority=args.rt_priority)
+                               priority=args.rt_priority, passivity=not args.no_passivity)
         finally:
             device.close()
             if bar is not None:
@@ -294,6 +294,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             ])
             for f in result["fingers"]:
                 _print_fingertip_sensors(f)
+            owed = max(f["energy_owed_max_J"] for f in result["fingers"]) if result["fingers"] else 0.0
+            acted = sum(f["passivity_ticks"] for f in result["fingers"])
+            print(f"  passivity: controller {'on' if result['passivity_controller'] else 'OFF'}, acted on {acted} "
+                  f"finger-ticks; the most any coupling owed {owed:.3g} J")
             t = result["tick_us"]
             print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
             if result.get("device_error"):
@@ -567,6 +571,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rt-priority", type=int, default=None, metavar="N",
                    help="run a real-time run's servo thread under SCHED_FIFO at priority N (1-99; needs root, "
                         "CAP_SYS_NICE or an rtprio limit; the result says what was granted)")
+    p.add_argument("--no-passivity", action="store_true",
+                   help="switch the passivity controller off (for experiments: the coupling may then give the "
+                        "hand energy it never put in)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_run)
 

@@ -175,6 +175,18 @@ class SoftFingerProxy(RecordView):
     slide_events = Field(kind=int)
     """Translational stick-to-slide transitions."""
     spikes_rejected = Field(kind=int)
+    energy = Field()
+    """The passivity observer (J): what the coupling took in from the hand and the body, less
+    what it gave back, credit capped at what its springs could give back; < 0 is energy it
+    created and has not yet dissipated (`softproxy.compiled.passivity`)."""
+    energy_in = Field()
+    """All the energy the coupling took in since the finger was built (J): dissipated or stored."""
+    energy_min = Field()
+    """The observer's lowest value (J): the most energy the coupling ever owed."""
+    pc_energy = Field()
+    """Energy the passivity controller set out to dissipate (J)."""
+    pc_ticks = Field(kind=int)
+    """Ticks on which the passivity controller acted."""
 
     def __init__(self, params: FingerParams, shapes: list[Shape], model: FingertipModel | None = None,
                  start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:

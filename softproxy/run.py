@@ -94,7 +94,7 @@ def check_run(duration_s: float, rate_hz: float) -> None:
 
 
 def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_model: str | None = None,
-          audit: bool | None = None, realtime: bool = True) -> ServoLoop:
+          audit: bool | None = None, realtime: bool = True, passivity: bool = True) -> ServoLoop:
     """World + fingers + servo loop for `scene`, driven by `device`.
 
     `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog;
@@ -102,6 +102,7 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     application calling `tick()` itself gets lockstep results (`ServoLoop.overrun_watchdog`).
     The fingers whose scene entry asks for `tactile` or `sensing` get their channels in
     `loop.sensors` (softproxy.fingertip_sensors); no other finger costs the tick anything.
+    `passivity=False` switches the passivity controller off (`ServoLoop.passivity`).
     """
     world = World(scene.load_model(), **scene.world_options())
     fingers = []
@@ -111,7 +112,8 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
         fingers.append(SoftFingerProxy(params, world.shapes))
     try:
         loop = ServoLoop(world, fingers, device, scene.rate_hz if rate_hz is None else rate_hz,
-                         audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False)
+                         audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False,
+                         passivity=passivity)
     except ValueError as exc:
         raise SceneError(f"{scene.path}: {exc}") from None
     try:
@@ -134,7 +136,7 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
-              record: str | None = None, every: int = 10, priority: int | None = None) -> dict:
+              record: str | None = None, every: int = 10, priority: int | None = None, passivity: bool = True) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `priority` (1–99) runs a real-time run's ticks under SCHED_FIFO at that priority
@@ -155,7 +157,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         except ValueError as exc:
             raise SceneError(f"--record {exc}") from None
     try:  # the recording is finished however this ends, building the loop included
-        loop = build(scene, device, rate_hz, finger_model, realtime=realtime)
+        loop = build(scene, device, rate_hz, finger_model, realtime=realtime, passivity=passivity)
         if on_built is not None:
             on_built(loop)
         user_on_tick = on_tick
@@ -209,9 +211,15 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
             "max_force_N": round(f.max_force_seen, 4),
             "proxy_penetration_max_m": f.penetration_max if loop.audit else None,
             "slip_events": f.slip_events,
+            # the passivity observer and controller (softproxy.compiled.passivity)
+            "energy_in_J": float(f.energy_in),
+            "energy_owed_max_J": max(0.0, -float(f.energy_min)),
+            "passivity_ticks": f.pc_ticks,
+            "passivity_dissipated_J": float(f.pc_energy),
         }
         for f in loop.fingers
     ]
+    result["passivity_controller"] = loop.passivity
     for i, channels in sensor_summaries(loop).items():  # only the fingers whose scene asked
         result["fingers"][i].update(channels)
     result["tick_us"] = loop.stats.summary_us()

@@ -37,7 +37,7 @@ import weakref
 import numpy as np
 
 from softproxy import termination
-from softproxy.compiled import native
+from softproxy.compiled import coupling, native
 from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
 from softproxy.device import Device, check_device, DeviceSample
@@ -171,7 +171,7 @@ class ServoLoop:
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
-                 overrun_watchdog: bool | None = None, handle_signals: bool = True) -> None:
+                 overrun_watchdog: bool | None = None, handle_signals: bool = True, passivity: bool = True) -> None:
         if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
             raise ValueError(f"rate_hz must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g}, got {rate_hz!r}")
         check_device(device)
@@ -205,6 +205,7 @@ class ServoLoop:
         the same results however loaded the machine is. False: never."""
         st.watching = overrun_watchdog is True
         self.paced = False  # True while run(realtime=True) paces the ticks
+        st.passivity = bool(passivity)
         self.audit = audit
         self._started = False
         self.closed = False
@@ -241,6 +242,7 @@ class ServoLoop:
         self._idle = threading.Event()  # clear while run() is in progress, in whatever thread
         self._idle.set()
         self._limit_array = np.zeros(2)  # [max_force, max_torque] for a compiled block whose device keeps none
+        self._coupling = coupling.workspace(world.model.nv, len(fingers))  # the implicit coupling's scratch
         self._compile()
         _claim(device, self)  # (a loop dropped unclosed leaves a dead reference: the device is free)
 
@@ -262,6 +264,18 @@ class ServoLoop:
         return {name: int(st[name]) for name in FAULTS}
 
     @property
+    def passivity(self) -> bool:
+        """The passivity controller (on by default): where a finger's coupling would give the
+        hand or the body more energy than it took in (a sampled spring on a stiff wall, say),
+        a damper on the relative motion dissipates the excess (`softproxy.compiled.passivity`).
+        Off only for experiments; the observer runs either way (`SoftFingerProxy.energy`)."""
+        return bool(self.state[0].passivity)
+
+    @passivity.setter
+    def passivity(self, on: bool) -> None:
+        self.state[0].passivity = bool(on)
+
+    @property
     def audit(self) -> bool:
         """Measure each proxy's depth inside the shapes every tick (slow; a test aid)."""
         return bool(self.state[0].audit)
@@ -274,7 +288,8 @@ class ServoLoop:
     def _world_args(self) -> tuple:
         s = self.world.shapes
         return (s.S, s.T, s.C, s.xpos, s.xmat, s.cvel, self.rows.F, self.rows.near, self.rows.scratch,
-                self.world.wrench, self.world.bodies, self.world.counts)
+                self.world.wrench, self.world.bodies, self.world.counts, self.world.data.qvel, self.world.data.qacc,
+                self._coupling)
 
     def _compile(self) -> None:
         """Resolve (compile, or load from numba's cache) the tick's kernels now, not inside the

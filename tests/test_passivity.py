@@ -158,3 +158,216 @@ def test_the_body_gets_the_reaction_of_exactly_what_the_device_is_sent():
         assert max(np.linalg.norm(np.array(device.sent)[:, :3], axis=1)) == pytest.approx(20.0)
         assert math.hypot(finger.fx, finger.fy, finger.fz) > 20.0  # the finger's own force is past the device's
     assert compared > 100
+
+
+# -- light objects nudged at rest: the coupling gives them no energy ------------------------------
+
+KNOB = """<mujoco><option gravity="0 0 -9.81"/><worldbody>
+<body name="knob" pos="0 0 0.01"><joint name="spin" type="hinge" axis="0 0 1"/>
+<geom type="cylinder" size="0.015 0.01" mass="{mass}"/></body></worldbody></mujoco>"""
+
+CUBE = """<mujoco><option gravity="0 0 0"/><worldbody>
+<body name="cube" pos="0 0 0.1"><freejoint/><geom type="box" size="{half} {half} {half}" mass="{mass}"/></body>
+</worldbody></mujoco>"""
+
+
+class Holding:
+    """Fingers held still at given device positions (m), no twist: a hand that does not move."""
+
+    max_force, max_torque = 40.0, 1.0
+
+    def __init__(self, positions):
+        self.positions = positions
+        self.fingers = len(positions)
+
+    def read(self, t, samples):
+        for s, (x, y, z) in zip(samples, self.positions):
+            s.x, s.y, s.z, s.twist, s.valid = x, y, z, 0.0, True
+
+    def send(self, finger, *w):
+        pass
+
+    def close(self):
+        pass
+
+
+def kinetic_energy(world) -> float:
+    """½ q̇ᵀ M q̇ of the whole world (J)."""
+    m, d = world.model, world.data
+    Mv = np.zeros(m.nv)
+    mujoco.mj_mulM(m, d, Mv, d.qvel)
+    return 0.5 * float(d.qvel @ Mv)
+
+
+def nudged(world, loop, qvel, seconds):
+    """Settle, stop every body, nudge (qvel), then tick for `seconds`: the kinetic energy after
+    the nudge and at every tick after it (J)."""
+    for _ in range(int(0.3 * loop.rate_hz)):
+        loop.tick()
+    world.data.qvel[:] = qvel
+    start = kinetic_energy(world)
+    energy = []
+    for _ in range(int(seconds * loop.rate_hz)):
+        loop.tick()
+        energy.append(kinetic_energy(world))
+    return start, np.array(energy)
+
+
+@pytest.mark.parametrize("rate", [1000.0, 4000.0])
+@pytest.mark.parametrize("mass", [0.001, 0.005, 0.05])
+def test_a_light_knob_under_a_finger_stays_at_rest(mass, rate):
+    """A hinged knob of 1-50 g under one default soft finger pressing with ~1 N, nudged at
+    0.01 rad/s: its kinetic energy never rises above the nudge's and it comes to rest (the
+    explicit coupling spun a 5 g knob up to 17-28 rad/s, a 1 g one to 379-607 rad/s)."""
+    world = World(mujoco.MjModel.from_xml_string(KNOB.format(mass=mass)))
+    finger = SoftFingerProxy(FingerParams(radius=0.008, soft_start=0.0), world.shapes, model("CH"))
+    depth = 1.0 / finger.params.stiffness
+    with ServoLoop(world, [finger], Holding([(0.0, 0.0, 0.02 + 0.008 - depth)]), rate) as loop:
+        start, energy = nudged(world, loop, [0.01], 1.0)
+        spin = float(world.data.qvel[0])
+        print(f"{mass * 1e3:g} g knob at {rate:g} Hz: nudge {start:.3g} J, largest after {energy.max():.3g} J, "
+              f"last {energy[-1]:.3g} J, spin {spin:.2g} rad/s, {finger.torsion.slip_events} slips")
+        assert finger.normal_force == pytest.approx(1.0, rel=0.05)
+    assert energy.max() <= start * (1 + 1e-9)
+    assert energy[-1] <= 1e-3 * start  # held: the torsion spring stops it
+
+
+@pytest.mark.parametrize("finger_model", ["CH", "point"])
+@pytest.mark.parametrize("rate", [1000.0, 4000.0])
+@pytest.mark.parametrize("mass, half", [(0.008, 0.01), (0.015, 0.02), (0.04, 0.02), (0.1, 0.02)])
+def test_a_light_cube_pinched_by_two_fingers_stays_at_rest(mass, half, rate, finger_model):
+    """A free cube of 8-100 g pinched at 3 N between two fingers, nudged at 0.01 rad/s about
+    the grasp axis and 1 mm/s across it: soft fingers stop it, point fingers leave it turning
+    about the axis they cannot hold; neither ever gives it more energy than the nudge (two
+    default fingers spun an 8 g cube to 55-75 rad/s when the coupling was explicit)."""
+    world = World(mujoco.MjModel.from_xml_string(CUBE.format(half=half, mass=mass)))
+    fingers = [SoftFingerProxy(FingerParams(name=f"f{i}", radius=0.008, soft_start=0.0, device_finger=i),
+                               world.shapes, model(finger_model)) for i in range(2)]
+    press = 3.0 / fingers[0].params.stiffness
+    reach = half + 0.008 - press
+    device = Holding([(reach, 0.0, 0.1), (-reach, 0.0, 0.1)])
+    with ServoLoop(world, fingers, device, rate) as loop:
+        start, energy = nudged(world, loop, [0, 0.001, 0, 0.01, 0, 0], 1.0)
+        world_spin = world.data.qvel[3:].copy()
+        print(f"{mass * 1e3:g} g cube, {finger_model}, {rate:g} Hz: nudge {start:.3g} J, "
+              f"largest after {energy.max():.3g} J, last {energy[-1]:.3g} J, spin {np.round(world_spin, 4)} rad/s")
+        assert all(f.normal_force == pytest.approx(3.0, rel=0.05) for f in fingers)
+    assert energy.max() <= start * (1 + 1e-6)
+    if finger_model != "point":
+        assert energy[-1] <= 1e-3 * start
+
+
+# -- the device side: a hand-held handle on a stiff wall -------------------------------------------
+
+from scipy.linalg import expm  # noqa: E402
+
+
+class HandHeldHandle:
+    """A one-axis handle (mass 0.1 kg, 0.5 N·s/m of its own friction) held by a hand (300 N/m,
+    2 N·s/m) pulling it 1 cm below the wall's surface, integrated exactly between ticks with
+    the rendered force held (what a device under a zero-order hold is). Keeps the work the
+    rendered force did on the handle (J)."""
+
+    fingers, max_torque = 1, 0.0
+    MASS, DAMPING, HAND_K, HAND_B, TARGET = 0.1, 0.5, 300.0, 2.0, -0.01
+
+    def __init__(self, period, max_force=200.0, start=0.012):
+        self.max_force = max_force
+        self.z, self.v, self.force = start, 0.0, 0.0
+        self.work = 0.0
+        m, b = self.MASS, self.DAMPING + self.HAND_B
+        # x' = A x + B u, x = (z, v), u = (F + K_h·target): exact over one period
+        a = np.zeros((3, 3))
+        a[0, 1] = 1.0
+        a[1, 0], a[1, 1], a[1, 2] = -self.HAND_K / m, -b / m, 1.0 / m
+        self.step = expm(a * period)
+
+    def read(self, t, samples):
+        s = samples[0]
+        s.x, s.y, s.z, s.twist, s.valid = 0.0, 0.0, self.z, 0.0, True
+
+    def send(self, finger, fx, fy, fz, tx, ty, tz):
+        self.force = fz  # held until the next send
+        z0 = self.z
+        u = fz + self.HAND_K * self.TARGET
+        self.z, self.v = (self.step @ np.array([self.z, self.v, u]))[:2]
+        self.work += fz * (self.z - z0)
+
+    def close(self):
+        pass
+
+
+def wall_work(rate, passivity, stiffness, damping, seconds=1.0):
+    """The work the wall did on the hand-held handle (J) over `seconds`, the largest force (N),
+    and the loop's finger after the run."""
+    world = World(mujoco.MjModel.from_xml_string(FLOOR))
+    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=stiffness, damping=damping, soft_start=0.0,
+                                          max_force=200.0), world.shapes, model("point"))
+    handle = HandHeldHandle(1.0 / rate)
+    forces = []
+    with ServoLoop(world, [finger], handle, rate, passivity=passivity) as loop:
+        for _ in range(int(seconds * rate)):
+            loop.tick()
+            forces.append(handle.force)
+    return handle.work, max(forces), finger
+
+
+@pytest.mark.parametrize("rate, stiffness, damping", [
+    (1000.0, 2000.0, 5.0), (250.0, 2000.0, 5.0), (1000.0, 1e4, 0.0), (250.0, 1e4, 0.0)])
+def test_a_stiff_wall_gives_the_hand_no_net_energy(rate, stiffness, damping):
+    """A hand-held handle (integrated exactly under the held force) pulled onto a wall. At the
+    default settings (k 2000 N/m, b 5 N·s/m) the wall's work on the hand over 1 s is never
+    positive, with the passivity controller (Hannaford & Ryu's time-domain passivity) or
+    without. At K = 1e4 N/m undamped (Colgate's bound b > KT/2 + |B| asks 5 N·s/m at 1 kHz,
+    20 at 250 Hz; the handle has 2.5) the sampled spring pumps energy into the hand; the
+    controller cuts it more than tenfold (1,600× at 1 kHz, 20× at 250 Hz, where the handle
+    stays on the wall two or three ticks per bounce, less than a sampled controller needs to
+    see it turn), but not to nothing: docs/coupling.md."""
+    work_on, peak_on, finger = wall_work(rate, True, stiffness, damping)
+    work_off, peak_off, off = wall_work(rate, False, stiffness, damping)
+    print(f"{rate:g} Hz, K {stiffness:g}, B {damping:g}: controller on: work on the hand {work_on:.4g} J, "
+          f"peak {peak_on:.3g} N, acted {finger.pc_ticks} ticks; off: {work_off:.4g} J, peak {peak_off:.3g} N, "
+          f"owed {-off.energy_min:.3g} J")
+    if stiffness > 5000.0:
+        assert work_off > 0.0  # the case the controller is for
+        assert work_on < work_off / 10
+    else:
+        assert work_on <= 0.0 and work_off <= 0.0
+
+
+class Pressing2mm:
+    """Presses a finger slowly 2 mm into the floor over 2 s and withdraws it over 2 s."""
+
+    fingers, max_force, max_torque = 1, 100.0, 1.0
+
+    def read(self, t, samples):
+        depth = 0.002 * (t / 2.0 if t < 2.0 else max(0.0, 2.0 - (t - 2.0)) / 2.0)
+        s = samples[0]
+        s.x, s.y, s.z, s.twist, s.valid = 0.0, 0.0, 0.008 - depth, 0.0, True
+
+    def send(self, finger, *w):
+        pass
+
+    def close(self):
+        pass
+
+
+def test_the_observer_counts_a_lossless_spring_exactly():
+    """A finger pressed slowly 2 mm into a static floor and withdrawn, no damping: the energy the
+    coupling took in at the deepest point is the spring's ½k d² (within the sampling's first
+    order: one tick's step in 2000), and after the withdrawal it has given it all back and
+    owes nothing (an analytic case of the observer, Hannaford & Ryu's E_obs)."""
+    world = World(mujoco.MjModel.from_xml_string(FLOOR))
+    finger = SoftFingerProxy(FingerParams(radius=0.008, damping=0.0, soft_start=0.0), world.shapes, model("point"))
+    with ServoLoop(world, [finger], Pressing2mm(), 1000.0) as loop:
+        for _ in range(2001):
+            loop.tick()
+        deepest = finger.energy_in
+        for _ in range(2100):
+            loop.tick()
+    k = finger.params.stiffness
+    print(f"taken in at 2 mm: {deepest:.6g} J (½kd² {0.5 * k * 0.002 ** 2:.6g} J); after: {finger.energy_in:.3g} J, "
+          f"lowest E {finger.energy_min:.3g} J, controller ticks {finger.pc_ticks}")
+    assert deepest == pytest.approx(0.5 * k * 0.002 ** 2, rel=2e-3)
+    assert abs(finger.energy_in) < 2e-3 * deepest
+    assert finger.energy_min > -2e-3 * deepest

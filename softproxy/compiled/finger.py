@@ -28,7 +28,7 @@ import math
 from numba import njit
 
 from softproxy import device_guard
-from softproxy.compiled import godobject
+from softproxy.compiled import coupling, godobject, passivity
 from softproxy.compiled.finite import finite
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_SPIN, RESTICK_TRAVEL, restick_travel
 from softproxy.compiled.shapes import shape_distance, shape_to_world
@@ -203,6 +203,7 @@ def place(S, T, C, xpos, xmat, f, near, x, y, z):
         return False
     f.placed = True
     f.ramp = 0.0 if f.soft_start > 0.0 else 1.0
+    f.energy = 0.0  # the passivity observer starts afresh: nothing stored, nothing owed
     f.xd, f.yd, f.zd = xd, yd, zd
     if f.has_torsion:
         torsion_release(f)
@@ -218,6 +219,7 @@ def hold(S, T, C, xpos, xmat, cvel, f, near):
     clamp at 1 kHz (0.1 s soft start), not the grip. α_p turns with the touched body on every
     held tick, as the proxy follows it (keyed on the contact, not on `body`: clear_output
     empties that)."""
+    f.rel_dx = f.rel_dy = f.rel_dz = f.rel_turn = 0.0  # (nothing was sent over a held tick to count)
     if f.touched >= 0:
         _follow_body(S, cvel, f)
     if f.soft_start > 0.0:
@@ -235,6 +237,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     position outside the workspace, a non-finite twist): the finger then renders zero force."""
     f.dt = dt
     f.body_turn = 0.0
+    f.rel_dx = f.rel_dy = f.rel_dz = f.rel_turn = 0.0
     if f.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
         _follow_body(S, cvel, f)
     if not f.placed:
@@ -268,6 +271,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     if was_contact and shape >= 0 and not S[shape].static:
         cx, cy, cz = shape_to_world(S, xpos, xmat, shape, f.lx, f.ly, f.lz)
         wx, wy, wz = wx + cx - f.x, wy + cy - f.y, wz + cz - f.z
+    f.rel_dx, f.rel_dy, f.rel_dz = wx, wy, wz  # (the passivity observer's port motion)
     if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
         clear_output(f)
         return False
@@ -335,6 +339,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     M = torsion_step(f, twist, P, dt)
     if not finite(f.twist_prev):  # the first rendered tick after one that rendered nothing
         f.twist_prev = twist
+    f.rel_turn = f.body_turn - (twist - f.twist_prev)
     # the torsional damper acts on the finger's twist rate relative to the touched body's spin
     # about n, b_τ(ω_body - α̇_s), as the translational one on the device's velocity relative
     # to the surface: never on the proxy's own jump when it slips (which flipped the torque's
@@ -450,14 +455,18 @@ def _clamp_for_device(f, safe, fmax, tmax):
 
 
 @njit(cache=True, error_model="numpy")
-def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies, counts):
+def tick(m, d, qvel, qacc, S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies,
+         counts, ws, control):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2.
 
     Each finger record holds this tick's device sample in its in_ fields; a sample not valid
-    (or from a failed read) or not finite holds the finger. Adds the fingers' wrenches to
-    `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each device finger
-    is sent into its sent_ fields. `bodies`: rows
-    FIXED (welded to the world), TOUCHED and PUSHED (body lists, lengths in `counts`).
+    (or from a failed read) or not finite holds the finger. The fingers' wrenches on moving
+    bodies are then solved implicitly with the bodies' answer (`coupling.implicit`, over the
+    mjModel/mjData at `m`/`d`, their qvel and qacc; `ws` its workspace), and each finger's
+    energy observed, and with `control` the excess dissipated (`passivity`). Adds the fingers'
+    wrenches to `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each
+    device finger is sent into its sent_ fields. `bodies`: rows FIXED (welded to the world),
+    TOUCHED and PUSHED (body lists, lengths in `counts`).
     Returns (refused, unsafe): how many valid samples were refused (not finite, or refused by
     their finger: spikes, garbage positions, a non-finite twist), and how many wrenches were
     not finite (zeroed before they reached a body or the device). The touched body gets the
@@ -483,12 +492,23 @@ def tick(S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratc
                 clear_output(f)
         if check:
             audit(S, T, C, xpos, xmat, f)
+    for i in range(F.shape[0]):
+        passivity.observe(F[i])  # last tick's sends times this tick's motion
+    if not safe:
+        coupling.implicit(m, d, qvel, qacc, F, bodies[FIXED], dt, ws)
+        if control:
+            for i in range(F.shape[0]):
+                passivity.control(F[i], dt)
+    for i in range(F.shape[0]):
+        f = F[i]
         if not _clamp_for_device(f, safe, fmax, tmax):
             unsafe += 1
             clear_output(f)
+        f.push_body = -1
         if f.body >= 0.0:  # one wrench for both sides: the body gets the reaction of what the device is sent
             push(wrench, bodies, counts, int(f.body), -f.sent_fx, -f.sent_fy, -f.sent_fz,
                  f.px, f.py, f.pz, -f.sent_tx, -f.sent_ty, -f.sent_tz)
+            f.push_body = f.body
     return refused, unsafe
 
 

@@ -177,12 +177,19 @@ FINGER = np.dtype([
     ("tx", np.float64), ("ty", np.float64), ("tz", np.float64),   # M·n (N·m)
     ("px", np.float64), ("py", np.float64), ("pz", np.float64),   # contact point on the object (m)
     ("body", np.int64),                                           # touched body or -1
+    ("push_body", np.int64),                                      # the body it pushed last tick, or -1
     ("normal_force", np.float64),                                 # P = F·n (N)
     ("valid", np.bool_),                                          # this tick's sample was used
     # what the device is sent this tick (clamped to the device, zero when not valid or safe)
     ("sent_fx", np.float64), ("sent_fy", np.float64), ("sent_fz", np.float64),
     ("sent_tx", np.float64), ("sent_ty", np.float64), ("sent_tz", np.float64),
     ("max_force_seen", np.float64), ("penetration_max", np.float64),
+    # the coupling's passivity (`softproxy.compiled.passivity`)
+    ("rel_dx", np.float64), ("rel_dy", np.float64), ("rel_dz", np.float64),  # Δx_b - Δx_d over the last tick (m)
+    ("rel_turn", np.float64),                                     # Δθ_b - Δα_s over the last tick (rad)
+    ("energy", np.float64),                                       # the observer E (J; < 0: energy owed)
+    ("energy_in", np.float64), ("energy_min", np.float64),        # all the coupling took in; E's lowest (J)
+    ("pc_energy", np.float64), ("pc_ticks", np.int64),            # the controller: planned dissipation (J), ticks
     ("slide_events", np.int64), ("spikes_rejected", np.int64), ("spike_run", np.int64),
     ("was_sticking", np.bool_),
     ("has_torsion", np.bool_),

@@ -47,6 +47,7 @@ LOOP = np.dtype([
     ("audit", np.bool_),  # measure every proxy's depth inside the shapes (slow)
     ("stop", np.bool_),  # set from outside: end the block after the current tick
     ("halt", np.bool_),  # set by close(): every send from now on is zero, whoever makes it
+    ("passivity", np.bool_),  # the passivity controller dissipates what the coupling would create
     ("profile", np.bool_),  # time the stages of each tick into stage_ns
     ("mark", np.int64),  # when the last stage ended (ns), while profiling
     ("stage_ns", np.int64, (len(STAGES),)),  # the last tick's stages (ns), while profiling
@@ -89,7 +90,7 @@ def paced_done(loop, counters):
 
 @njit(cache=True, error_model="numpy")
 def begin_tick(loop, m, d, samples, ok, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch, wrench, bodies,
-               counts):
+               counts, qvel, qacc, ws):
     """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
     failed) into the finger records, mj_step1 on the mjModel/mjData at `m`/`d`, then every
     finger (`finger.tick`). A sample the device marked not valid is an invalid_sample fault."""
@@ -111,8 +112,8 @@ def begin_tick(loop, m, d, samples, ok, device_of, S, T, C, xpos, xmat, cvel, F,
         f.in_valid = True
     mj_step1(m, d)
     _stage(L, STEP1_STAGE)
-    refused, unsafe = finger.tick(S, T, C, xpos, xmat, cvel, F, near, L.period, safe, L.audit, L.fmax, L.tmax,
-                                  scratch, wrench, bodies, counts)
+    refused, unsafe = finger.tick(m, d, qvel, qacc, S, T, C, xpos, xmat, cvel, F, near, L.period, safe, L.audit,
+                                  L.fmax, L.tmax, scratch, wrench, bodies, counts, ws, L.passivity)
     L.invalid_sample += refused
     L.unsafe_output += unsafe
     _stage(L, FINGERS_STAGE)
@@ -141,7 +142,7 @@ def end_tick(loop, m, d, xfrc, xipos, wrench, bodies, counts, durations, periods
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def run_ticks(loop, m, d, read, send, io, samples, samples_at, limits, device_of, S, T, C, xpos, xmat, cvel, F, near,
-              scratch, wrench, bodies, counts, xfrc, xipos, durations, periods, counters, n, paced):
+              scratch, wrench, bodies, counts, qvel, qacc, ws, xfrc, xipos, durations, periods, counters, n, paced):
     """Up to n ticks (fewer if `L.stop` is set), paced in real time or not; returns how many
     ran. `read`/`send`: the device's cfuncs over its state at `io`; `samples` its SAMPLE rows
     (at address `samples_at`); `limits` its [max_force (N), max_torque (N·m)], read every
@@ -165,7 +166,7 @@ def run_ticks(loop, m, d, read, send, io, samples, samples_at, limits, device_of
             if code == L.stall_code:
                 sleep_until_ns(start + L.stall_ns)
         begin_tick(loop, m, d, samples, code == 0, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch, wrench,
-                   bodies, counts)
+                   bodies, counts, qvel, qacc, ws)
         for i in range(F.shape[0]):
             f = F[i]
             if L.halt:  # closing from another thread: this block may send nothing but zero

@@ -1,0 +1,223 @@
+"""The fingers' wrenches on the touched bodies, integrated implicitly: stable for any inertia.
+
+Each finger couples its device to the body it touches through a spring-damper (translation
+k, b; torsion about the contact normal k_τ, b_τ). Written explicitly, from the body's velocity
+at the start of a tick, that spring is unstable on a light body: a 5 g knob under a default
+finger (k_τ h²/I ≈ 2.5 at 1 kHz) spun up from a nudge to 28 rad/s. Here the wrench a tick
+applies is solved together with the body's answer to it over the tick (backward Euler), as
+MuJoCo integrates its own contacts (docs/coupling.md, "Coupling to a body"):
+
+    (I + H A) W = W_exp + h K u + H a_free,    H = h²K + hB,
+
+for the 4 channels of every finger in contact with a body that moves (the force at its
+contact point, world x y z, and the torque about its normal n): W the fingers' wrenches (on
+the fingers; the bodies get -W), W_exp what each finger's spring-damper gives from the state
+now (`finger.update`), u the contact's velocity now, A = G M⁻¹ Gᵀ the mobility of the
+channels (`body_response.mobility`, cross terms between fingers on one tree included), and
+a_free the contact's acceleration without the fingers, taken from the last step's total
+(qacc) plus what the fingers' last wrenches contributed to it (+A·W_prev). In equilibrium
+the solve gives W = W_exp exactly; on a body that is heavy against the coupling (A → 0) it
+is W_exp plus the spring's stretch over the tick's motion; on a light one it is what the
+coupled pair does in one implicit step, which dissipates rather than injects energy.
+
+Where the contact does not act as a spring the channel is left as the finger computed it
+(H = 0): along the surface while the proxy slides (friction, not the spring, sets it),
+about n while the torsion slips. The solved wrench is put back within the finger's laws:
+no pull (P = F·n ≥ 0), the tangential force within the static cone, the torque within what
+friction holds, both within the finger's clamps. The device and the body then get this same
+wrench after the device's clamp (`finger.tick`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from softproxy.compiled.body_response import mobility
+
+CHANNELS = 4
+"""Per finger: force x, y, z at the contact point (N, world) and torque about its normal (N·m)."""
+
+
+def workspace(nv: int, fingers: int) -> tuple:
+    """The scratch `implicit` needs for a model of `nv` dofs and a loop of `fingers` fingers:
+    (mob 6×6, jac_b 6×nv, J per finger, M⁻¹Jᵀ per finger, G and Q per finger (channels × nv),
+    the system (4n × 4n+1), the channels' table (4n × 5: H, hK, W_prev, u, a_free), the
+    coupled fingers' rows (n))."""
+    n = max(1, int(fingers))
+    nv = int(nv)
+    return (np.zeros((6, 6)), np.zeros((6, nv)), np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
+            np.zeros((n, CHANNELS, nv)), np.zeros((n, CHANNELS, nv)),
+            np.zeros((CHANNELS * n, CHANNELS * n + 1)), np.zeros((CHANNELS * n, 5)), np.zeros(n, dtype=np.int64))
+
+
+@njit(cache=True, error_model="numpy")
+def _solve(system, n):
+    """Solve the n × n system in system[:, :n] against system[:, n] in place (Gaussian
+    elimination, partial pivoting); the solution in system[:, n]. False when singular."""
+    for col in range(n):
+        pivot = col
+        best = abs(system[col, col])
+        for r in range(col + 1, n):
+            if abs(system[r, col]) > best:
+                best, pivot = abs(system[r, col]), r
+        if not best > 0.0:
+            return False
+        if pivot != col:
+            for c in range(col, n + 1):
+                system[col, c], system[pivot, c] = system[pivot, c], system[col, c]
+        for r in range(col + 1, n):
+            factor = system[r, col] / system[col, col]
+            if factor != 0.0:
+                for c in range(col, n + 1):
+                    system[r, c] -= factor * system[col, c]
+    for r in range(n - 1, -1, -1):
+        acc = system[r, n]
+        for c in range(r + 1, n):
+            acc -= system[r, c] * system[c, n]
+        system[r, n] = acc / system[r, r]
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _dot_columns(a, b, nv):
+    """Σ_k a[k] b[k] over the nv dofs (a: a channel's Jacobian row, mostly zeros)."""
+    acc = 0.0
+    for k in range(nv):
+        if a[k] != 0.0:
+            acc += a[k] * b[k]
+    return acc
+
+
+@njit(cache=True, error_model="numpy")
+def implicit(m, d, qvel, qacc, F, bodies_fixed, h, ws):
+    """Every finger in contact with a body that moves: its wrench (f.fx..f.tz, f.torque,
+    f.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
+    docstring). Between mj_step1 and mj_step2, after every finger's update. `bodies_fixed`: 1
+    for a body welded to the world. Returns how many fingers were coupled."""
+    mob, jac_b, jacs, mijs, G, Q, system, chan, rows = ws
+    nv = qvel.shape[0]
+    n = 0
+    point = system[0, :3]  # (scratch: the system is filled after the last mobility call)
+    for i in range(F.shape[0]):
+        f = F[i]
+        body = int(f.body)
+        if not f.valid or body <= 0 or bodies_fixed[body] or n >= rows.shape[0]:
+            continue
+        point[0], point[1], point[2] = f.px, f.py, f.pz
+        mobility(m, d, body, point, body, point, mob, jacs[n], jac_b, mijs[n])
+        # the 4 channels' rows: the point's linear rows, and n·(angular rows)
+        J, MJ, g, q = jacs[n], mijs[n], G[n], Q[n]
+        for k in range(nv):
+            for c in range(3):
+                g[c, k] = J[c, k]
+                q[c, k] = MJ[c, k]
+            g[3, k] = f.nx * J[3, k] + f.ny * J[4, k] + f.nz * J[5, k]
+            q[3, k] = f.nx * MJ[3, k] + f.ny * MJ[4, k] + f.nz * MJ[5, k]
+        rows[n] = i
+        n += 1
+    if n == 0:
+        return 0
+    size = CHANNELS * n
+    # per channel r: H (h²K + hB; 0 where the channel is not a spring this tick), h K, the
+    # finger's wrench last tick on this body (its share of last step's qacc), u, a_free
+    for a in range(n):
+        f = F[rows[a]]
+        spring_tau = f.has_torsion and f.in_contact and not f.slipping
+        same = f.push_body == f.body
+        r0 = CHANNELS * a
+        for c in range(3):
+            chan[r0 + c, 0] = h * h * f.k + h * f.b
+            chan[r0 + c, 1] = h * f.k
+        chan[r0 + 3, 0] = h * h * f.k_tau + h * f.b_tau if spring_tau else 0.0
+        chan[r0 + 3, 1] = h * f.k_tau if spring_tau else 0.0
+        # (sent_ still holds last tick's wrench here: this tick's clamp comes after)
+        chan[r0, 2] = f.sent_fx if same else 0.0
+        chan[r0 + 1, 2] = f.sent_fy if same else 0.0
+        chan[r0 + 2, 2] = f.sent_fz if same else 0.0
+        chan[r0 + 3, 2] = (f.sent_tx * f.nx + f.sent_ty * f.ny + f.sent_tz * f.nz) if same else 0.0
+    # A = G M⁻¹ Gᵀ into the system, u = G qvel, a_free = G qacc + A W_prev
+    for r in range(size):
+        a, c = r // CHANNELS, r % CHANNELS
+        acc = _dot_columns(G[a, c], qacc, nv)
+        for e in range(size):
+            A = _dot_columns(G[a, c], Q[e // CHANNELS, e % CHANNELS], nv)
+            system[r, e] = A
+            acc += A * chan[e, 2]
+        chan[r, 3] = _dot_columns(G[a, c], qvel, nv)
+        chan[r, 4] = acc
+    # each finger's rows times its H, and the right-hand side W_exp + h K u + H a_free; the
+    # force block's H and K are k·I while the proxy sticks, k·n nᵀ while it slides
+    for a in range(n):
+        f = F[rows[a]]
+        r0 = CHANNELS * a
+        nx, ny, nz = f.nx, f.ny, f.nz
+        hb, hk = chan[r0, 0], chan[r0, 1]
+        if f.sticking:
+            for c in range(3):
+                for e in range(size):
+                    system[r0 + c, e] *= hb
+                system[r0 + c, size] = hk * chan[r0 + c, 3] + hb * chan[r0 + c, 4]
+        else:
+            un = nx * chan[r0, 3] + ny * chan[r0 + 1, 3] + nz * chan[r0 + 2, 3]
+            an = nx * chan[r0, 4] + ny * chan[r0 + 1, 4] + nz * chan[r0 + 2, 4]
+            for e in range(size):
+                along = nx * system[r0, e] + ny * system[r0 + 1, e] + nz * system[r0 + 2, e]
+                system[r0, e], system[r0 + 1, e], system[r0 + 2, e] = hb * nx * along, hb * ny * along, hb * nz * along
+            rhs = hk * un + hb * an
+            system[r0, size], system[r0 + 1, size], system[r0 + 2, size] = rhs * nx, rhs * ny, rhs * nz
+        hb_tau = chan[r0 + 3, 0]
+        for e in range(size):
+            system[r0 + 3, e] *= hb_tau
+        system[r0 + 3, size] = chan[r0 + 3, 1] * chan[r0 + 3, 3] + hb_tau * chan[r0 + 3, 4]
+        system[r0, size] += f.fx
+        system[r0 + 1, size] += f.fy
+        system[r0 + 2, size] += f.fz
+        system[r0 + 3, size] += f.torque
+    for r in range(size):
+        system[r, r] += 1.0
+    if not _solve(system, size):
+        return 0
+    for a in range(n):
+        r0 = CHANNELS * a
+        within_laws(F[rows[a]], system[r0, size], system[r0 + 1, size], system[r0 + 2, size], system[r0 + 3, size])
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def within_laws(f, fx, fy, fz, M):
+    """The solved wrench into the finger's record, within its laws: no pull through the surface,
+    the tangential force within the static cone μ_s·P, the torque within what friction holds
+    (the static limit, or the spring where larger), both within the finger's clamps (the soft
+    start's ramp included). A wrench that is not finite leaves the finger's own."""
+    if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz) and math.isfinite(M)):
+        return
+    nx, ny, nz = f.nx, f.ny, f.nz
+    P = fx * nx + fy * ny + fz * nz
+    if P < 0.0:
+        P = 0.0
+    normal = fx * nx + fy * ny + fz * nz
+    tx, ty, tz = fx - normal * nx, fy - normal * ny, fz - normal * nz
+    t = math.sqrt(tx * tx + ty * ty + tz * tz)
+    cone = f.mu_s * P
+    if t > cone:
+        s = cone / t
+        tx, ty, tz = tx * s, ty * s, tz * s
+    fx, fy, fz = P * nx + tx, P * ny + ty, P * nz + tz
+    fmax = f.max_force * f.ramp
+    f2 = fx * fx + fy * fy + fz * fz
+    if f2 > fmax * fmax:
+        s = fmax / math.sqrt(f2)
+        fx, fy, fz, P = fx * s, fy * s, fz * s, P * s
+    f.fx, f.fy, f.fz = fx, fy, fz
+    f.normal_force = P
+    if f.has_torsion and f.in_contact:
+        limit, spring = f.limit, abs(f.spring_torque)
+        bound = limit if limit > spring else spring
+        if bound > f.max_torque * f.ramp:
+            bound = f.max_torque * f.ramp
+        M = bound if M > bound else -bound if M < -bound else M
+        f.torque = M
+        f.tx, f.ty, f.tz = M * nx, M * ny, M * nz

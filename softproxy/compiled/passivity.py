@@ -1,0 +1,114 @@
+"""Time-domain passivity of each finger's coupling: an observer of the energy it exchanges, and
+a controller that dissipates what it would otherwise create (Hannaford & Ryu 2002).
+
+The coupling (spring-damper, proxy, friction) sits between two ports: the hand, which the
+device moves by Δx_d while it renders F (held over the tick), and the touched body, whose
+contact point moves by Δx_b while it gets -F. The energy flowing into the coupling over a tick
+is F·(Δx_b - Δx_d) + M·(Δθ_b - Δα_s) (the torque about n, the body's turn and the device's
+twist), exact for the force the device held over that tick. The observer E is its running
+sum: a passive coupling never gives back more than it took, E >= 0. Credit is kept only up
+to what the springs could give back now (E is capped at ½k|x_p - x_d|² + ½k_τ(α_p - α_s)²):
+what the damper and friction dissipated cannot excuse energy created later. Under a
+zero-order hold a sampled spring gives back ½k·Δs² more than a continuous one each tick it
+moves by Δs (Colgate's "negative damping" kh/2); where that drives E below zero the
+controller adds, for the next tick, a damper on the relative motion (the same wrench on the
+device and the body), sized to dissipate the deficit at the last tick's relative speed.
+Raising the wrench (a press) it is capped at k·h + b N·s/m (k_τ·h + b_τ for the torsion),
+about twice the damping a sampled spring lacks; lowering it (a release) at CUT times that,
+never past zero. During a finger's soft start neither counts a debt nor acts: the ramp is
+what bounds a finger placed inside an object. Units: J, N, m, rad, s.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from softproxy.compiled.coupling import within_laws
+
+TOLERANCE_J = 1e-9
+"""A deficit the controller leaves alone (J): rounding in the energy sums of a held grasp is
+~1e-19 J, a real one on a stiff wall ~1e-5 J a tick; a nanojoule is what 1 mN does over 1 µm."""
+CUT = 20.0
+"""How much faster than it may raise the wrench the controller may lower it (× the raise cap
+k·h + b): enough to take a wall's force to zero in the tick after a bounce at 250 Hz, where the
+deficit is paid at a relative speed a tenth of the bounce's; bounded so a small deficit on a
+near-still contact (a held grasp's lift: ~10 µJ at µm per tick) is paid over tens of ticks,
+a fraction of a newton at a time, not by dropping the grip."""
+
+
+@njit(cache=True, error_model="numpy")
+def observe(f):
+    """After the finger's update: the energy the coupling took in over the last tick (what
+    the device was sent then, `sent_`, times this tick's relative motion, `rel_`) into the
+    observer E; E capped at what the springs could give back now, ½k|x_p - x_d|² +
+    ½k_τ(α_p - α_s)² (an upper bound: clamps, the controller and friction only lower what a
+    spring returns); the lowest E kept."""
+    tn = f.sent_tx * f.nx + f.sent_ty * f.ny + f.sent_tz * f.nz
+    dE = f.sent_fx * f.rel_dx + f.sent_fy * f.rel_dy + f.sent_fz * f.rel_dz + tn * f.rel_turn
+    if not math.isfinite(dE):
+        return
+    f.energy_in += dE
+    stored = 0.0
+    if f.contact and f.valid:
+        sx, sy, sz = f.x - f.xd, f.y - f.yd, f.z - f.zd
+        stored = 0.5 * f.k * (sx * sx + sy * sy + sz * sz)
+        if f.has_torsion and f.in_contact and f.k_tau > 0.0:
+            stored += 0.5 * f.spring_torque * f.spring_torque / f.k_tau
+    E = f.energy + dE
+    if not math.isfinite(E):
+        return
+    if E > stored:
+        E = stored
+    if f.ramp < 1.0 and E < 0.0:
+        # during the soft start the ramp bounds what a finger placed inside an object releases
+        # (its stretch was never put in by the hand): no debt is counted until it is done
+        E = 0.0
+    f.energy = E
+    if E < f.energy_min:
+        f.energy_min = E
+
+
+@njit(cache=True, error_model="numpy")
+def control(f, dt):
+    """While E < 0: a damper on the relative motion for the next tick of dt s, the wrench the
+    same on the device and the body, sized to dissipate the deficit at the last tick's relative
+    speed, once the deficit is past TOLERANCE_J. Where it raises the wrench (the motion takes
+    energy in: a press) it is capped at k·h + b (N·s/m; k_τ·h + b_τ for the torsion); where it
+    lowers it (the motion gives energy back: a release) at CUT times that, and never past zero;
+    the rest is left for the ticks after.
+    The wrench is kept within the finger's laws. Returns the energy it plans to dissipate (J)."""
+    if f.energy >= -TOLERANCE_J or not f.valid or not f.contact or f.ramp < 1.0:
+        return 0.0
+    wx, wy, wz, turn = f.rel_dx, f.rel_dy, f.rel_dz, f.rel_turn
+    cap = f.k * dt + f.b  # N·s/m
+    cap_tau = f.k_tau * dt + f.b_tau if f.has_torsion and f.in_contact else 0.0
+    ratio = cap_tau / cap if cap > 0.0 else 0.0  # the torsion's share, as the two caps stand
+    w2 = wx * wx + wy * wy + wz * wz
+    room = w2 + ratio * turn * turn
+    if not room > 0.0:
+        return 0.0
+    c = -f.energy / room  # N/m of relative motion: dissipates the deficit in one tick at this speed
+    c_tau = ratio * c
+    along = f.fx * wx + f.fy * wy + f.fz * wz  # < 0: the wrench gives energy back over this motion
+    if along < 0.0:
+        most = (f.fx * f.fx + f.fy * f.fy + f.fz * f.fz) / -along  # down to zero along the force, no further
+        most = most if most < CUT * cap / dt else CUT * cap / dt
+    else:
+        most = cap / dt
+    c = c if c < most else most
+    spin = f.torque * turn
+    if spin < 0.0:
+        most = f.torque * f.torque / -spin
+        most = most if most < CUT * cap_tau / dt else CUT * cap_tau / dt
+    else:
+        most = cap_tau / dt
+    c_tau = c_tau if c_tau < most else most
+    planned = c * w2 + c_tau * turn * turn
+    if not planned > 0.0:
+        return 0.0
+    within_laws(f, f.fx + c * wx, f.fy + c * wy, f.fz + c * wz, f.torque + c_tau * turn)
+    f.pc_ticks += 1
+    f.pc_energy += planned
+    return planned
