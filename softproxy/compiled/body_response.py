@@ -37,6 +37,22 @@ def workspace(nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 @njit(cache=True, error_model="numpy")
+def point_jacobian(m, d, body, point, jac):
+    """jac (C-contiguous 6×nv) = [jacp; jacr] of `body` at the world point whose 3 float64 are at
+    address `point` (np.uintp): MuJoCo's mj_jac."""
+    nv = jac.shape[1]
+    base = np.uintp(jac.ctypes.data)
+    mj_jac(m, d, base, base + np.uintp(3 * nv * _F64), point, body)  # (uintp + int64 would be a float)
+
+
+@njit(cache=True, error_model="numpy")
+def response(m, d, jac, work):
+    """work (C-contiguous 6×nv) = the rows of (M⁻¹ Jᵀ)ᵀ: the 6 rows of J are 6 vectors of nv,
+    one mj_solveM over the factorisation mj_step1 left."""
+    mj_solveM(m, d, np.uintp(work.ctypes.data), np.uintp(jac.ctypes.data), 6)
+
+
+@njit(cache=True, error_model="numpy")
 def mobility(m, d, body_a, pa, body_b, pb, out, jac_a, jac_b, work):
     """out (6×6) = J_a M⁻¹ J_bᵀ: body a's (v, ω) at world point pa (m) per unit (linear,
     angular) impulse on body b at world point pb, world frame (see the module docstring).
@@ -63,15 +79,11 @@ def mobility(m, d, body_a, pa, body_b, pb, out, jac_a, jac_b, work):
     # row (any stride in, overwritten below) rather than trust the caller's layout.
     out[0, 0], out[0, 1], out[0, 2] = pa[0], pa[1], pa[2]
     out[0, 3], out[0, 4], out[0, 5] = pb[0], pb[1], pb[2]
-    rows = np.uintp(3 * nv * _F64)  # bytes from jacp to jacr; uintp + int64 would be a float in numba
     point_a = np.uintp(out.ctypes.data)
     point_b = point_a + np.uintp(3 * _F64)
-    base_a = np.uintp(jac_a.ctypes.data)
-    base_b = np.uintp(jac_b.ctypes.data)
-    mj_jac(m, d, base_a, base_a + rows, point_a, body_a)
-    mj_jac(m, d, base_b, base_b + rows, point_b, body_b)
-    # the 6 rows of J_b are 6 vectors of nv: one solve gives the rows of (M⁻¹ J_bᵀ)ᵀ
-    mj_solveM(m, d, np.uintp(work.ctypes.data), base_b, 6)
+    point_jacobian(m, d, body_a, point_a, jac_a)
+    point_jacobian(m, d, body_b, point_b, jac_b)
+    response(m, d, jac_b, work)
     out[0, :] = 0.0
     # out = J_a (M⁻¹ J_bᵀ), over the dofs that move body a only (its chain to the world: the
     # columns of J_a that are not zero), which is a few of nv in a model of many bodies

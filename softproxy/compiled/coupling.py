@@ -13,7 +13,8 @@ for the 4 channels of every finger in contact with a body that moves (the force 
 contact point, world x y z, and the torque about its normal n): W the fingers' wrenches (on
 the fingers; the bodies get -W), W_exp what each finger's spring-damper gives from the state
 now (`finger.update`), u the contact's velocity now, A = G M⁻¹ Gᵀ the mobility of the
-channels (`body_response.mobility`, cross terms between fingers on one tree included), and
+channels (`body_response`: one Jacobian and one solve per finger, cross terms between
+fingers on one tree included), and
 a_free the contact's acceleration without the fingers, taken from the last step's total
 (qacc) plus what the fingers' last wrenches contributed to it (+A·W_prev). In equilibrium
 the solve gives W = W_exp exactly; on a body that is heavy against the coupling (A → 0) it
@@ -35,7 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.body_response import mobility
+from softproxy.compiled.body_response import point_jacobian, response
 
 CHANNELS = 4
 """Per finger: force x, y, z at the contact point (N, world) and torque about its normal (N·m)."""
@@ -43,12 +44,12 @@ CHANNELS = 4
 
 def workspace(nv: int, fingers: int) -> tuple:
     """The scratch `implicit` needs for a model of `nv` dofs and a loop of `fingers` fingers:
-    (mob 6×6, jac_b 6×nv, J per finger, M⁻¹Jᵀ per finger, G and Q per finger (channels × nv),
+    (J per finger, M⁻¹Jᵀ per finger, G and Q per finger (channels × nv),
     the system (4n × 4n+1), the channels' table (4n × 5: H, hK, W_prev, u, a_free), the
     coupled fingers' rows (n))."""
     n = max(1, int(fingers))
     nv = int(nv)
-    return (np.zeros((6, 6)), np.zeros((6, nv)), np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
+    return (np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
             np.zeros((n, CHANNELS, nv)), np.zeros((n, CHANNELS, nv)),
             np.zeros((CHANNELS * n, CHANNELS * n + 1)), np.zeros((CHANNELS * n, 5)), np.zeros(n, dtype=np.int64))
 
@@ -97,17 +98,18 @@ def implicit(m, d, qvel, qacc, F, bodies_fixed, h, ws):
     f.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
     docstring). Between mj_step1 and mj_step2, after every finger's update. `bodies_fixed`: 1
     for a body welded to the world. Returns how many fingers were coupled."""
-    mob, jac_b, jacs, mijs, G, Q, system, chan, rows = ws
+    jacs, mijs, G, Q, system, chan, rows = ws
     nv = qvel.shape[0]
     n = 0
-    point = system[0, :3]  # (scratch: the system is filled after the last mobility call)
+    point = chan[0, :3]  # (scratch: the table is filled after the last Jacobian)
     for i in range(F.shape[0]):
         f = F[i]
         body = int(f.body)
         if not f.valid or body <= 0 or bodies_fixed[body] or n >= rows.shape[0]:
             continue
         point[0], point[1], point[2] = f.px, f.py, f.pz
-        mobility(m, d, body, point, body, point, mob, jacs[n], jac_b, mijs[n])
+        point_jacobian(m, d, body, np.uintp(point.ctypes.data), jacs[n])
+        response(m, d, jacs[n], mijs[n])
         # the 4 channels' rows: the point's linear rows, and n·(angular rows)
         J, MJ, g, q = jacs[n], mijs[n], G[n], Q[n]
         for k in range(nv):
