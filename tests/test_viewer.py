@@ -237,46 +237,41 @@ def test_switching_both_fingers_to_point_contact_live_lets_the_box_spin():
 # --- a stalled viewer --------------------------------------------------------------------
 @pytest.mark.slow
 def test_a_stalled_viewer_never_delays_a_tick(egl, tmp_path):
-    """Paced 1 kHz loop, 2 s, with no viewer and with a viewer process that sleeps 200 ms
-    after every frame (a frozen window), interleaved twice: deadline misses do not rise
-    beyond machine noise (3 % of the ticks: other processes on a 2-core machine cost more
-    than the viewer). A servo that waited for such a viewer (a lock, a full pipe) would
-    fall ~200 ticks behind at every frame: ~870 misses in 2 s, measured."""
+    """A viewer that draws nothing at all while the servo runs (its process stopped: the
+    extreme of a frozen window) holds back no tick: the paced 1 kHz run of 2000 ticks ends,
+    having published every frame it was to publish, while the viewer took none of them. A
+    servo that waited for its viewer (a lock, a full pipe) would never end the run. Continued,
+    the viewer draws the final frame, and what it drew from the shared memory is the scene.
+    (How many deadlines such a run misses is a matter of the machine's load: printed only.)"""
+    import signal
+
     from softproxy.viewer.launch import ViewerSession
     from softproxy.viewer.render import finger_color
 
     ticks = 2000
     scene = load_scene("two_finger_grasp")
-    runs = {"none": [], "stalled": []}
-    shots = []
-    for kind in ("none", "stalled", "none", "stalled"):
-        loop = build(scene, open_device("sim", scene), realtime=True)
-        session = None
-        if kind == "stalled":
-            shot = tmp_path / f"viewer{len(shots)}.png"
-            session = ViewerSession(loop, scene.path, offscreen=True, stall_ms=200, size=(640, 480),
-                                    save_last=shot).start()
-        try:
-            before = session.publisher.viewer_frames if session else 0
-            loop.run(ticks, realtime=True, on_tick=session)
-            frames = session.publisher.viewer_frames - before if session else 0
-            if session:
-                session.finish(loop)
-                assert session.process.wait(60) == 0, "the viewer drew the final frame and left"
-                shots.append((shot, frame_of(loop), loop))
-        finally:
-            if session:
-                session.close()
-        runs[kind].append((loop.stats.misses, frames))
-    misses_none = [m for m, _ in runs["none"]]
-    misses_stalled = [m for m, _ in runs["stalled"]]
-    print(f"\ndeadline misses in {ticks} ticks: no viewer {misses_none}, stalled viewer {misses_stalled}; "
-          f"viewer frames {[f for _, f in runs['stalled']]}")
-    # (the viewer runs at idle priority: on a busy machine it may draw nothing during the run,
-    # which is the point; it has drawn before the run and draws the final frame below)
-    assert min(misses_stalled) <= max(misses_none) + 0.03 * ticks, (misses_none, misses_stalled)
-    # what the viewer process drew from the shared memory is the scene
-    shot, frame, loop = shots[-1]
+    loop = build(scene, open_device("sim", scene), realtime=True)
+    shot = tmp_path / "viewer.png"
+    session = ViewerSession(loop, scene.path, offscreen=True, size=(640, 480), save_last=shot).start()
+    pid = session.process.pid
+    try:
+        os.kill(pid, signal.SIGSTOP)
+        frames, publishes = session.publisher.viewer_frames, session.publisher.publishes
+        servo = loop.run_in_thread(ticks, realtime=True, on_tick=session)
+        servo.join(600)  # (a servo waiting for its viewer: fail, not hang)
+        assert not servo.is_alive(), "the servo waited for a stopped viewer"
+        assert loop.error is None and loop.ticks == ticks
+        assert session.publisher.publishes - publishes == len(range(1, ticks + 1, session.publisher.every))
+        assert session.publisher.viewer_frames == frames, "the stopped viewer drew nothing"
+        print(f"\n{ticks} paced ticks with the viewer stopped: {loop.stats.misses} deadline misses")
+        os.kill(pid, signal.SIGCONT)
+        session.finish(loop)
+        assert session.process.wait(60) == 0, "the viewer drew the final frame and left"
+        frame = frame_of(loop)
+    finally:
+        if session.process.running():
+            _end(pid)
+        session.close()
     img = np.asarray(Image.open(shot).convert("RGB"))
     cam = framing(loop.world.model, frame, aspect=640 / 480)
     assert _close_in_colour(_pixel(img, cam, loop.world.data.body("box").xpos), BOX_RGBA)
