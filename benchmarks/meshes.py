@@ -3,16 +3,24 @@
 Three kinds of mesh, each at about 10k, 100k and 1M triangles, all about 10 cm across and
 generated here (numpy): CAD-like parts of long slivers (cylinders tessellated as a CAD export
 does: one sliver per section down the side, a fan on each cap, tilted), a near-flat gently
-curved open grid, and a scanned-like sphere with radial noise. Per mesh: the time and the
-peak memory (tracemalloc) to load it (`MeshShape` on explicit triangles, then the engine's
-tables), and the god-object update's cost per finger (p50 / p99, µs) with a 5 mm proxy
-pressed into it and sliding on it; on the 100k meshes with 1, 2 and 5 fingers on the one mesh.
+curved open grid, and a scanned-like sphere with radial noise. Then three shapes at one size
+each whose load once grew with a vertex's valence or a triangle's length (`HUBS`): a
+cylinder whose caps are fans of 25,000 slivers about one vertex, a UV sphere whose poles
+hold 50,000 of its 100,000 triangles, a 256 × 256 height field (as MuJoCo collides with it,
+`softproxy.geometry.hfield_triangles`: its walls and bottom fan are slivers metres long).
+Per mesh: the time and the peak memory to load it (`MeshShape` on explicit triangles, then
+the engine's tables; tracemalloc's peak, and the process's resident set's peak over what it
+was before), and the god-object update's cost per finger (p50 / p99, µs) with a 5 mm proxy
+pressed into it and sliding on it; on the 100k meshes with 1, 2 and 5 fingers on the one
+mesh.
 """
 
 from __future__ import annotations
 
+import gc
 import json
 import math
+import sys
 import time
 import tracemalloc
 import warnings
@@ -116,6 +124,70 @@ def noisy_sphere(triangles: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]
 KINDS = {"slivers (CAD-like)": slivers, "near-flat grid": grid, "noisy sphere": noisy_sphere}
 
 
+def fan_cylinder(triangles: int) -> tuple[np.ndarray, np.ndarray]:
+    """A cylinder (radius 1 cm, 3 cm tall, axis z, base at z = 0) as a CAD export tessellates
+    it: triangles / 4 sections, two slivers per section down the side, each cap a fan of
+    slivers about its centre (a vertex of triangles / 4 triangles)."""
+    sections = max(8, triangles // 4)
+    r, h = 0.01, 0.03
+    a = np.linspace(0.0, 2.0 * math.pi, sections, endpoint=False)
+    ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
+    v = np.vstack([np.column_stack([ring, np.zeros(sections)]), np.column_stack([ring, np.full(sections, h)]),
+                   [[0.0, 0.0, 0.0], [0.0, 0.0, h]]])
+    j = np.arange(sections)
+    k = (j + 1) % sections
+    lo, hi, c0, c1 = j, j + sections, 2 * sections, 2 * sections + 1
+    f = np.vstack([np.column_stack([lo, k, hi]), np.column_stack([k, k + sections, hi]),
+                   np.column_stack([np.full(sections, c0), k, lo]), np.column_stack([np.full(sections, c1), hi, k + sections])])
+    return v, f
+
+
+def uv_sphere(triangles: int) -> tuple[np.ndarray, np.ndarray]:
+    """A UV sphere (radius 5 cm, poles on z) of triangles / 4 segments and three rings: each
+    pole a fan of triangles / 4 slivers about one vertex (half the triangles in the two),
+    and one band of slivers between them."""
+    segments = max(8, triangles // 4)
+    r = 0.05
+    theta = np.array([math.pi / 3.0, 2.0 * math.pi / 3.0])
+    phi = np.linspace(0.0, 2.0 * math.pi, segments, endpoint=False)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    v = np.column_stack([r * np.sin(t).ravel() * np.cos(p).ravel(), r * np.sin(t).ravel() * np.sin(p).ravel(),
+                         r * np.cos(t).ravel()])
+    v = np.vstack([v, [[0.0, 0.0, r], [0.0, 0.0, -r]]])
+    north, south = len(v) - 2, len(v) - 1
+    j = np.arange(segments)
+    k = (j + 1) % segments
+    f = np.vstack([np.column_stack([np.full(segments, north), j, k]),
+                   np.column_stack([j, segments + j, k]), np.column_stack([k, segments + j, segments + k]),
+                   np.column_stack([np.full(segments, south), segments + k, segments + j])])
+    return v, f
+
+
+def height_field(rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """A rows × rows height field 20 m square (cells ~8 cm), rolling hills up to 5 cm over a
+    10 cm base, as MuJoCo collides with it: `softproxy.geometry.hfield_triangles` of a model
+    holding it (the surface, four walls of slivers 10-15 cm tall and 8 cm wide, and a bottom
+    fan of slivers 10-14 m long about its centre)."""
+    from softproxy.geometry import hfield_triangles
+
+    x, y = np.meshgrid(np.linspace(0.0, 1.0, rows), np.linspace(0.0, 1.0, rows))
+    z = 0.5 + 0.25 * np.sin(23.0 * x + 3.0 * np.cos(17.0 * y)) * np.cos(19.0 * y) + 0.1 * np.sin(61.0 * x * y)
+    z = (z - z.min()) / (z.max() - z.min())
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><asset><hfield name="h" nrow="{rows}" ncol="{rows}" size="10 10 0.05 0.1"/></asset>'
+        '<worldbody><geom type="hfield" hfield="h"/></worldbody></mujoco>')
+    model.hfield_data[:] = z.ravel()
+    return hfield_triangles(model, 0)
+
+
+HUBS = {"fan-capped cylinder": (fan_cylinder, 100_000, (0.0, 0.0, 0.03)),
+        "UV sphere, fan poles": (uv_sphere, 100_000, (0.0, 0.0, 0.05)),
+        "height field": (height_field, 256, None)}
+"""Shapes timed at one size (their generator, its argument, where the finger is held: the hub
+of the top cap's fan, the north pole; None: `spots`), where a vertex of high valence or a
+sliver metres long once made the load grow faster than the triangles."""
+
+
 # ---------------------------------------------------------------------------------------
 # Measurements
 # ---------------------------------------------------------------------------------------
@@ -128,11 +200,14 @@ def _model():
 
 
 def load(vertices, faces):
-    """(ShapeSet, seconds, peak bytes) of a mesh shape on the triangles, built from scratch."""
+    """(ShapeSet, seconds, peak bytes traced, peak bytes of the resident set over what it was
+    before) of a mesh shape on the triangles, built from scratch."""
     from softproxy.geometry import ShapeSet
     from softproxy.mesh import MeshShape, MeshWarning
 
     model, data = _model()
+    gc.collect()
+    before = resident_peak(reset=True)
     tracemalloc.start()
     t0 = time.perf_counter()
     with warnings.catch_warnings():
@@ -142,7 +217,24 @@ def load(vertices, faces):
     seconds = time.perf_counter() - t0
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    return shapes, seconds, peak
+    return shapes, seconds, peak, max(0, resident_peak() - before)
+
+
+def resident_peak(reset: bool = False) -> int:
+    """The process's peak resident set (bytes): on Linux, since the last reset (`reset` sets
+    it to the resident set now, and returns that); elsewhere the peak since it started."""
+    try:
+        if reset:
+            with open("/proc/self/clear_refs", "w") as f:
+                f.write("5")
+        with open("/proc/self/status") as f:
+            fields = dict(line.split(":", 1) for line in f)
+        return int(fields["VmHWM"].split()[0]) * 1024
+    except (OSError, KeyError, ValueError):
+        import resource
+
+        scale = 1 if sys.platform == "darwin" else 1024  # bytes on macOS, kB elsewhere
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * scale
 
 
 def spots(vertices, faces, count: int, seed: int = 1):
@@ -152,7 +244,10 @@ def spots(vertices, faces, count: int, seed: int = 1):
     n = np.cross(b - a, c - a)
     n /= np.linalg.norm(n, axis=1)[:, None]
     centre = (a + b + c) / 3.0
-    up = np.flatnonzero((n[:, 2] > 0.9) & (np.abs(centre[:, :2]) < 0.04).all(axis=1))
+    upward = n[:, 2] > 0.9
+    up = np.flatnonzero(upward & (np.abs(centre[:, :2]) < 0.04).all(axis=1))
+    if len(up) == 0:  # a coarse mesh (a height field's cells): the upward triangle nearest the middle
+        up = np.flatnonzero(upward)[np.argsort(np.abs(centre[upward, :2]).max(axis=1))[:1]]
     chosen = []
     for i in rng.permutation(up):
         if all(np.linalg.norm(centre[i] - centre[j]) > 0.015 for j in chosen):
@@ -215,9 +310,10 @@ def within_reach(vertices, faces, path, every: int = 20) -> np.ndarray:
     return np.array(counts)
 
 
-def measure(sizes=SIZES, updates: int = 2000, warm: int = 300, progress=None) -> dict:
+def measure(sizes=SIZES, updates: int = 2000, warm: int = 300, progress=None, hubs=None) -> dict:
     """Load and tick every kind at every size, then the BESIDE kinds' smallest mesh beside a
-    copy of their largest; returns the result dict."""
+    copy of their largest, then the HUBS shapes (at the sizes `hubs` gives, by name, if it
+    does); returns the result dict."""
     load(*grid(200))  # the compiled kernels loaded (compiled on a first run), not timed
     rows = []
     for kind, make in KINDS.items():
@@ -236,6 +332,14 @@ def measure(sizes=SIZES, updates: int = 2000, warm: int = 300, progress=None) ->
                    updates, warm)
         row["beside"] = len(far_f)
         rows.append(row)
+    for kind, (make, size, at) in HUBS.items():
+        if progress is not None:
+            progress(kind)
+        v, f = make(size if hubs is None else hubs[kind])
+        where = spots(v, f, 1) if at is None else [(np.array(at), np.array([0.0, 0.0, 1.0]))]
+        row = _row(kind, v, f, where, (1,), updates, warm)
+        row["hub"] = int(np.bincount(np.asarray(f).ravel()).max())  # the highest valence
+        rows.append(row)
     return {"radius_m": RADIUS, "updates": updates, "rows": rows}
 
 
@@ -248,9 +352,9 @@ BESIDE_OFFSET = (0.2, 0.0, 0.0)
 
 def _row(kind: str, v, f, where, fingers, updates: int, warm: int) -> dict:
     """One row: the mesh loaded, then `fingers` fingers at `where` ticked pressed and sliding."""
-    shapes, seconds, peak = load(v, f)
+    shapes, seconds, peak, resident = load(v, f)
     row = {"kind": kind, "triangles": int(shapes[0].triangles), "load_s": round(seconds, 3),
-           "peak_mb": round(peak / 1e6, 1)}
+           "peak_mb": round(peak / 1e6, 1), "rss_mb": round(resident / 1e6, 1)}
     for mode in ("pressed", "sliding"):
         # each spot alone, then the fingers together: a finger's cost in company is
         # compared with the same spots' cost alone (spots differ: a concave one costs more)
@@ -274,7 +378,7 @@ def chart(result: dict):
     kinds = list(dict.fromkeys(r["kind"] for r in rows))
     colours = ["#4a7ab8", "#c07030", "#30a050"]
     for kind, colour in zip(kinds, colours):
-        mine = [r for r in rows if r["kind"] == kind and "beside" not in r]
+        mine = [r for r in rows if r["kind"] == kind and "beside" not in r and "hub" not in r]
         n = [r["triangles"] for r in mine]
         axes[0].plot(n, [r["load_s"] for r in mine], "o-", color=colour, label=kind)
         axes[1].plot(n, [r["peak_mb"] for r in mine], "o-", color=colour, label=kind)
@@ -284,6 +388,9 @@ def chart(result: dict):
             if r["kind"] == kind and "beside" in r:
                 axes[2].plot([r["triangles"]], [r["sliding_1f_p99_us"]], "*", ms=11, color=colour,
                              label=f"{kind}, sliding: smallest beside largest")
+    for r, marker in zip([r for r in rows if "hub" in r], "^vD"):
+        axes[0].plot([r["triangles"]], [r["load_s"]], marker, color="#7050a0", label=r["kind"])
+        axes[1].plot([r["triangles"]], [r["peak_mb"]], marker, color="#7050a0", label=r["kind"])
     axes[0].axhline(5.0, color="#c03030", lw=0.8, ls=":", label="target at 100k (5 s)")
     axes[1].axhline(500.0, color="#c03030", lw=0.8, ls=":", label="target at 100k (500 MB)")
     axes[2].axhline(1000.0, color="#c03030", lw=0.8, ls=":", label="a 1 kHz tick (1000 µs)")
@@ -312,19 +419,22 @@ def main(args) -> int:
           "per finger); µs per finger update, p50/p99")
     print("  (with several fingers: p99 in company / p99 of the same spots each alone; in reach: the")
     print("  median tick's triangles within the proxy's radius plus its move, an exact sweep's work, pressed/sliding)")
-    print(f"  {'mesh':20s}{'triangles':>10s}{'load s':>8s}{'peak MB':>9s}  {'fingers':>7s}"
+    print("  (peak MB: tracemalloc's peak; RSS MB: the resident set's peak over what it was before the load)")
+    print(f"  {'mesh':20s}{'triangles':>10s}{'load s':>8s}{'peak MB':>9s}{'RSS MB':>8s}  {'fingers':>7s}"
           f"{'pressed':>16s}{'sliding':>16s}{'in reach':>10s}{'p99 ratio':>14s}")
     previous = {}
     for r in result["rows"]:
         if "beside" in r and "beside" not in previous:
             print(f"  the smallest again, {BESIDE_OFFSET[0] * 100:g} cm from a copy of the largest "
                   "(the same spot and triangles within reach):")
+        if "hub" in r and "hub" not in previous:
+            print("  high valence and long slivers (the finger on the cap's hub, on the pole, on the field):")
         previous = r
         for count in FINGERS:
             if f"pressed_{count}f_p50_us" not in r:
                 continue
-            head = (f"  {r['kind']:20s}{r['triangles']:10d}{r['load_s']:8.2f}{r['peak_mb']:9.1f}" if count == 1
-                    else " " * 49)
+            head = (f"  {r['kind']:20s}{r['triangles']:10d}{r['load_s']:8.2f}{r['peak_mb']:9.1f}{r['rss_mb']:8.1f}"
+                    if count == 1 else " " * 57)
             ratio = "" if count == 1 else (
                 f"{r[f'pressed_{count}f_p99_us'] / r[f'pressed_{count}f_alone_p99_us']:6.2f}/"
                 f"{r[f'sliding_{count}f_p99_us'] / r[f'sliding_{count}f_alone_p99_us']:<6.2f}")

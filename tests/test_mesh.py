@@ -312,7 +312,7 @@ def test_the_frictionless_proxy_goes_on_along_a_crease_of_slivers():
     from softproxy.compiled.godobject import LIFT_TOL
 
     v, f = bench.slivers(10_000)
-    shapes, _, _ = bench.load(v, f)
+    shapes, _, _, _ = bench.load(v, f)
     o = Oracle(v, f, True)
     p, n = (np.array(a) for a in CREASE_SPOT)
     assert o.distance([p + 1e-4 * n])[0] > 0.0 and abs(o.distance([p])[0]) < 1e-9  # on the cap, n outward

@@ -127,23 +127,35 @@ def test_sliver_heavy_tables_hold_what_the_queries_need():
     reach of the face (by points spread over both) rising above its plane is listed, or the
     face is marked concave (which only sends its queries to the box tree); for sampled vertices: every vertex of a triangle within the reach
     (exact point-triangle distance) but its ring is in the table no later than its sin β."""
-    from mesh_oracle import Oracle
-    from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
     from softproxy.mesh import reach, tables_of
 
     part = cad_part(200, seed=3)
-    v, f = np.asarray(part.vertices, float), np.asarray(part.faces)
-    t = tables_of(v, f, "cad part")
+    t = tables_of(np.asarray(part.vertices, float), np.asarray(part.faces), "cad part")
+    assert t.kept == reach(0.005)
+    rng = np.random.default_rng(4)
+    certified, concave = assert_tables_hold(t, rng.choice(t.triangles, 100, replace=False),
+                                            rng.choice(len(t.vpos), 100, replace=False))
+    assert certified > 0 and concave > 0
+
+
+def assert_tables_hold(t, faces, vertices) -> tuple[int, int]:
+    """The kept certificates of tables `t` (a `MeshTables`) hold what the queries need, by
+    brute force: for each of `faces`, every triangle within the reach of the face (by points
+    spread over both) rising above its plane is listed, or the face is marked concave (which
+    only sends its queries to the box tree); for each of `vertices`, every vertex of a
+    triangle within the reach (exact point-triangle distance) but its ring is in the table
+    no later than its sin β. Returns (sides certified, sides concave)."""
+    from mesh_oracle import Oracle
+    from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
+
     v, f = t.vpos, t.tv  # as validated
     o = Oracle(v, f, True)
-    radius = reach(0.005)
-    assert t.kept == radius
+    radius = t.kept
     abc = v[f]
     weights = np.array([(a, b, 8 - a - b) for a in range(9) for b in range(9 - a)], float) / 8.0
     samples = np.einsum("sk,tkx->tsx", weights, abc)
-    rng = np.random.default_rng(4)
     certified = concave = 0
-    for i in rng.choice(len(f), 100, replace=False):
+    for i in faces:
         near = triangles_near(o, samples, i, radius)
         height = abc[near] @ o.n[i] - o.off[i]
         for side, key in ((1.0, i), (-1.0, -1 - i)):
@@ -154,10 +166,9 @@ def test_sliver_heavy_tables_hold_what_the_queries_need():
             else:
                 certified += 1
                 assert rising <= set(got), (i, side)
-    assert certified > 0 and concave > 0
     _, start, sines, ids = t.vtable
     normal = t.vcone[:, :3]
-    for vertex in rng.choice(len(v), 100, replace=False):
+    for vertex in vertices:
         fan = (f == vertex).any(axis=1)
         ring = set(f[fan].reshape(-1).tolist())
         near = (point_triangle(v[vertex][None], o.a, o.b, o.c)[0] <= radius) & ~fan
@@ -171,6 +182,7 @@ def test_sliver_heavy_tables_hold_what_the_queries_need():
         for w, sine in zip(others, beta):
             if sine < cut:
                 assert kept[w] <= sine + 1e-12, (vertex, w)
+    return certified, concave
 
 
 def test_a_face_of_long_triangles_sees_short_ones_rising_above_it():
@@ -332,8 +344,9 @@ def test_fingers_on_one_mesh_agree_with_each_finger_alone():
 
 def test_bench_meshes_in_miniature():
     """`softproxy bench meshes` in miniature: every kind of mesh loads and is timed pressed and
-    sliding, with 1, 2 and 5 fingers at the middle size; the generated meshes have about the
-    triangles asked for, and the sliver kind is made of slivers (aspect over 50)."""
+    sliding, with 1, 2 and 5 fingers at the middle size, and so does each shape of high
+    valence at one size; the generated meshes have about the triangles asked for, the
+    sliver kind is made of slivers (aspect over 50), and the hubs have the valence asked for."""
     from softproxy.benchmarks import meshes
 
     v, f = meshes.slivers(40000)
@@ -341,15 +354,21 @@ def test_bench_meshes_in_miniature():
     longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1), np.linalg.norm(a - c, axis=1)], 0)
     area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
     assert np.median(longest * longest / area2) > 50
-    result = meshes.measure(sizes=(1500, 3000, 6000), updates=30, warm=10)
+    hubs = {"fan-capped cylinder": 2000, "UV sphere, fan poles": 2000, "height field": 24}
+    result = meshes.measure(sizes=(1500, 3000, 6000), updates=30, warm=10, hubs=hubs)
     rows = result["rows"]
-    assert len(rows) == 9 + len(meshes.BESIDE) and {r["kind"] for r in rows} == set(meshes.KINDS)
-    for r, size in zip(rows, [1500, 3000, 6000] * 3 + [7500] * len(meshes.BESIDE)):
+    assert len(rows) == 9 + len(meshes.BESIDE) + len(meshes.HUBS)
+    assert {r["kind"] for r in rows} == set(meshes.KINDS) | set(meshes.HUBS)
+    sizes = [1500, 3000, 6000] * 3 + [7500] * len(meshes.BESIDE) + [2000, 2000, 2 * 23 * 23]
+    for r, size in zip(rows, sizes):
         assert 0.5 * size < r["triangles"] < 1.5 * size and r["load_s"] > 0.0 and r["peak_mb"] > 0.0
+        assert r["rss_mb"] >= 0.0
         assert r["pressed_1f_p99_us"] >= r["pressed_1f_p50_us"] > 0.0
+    # the cylinder's caps and the sphere's poles are fans about one vertex of the size asked
+    assert [r["hub"] for r in rows[-3:-1]] == [2000 // 4, 2000 // 4]
     assert all("sliding_5f_p99_us" in r and "sliding_5f_alone_p99_us" in r for r in rows[1:9:3])
     # the smallest beside a copy of the largest: the same spot, so the same triangles in reach
-    for r in rows[9:]:
+    for r in rows[9:9 + len(meshes.BESIDE)]:
         small = next(s for s in rows[:9:3] if s["kind"] == r["kind"])
         assert 0.5 * 6000 < r["beside"] < 1.5 * 6000 and r["triangles"] == small["triangles"] + r["beside"]
         assert r["sliding_in_reach_p50"] == small["sliding_in_reach_p50"]
@@ -387,6 +406,79 @@ def test_the_bench_counts_the_triangles_within_a_ticks_reach():
     sides = [np.linalg.norm(b - c), np.linalg.norm(c - a), np.linalg.norm(a - b)]
     middle = (sides[0] * a + sides[1] * b + sides[2] * c) / sum(sides) + [0.0, 0.0, r]  # over its incentre
     assert meshes.within_reach(fine, f, [middle, middle], every=1).tolist() == [1]
+
+
+# ---------------------------------------------------------------------------------------
+# High-valence vertices, long slivers: the shapes whose load once grew faster than their size
+# ---------------------------------------------------------------------------------------
+
+HFIELD = ('<mujoco><asset><hfield name="h" nrow="20" ncol="24" size="0.1 0.08 0.02 0.01"/></asset>'
+          '<worldbody><body name="b" pos=".01 -.02 .03" euler="10 -20 30"><geom name="g" type="hfield" hfield="h"/>'
+          '</body></worldbody></mujoco>')
+
+
+def hub_shapes():
+    """(name, model, data, MeshShape, its triangles in the world frame) of a fan-capped
+    cylinder (150 sections: each cap's hub has 152 triangles), a UV sphere whose poles are
+    fans of 150 slivers, and a 20 × 24 height field (its bottom a fan of 84 slivers 10-13 cm
+    long about one vertex, its walls slivers), each turned and moved off the origin."""
+    from softproxy.benchmarks.meshes import fan_cylinder, uv_sphere
+    from softproxy.geometry import hfield_triangles, shapes_of
+
+    out = []
+    for name, (v, f) in (("fan-capped cylinder", fan_cylinder(600)), ("uv sphere", uv_sphere(600))):
+        m, d, shapes = mesh_model(trimesh.Trimesh(v, f, process=False), body='pos=".01 -.02 .03" euler="10 -20 30"')
+        out.append((name, m, d, mesh_of(shapes), world_mesh(m, d, 0)))
+    m = mujoco.MjModel.from_xml_string(HFIELD)
+    rows, cols = int(m.hfield_nrow[0]), int(m.hfield_ncol[0])
+    y, x = np.meshgrid(np.linspace(0.0, 1.0, rows), np.linspace(0.0, 1.0, cols), indexing="ij")
+    m.hfield_data[:] = (0.5 + 0.4 * np.sin(7.0 * x) * np.cos(5.0 * y)).ravel()
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    v, f = hfield_triangles(m, 0)
+    out.append(("height field", m, d, mesh_of(shapes_of(m, d)), (local_to_world(d, 0, v), f)))
+    return out
+
+
+@pytest.mark.parametrize("which", range(3), ids=["fan-capped cylinder", "uv sphere", "height field"])
+def test_hubs_and_long_slivers_are_touched_exactly(which):
+    """The shapes whose load once grew with a vertex's valence or a sliver's length (a cap's
+    fan, a UV sphere's poles, a height field's bottom fan and walls), small: their kept
+    certificates hold what the queries need (every face within reach of the hub, vertices
+    about it and anywhere), and distances and sweeps about the hub and about random edges
+    and vertices, from a hint on or near the feature, are the brute force's."""
+    from test_mesh_queries import check_distance, near_features, start_from
+
+    name, m, d, s, (wv, wf) = hub_shapes()[which]
+    t = s.tables
+    o = Oracle(wv, wf, s.signed)
+    valence = np.bincount(t.tv.ravel(), minlength=len(t.vpos))
+    hub = int(np.argmax(valence))
+    assert valence[hub] > 64  # a hub: its fan is found in the tree of long triangles
+    rng = np.random.default_rng(7 + which)
+    fan = np.flatnonzero((t.tv == hub).any(axis=1))
+    near_hub = np.flatnonzero(np.linalg.norm(t.centre - t.vpos[hub], axis=1) < t.kept + t.rhos)
+    around_hub = np.flatnonzero(np.linalg.norm(t.vpos - t.vpos[hub], axis=1) < t.kept)
+    faces = np.union1d(rng.choice(near_hub, min(60, len(near_hub)), replace=False), rng.choice(t.triangles, 20))
+    vertices = np.union1d(rng.choice(around_hub, min(30, len(around_hub)), replace=False), [hub])
+    certified, _ = assert_tables_hold(t, faces, np.union1d(vertices, rng.choice(len(t.vpos), 10)))
+    assert certified > 0
+    # the hub where the world has it (the world's triangles are the compiled mesh's)
+    at = local_to_world(d, s.geom, t.vpos[hub])
+    w_hub = int(np.argmin(np.linalg.norm(wv - at, axis=1)))
+    w_fan = np.flatnonzero((wf == w_hub).any(axis=1))
+    assert len(w_fan) == len(fan)
+    ways = rng.normal(size=(40, 3))
+    ways /= np.linalg.norm(ways, axis=1)[:, None]
+    cases = [(at + u * 0.006 * rng.uniform() ** 2, int(rng.choice(w_fan))) for u in ways]
+    cases += near_features(o, rng, 40)
+    for k, (p, hint) in enumerate(cases):
+        start_from(s, hint)
+        check_distance(o, s, [p], (name, k))
+        start_from(s, hint)
+        u = rng.normal(size=3) * rng.choice([1e-4, 1e-3, 3e-3])
+        r = [0.0, 0.002, 0.005][k % 3]
+        o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=(name, k))
 
 
 # ---------------------------------------------------------------------------------------
