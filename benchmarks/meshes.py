@@ -138,7 +138,8 @@ def fan_cylinder(triangles: int) -> tuple[np.ndarray, np.ndarray]:
     k = (j + 1) % sections
     lo, hi, c0, c1 = j, j + sections, 2 * sections, 2 * sections + 1
     f = np.vstack([np.column_stack([lo, k, hi]), np.column_stack([k, k + sections, hi]),
-                   np.column_stack([np.full(sections, c0), k, lo]), np.column_stack([np.full(sections, c1), hi, k + sections])])
+                   np.column_stack([np.full(sections, c0), k, lo]),
+                   np.column_stack([np.full(sections, c1), hi, k + sections])])
     return v, f
 
 

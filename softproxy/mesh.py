@@ -307,7 +307,8 @@ class MeshTables:
         apexes = apex_frames(long_tree[0], long_tree[3], self.vpos, self.tv, frames)
         # a vertex's walk: one tree over every vertex, each with its reach boxes
         item_vertex, wlo, whi = reach_boxes(self.vpos, self.tv, self.tlo, self.thi, self.centre, edge, long_edge)
-        order, vlo, vhi, vsize = box_tree(self.vpos[item_vertex], self.vpos[item_vertex], extent=(whi - wlo).max(axis=1))
+        at = self.vpos[item_vertex]
+        order, vlo, vhi, vsize = box_tree(at, at, extent=(whi - wlo).max(axis=1))
         vorder, wlo, whi = item_vertex[order], wlo[order], whi[order]
         rlo, rhi = node_boxes(np.arange(len(order)), vsize, wlo, whi)
         vframes = point_frames(vorder, vsize, self.vpos, self.vcone[:, :3])
