@@ -147,6 +147,7 @@ def test_seqlock_publisher_reader_round_trip():
             assert tuple(rec[state.F_PROXY:state.F_PROXY + 3]) == (f.god.x, f.god.y, f.god.z)
             assert tuple(rec[state.F_DEVICE:state.F_DEVICE + 3]) == (f.xd, f.yd, f.zd)
             assert rec[state.F_RADIUS] == f.params.radius and rec[state.F_MODE] == SOFT
+            assert rec[state.F_ENERGY] == f.energy  # the passivity observer, shown beside the slips
         assert pub.publishes >= 700 // pub.every
         # a writer caught mid-write (odd counter): the reader gives up rather than return a torn frame
         pub.header[state.SEQ] += 1

@@ -29,7 +29,7 @@ import numpy as np
 from softproxy.viewer import meshes
 from softproxy.viewer.state import (
     F_ALPHA_G, F_ALPHA_P, F_CONTACT, F_DEVICE, F_FORCE, F_K_TAU, F_LIMIT, F_MODE, F_MODEL, F_NORMAL, F_NORMAL_FORCE,
-    F_POINT, F_PROXY, F_RADIUS, F_SLIPPING, F_SLIPS, F_TORQUE, F_TORSION_CONTACT, F_VALID, POINT, S_FAULTS,
+    F_ENERGY, F_POINT, F_PROXY, F_RADIUS, F_SLIPPING, F_SLIPS, F_TORQUE, F_TORSION_CONTACT, F_VALID, POINT, S_FAULTS,
     S_MISSES, S_P50_US, S_P99_US, S_RATE, S_RATE_NOMINAL, S_REALTIME, MODEL_NAMES, Frame,
 )
 
@@ -557,7 +557,7 @@ def overlay_lines(frame: Frame, finger_names: list[str], status: str = "", help_
             state = "-" if not f[F_TORSION_CONTACT] else ("SLIP" if f[F_SLIPPING] else "stick")
             text += (f"  a_p {math.degrees(f[F_ALPHA_P]):+7.3f} a_g {math.degrees(f[F_ALPHA_G]):+7.3f} deg"
                      f"  M {f[F_TORQUE] * 1000:+6.2f} N.mm {state}")
-        text += f"  slips {int(f[F_SLIPS])}"
+        text += f"  slips {int(f[F_SLIPS])}  E {f[F_ENERGY] * 1000:+.3f} mJ"
         lines.append(text)
     if status:
         lines.append(status)

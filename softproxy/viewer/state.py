@@ -83,6 +83,7 @@ F_RADIUS = 27      # proxy radius, m
 F_BODY = 28        # touched body id or -1
 F_SLIPS = 29       # slip events
 F_MODEL = 30       # index of the finger's fingertip model in softproxy.fingertip.MODELS (-1 unknown)
+F_ENERGY = 31      # the passivity observer E, J (< 0: energy the coupling owes; softproxy.compiled.passivity)
 N_FINGER_FIELDS = 32
 
 TICK_WINDOW = 1000  # tick p50/p99 over the most recent ticks
@@ -163,10 +164,10 @@ def pack_state(loop, out: np.ndarray, layout: Layout, rate: float = 0.0, p50_us:
                  1.0 if tors.slipping else 0.0, tors.limit, tors.k_tau)
         else:
             t = (POINT, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        out[o:o + 31] = (god.x, god.y, god.z, f.xd, f.yd, f.zd, f.fx, f.fy, f.fz, f.px, f.py, f.pz,
+        out[o:o + 32] = (god.x, god.y, god.z, f.xd, f.yd, f.zd, f.fx, f.fy, f.fz, f.px, f.py, f.pz,
                          god.nx, god.ny, god.nz, 1.0 if god.contact else 0.0, 1.0 if f.valid else 0.0,
                          *t, f.torque, f.normal_force, f.params.radius, f.body, f.slip_events,
-                         _MODEL_INDEX.get(f.model.name, -1))
+                         _MODEL_INDEX.get(f.model.name, -1), f.energy)
         o += N_FINGER_FIELDS
 
 
