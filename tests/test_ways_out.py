@@ -10,6 +10,7 @@ safety reviewer asks: every finger's last send is zero, the device was closed, a
 happens after `close()` returns. Signals against a whole process: tests/test_safety.py.
 """
 
+import gc
 import math
 import os
 import signal
@@ -108,9 +109,9 @@ def assert_left_safe(device, sends_when_closed):
 
 
 def _ending_signals():
-    """Every signal the termination module turns into an exit that is at its default here (a
-    test runner under nohup ignores SIGHUP; Python ignores SIGPIPE and SIGXFSZ: those are
-    reset to their default for the test, as an application that wants them back does)."""
+    """Signals the termination module turns into an exit; one a test runner ignores (SIGHUP
+    under nohup, SIGPIPE in every Python) is set back to its default for the test, as an
+    application that wants it back does."""
     names = ("SIGTERM", "SIGHUP", "SIGINT", "SIGQUIT", "SIGUSR1", "SIGUSR2", "SIGALRM", "SIGPIPE")
     return [getattr(signal, n) for n in names if hasattr(signal, n)]
 
@@ -119,13 +120,14 @@ def _ending_signals():
 def default_signal(request):
     """The signal under test at its default disposition for the test's length (restored after)."""
     sig = request.param
-    before = signal.getsignal(sig)
-    if sig in (signal.SIGPIPE,):
-        signal.signal(sig, signal.SIG_DFL)
-    elif before is not termination._default(sig):
-        pytest.skip(f"{signal.Signals(sig).name} is handled or ignored by the test runner here")
     for other in list(servo._open_loops):  # loops other tests left open hold the handlers
         other.close()
+    gc.collect()  # ... and those they dropped unclosed, until collected
+    before = signal.getsignal(sig)
+    if before is signal.SIG_IGN:  # Python ignores PIPE; nohup, HUP; a shell's background job, INT
+        signal.signal(sig, termination._default(sig))
+    elif before is not termination._default(sig):
+        pytest.skip(f"{signal.Signals(sig).name} is handled by the test runner here")
     yield sig
     signal.signal(sig, before)
 
