@@ -14,9 +14,9 @@ contact point, world x y z, and the torque about its normal n): W the fingers' w
 the fingers; the bodies get -W), W_exp what each finger's spring-damper gives from the state
 now (`finger.update`), u the contact's velocity now, A = G M⁻¹ Gᵀ the mobility of the
 channels (`body_response`: one Jacobian and one solve per finger, cross terms between
-fingers on one tree included), and
-a_free the contact's acceleration without the fingers, taken from the last step's total
-(qacc) plus what the fingers' last wrenches contributed to it (+A·W_prev). In equilibrium
+fingers on one tree included), and a_free the contact's acceleration without the fingers,
+taken from the last step's total (qacc) plus what the fingers' last wrenches contributed to
+it (+A·W_prev). In equilibrium
 the solve gives W = W_exp exactly; on a body that is heavy against the coupling (A → 0) it
 is W_exp plus the spring's stretch over the tick's motion; on a light one it is what the
 coupled pair does in one implicit step, which dissipates rather than injects energy.
