@@ -55,6 +55,10 @@ class GodObject(RecordView):
     nz = Field()
     depth = Field()
     sticking = Field(kind=bool)
+    squeezed = Field(kind=bool)
+    """Caught between a moving and a static shape with no room between them: the proxy rests on
+    the static one (never pushed through it), and the moving one overlaps it."""
+    squeeze_ticks = Field(kind=int)
     lx = Field()
     ly = Field()
     lz = Field()

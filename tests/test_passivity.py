@@ -371,3 +371,53 @@ def test_the_observer_counts_a_lossless_spring_exactly():
     assert deepest == pytest.approx(0.5 * k * 0.002 ** 2, rel=2e-3)
     assert abs(finger.energy_in) < 2e-3 * deepest
     assert finger.energy_min > -2e-3 * deepest
+
+
+# -- a proxy caught between a moving and a static surface --------------------------------------------
+
+SQUEEZE = """<mujoco><option gravity="0 0 -9.81"/><worldbody><geom name="floor" type="plane" size="1 1 .1"/>
+<body name="box" pos="0 0 0.3"><joint type="slide" axis="0 0 1"/><geom type="box" size="0.1 0.1 0.02" mass="{mass}"/>
+</body></worldbody></mujoco>"""
+
+
+class HeldBelow:
+    """A device held 3 mm below where its proxy rests on the floor (a finger pressing 3 N)."""
+
+    fingers, max_force, max_torque = 1, 40.0, 1.0
+
+    def read(self, t, samples):
+        s = samples[0]
+        s.x, s.y, s.z, s.twist, s.valid = 0.0, 0.0, 0.005, 0.0, True
+
+    def send(self, finger, *w):
+        pass
+
+    def close(self):
+        pass
+
+
+@pytest.mark.parametrize("mass", [0.1, 1.0, 10.0])
+def test_a_proxy_squeezed_by_a_falling_box_stays_out_of_the_floor(mass):
+    """A box on a vertical slide falls onto a finger resting on the floor (radius 8 mm,
+    k = 1000 N/m, its device 3 mm below the resting proxy): the proxy is never pushed through
+    the floor, the finger says it is squeezed, and the force stays the floor's, out of it and
+    within the clamp: never a pull into the floor nor a reversal (it went 19 mm through the
+    floor pulling the hand down at 29 N, then jumped 55 mm onto the box and pushed at 27 N).
+    The tick the box lands, the damper renders the box's speed (b·v, up) once; then the
+    floor's 3 N."""
+    world = World(mujoco.MjModel.from_xml_string(SQUEEZE.format(mass=mass)))
+    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0, soft_start=0.0), world.shapes, model("point"))
+    z, fz, squeezed = [], [], 0
+    with ServoLoop(world, [finger], HeldBelow(), 1000.0) as loop:
+        for _ in range(600):
+            loop.tick()
+            z.append(finger.god.z)
+            fz.append(finger.fz)
+            squeezed += finger.god.squeezed
+    z, fz = np.array(z), np.array(fz)
+    print(f"{mass:g} kg box: proxy z {z.min() * 1e3:.3f} to {z.max() * 1e3:.3f} mm, Fz {fz.min():.2f} to "
+          f"{fz.max():.2f} N, squeezed {squeezed} ticks, largest step {np.abs(np.diff(fz)).max():.2f} N")
+    assert z.min() >= 0.008 - 1e-6  # never inside the floor
+    assert fz.min() >= 0.0 and fz.max() <= finger.params.max_force  # never into the floor, within the clamp
+    assert squeezed > 0 and finger.god.squeeze_ticks == squeezed
+    assert fz[-1] == pytest.approx(3.0, rel=1e-6)  # the floor's spring force, the box lying over the finger

@@ -102,6 +102,9 @@ def restick_travel(offset_travel, speed, restick_time):
     return offset_travel if offset_travel < band else band
 
 
+SQUEEZE_TOL = 1e-6
+"""A proxy still this far inside a moving shape once it is out of every static one (m) is
+squeezed between them: no position is out of both."""
 TOUCH_TOL = 1e-6
 """A proxy sphere within this distance (m) of a shape's surface touches it, for choosing the
 touched shape: ten times LIFT_TOL (the farthest a resting proxy sits off what it rests on),
@@ -411,23 +414,80 @@ def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
 
 
 @njit(cache=True, error_model="numpy")
+def _push_out_of(S, T, C, xpos, xmat, g, near, static):
+    """One pass: the proxy out of every shape of `near` that is static (or moving) it overlaps,
+    to CONTACT_TOL outside. True when it moved."""
+    r = g.radius
+    moved = False
+    for j in range(int(g.nnear)):
+        s = near[j]
+        if S[s].static != static:
+            continue
+        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, g.x, g.y, g.z)
+        gap = d - r
+        if gap < 0.0:
+            push = -gap + CONTACT_TOL
+            g.x += push * nx
+            g.y += push * ny
+            g.z += push * nz
+            moved = True
+    return moved
+
+
+@njit(cache=True, error_model="numpy")
 def push_out(S, T, C, xpos, xmat, g, near):
     """Move the proxy out of any shape of `near` it overlaps (an object moved into it), to
-    CONTACT_TOL outside; a few rounds, as a push out of one shape can push into another."""
-    r = g.radius
-    for _ in range(3):
-        moved = False
-        for j in range(int(g.nnear)):
-            d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, near[j], g.x, g.y, g.z)
-            gap = d - r
-            if gap < 0.0:
-                push = -gap + CONTACT_TOL
-                g.x += push * nx
-                g.y += push * ny
-                g.z += push * nz
-                moved = True
+    CONTACT_TOL outside: out of the moving shapes, then out of the static ones, a few rounds
+    (a push out of one shape can push into another). The static shapes have the last word: a
+    moving object never pushes the proxy through a static surface. Where no position is out
+    of both (a gap narrower than the proxy) the proxy stays on the static side and the finger
+    is `squeezed`; while it is, the moving shape does not push it at all (out through its far
+    side would be a jump of its whole thickness), until it has moved off the proxy."""
+    was = g.squeezed
+    for _ in range(4):
+        moved = False if was else _push_out_of(S, T, C, xpos, xmat, g, near, False)
+        moved = _push_out_of(S, T, C, xpos, xmat, g, near, True) or moved
         if not moved:
+            break
+    g.squeezed = False
+    for j in range(int(g.nnear)):
+        s = near[j]
+        if not S[s].static and shape_distance(S, T, C, xpos, xmat, s, g.x, g.y, g.z)[0] - g.radius < -SQUEEZE_TOL:
+            g.squeezed = True
+            g.squeeze_ticks += 1
             return
+
+
+@njit(cache=True, error_model="numpy")
+def _rest_squeezed(S, T, C, xpos, xmat, g, near, xd, yd, zd):
+    """A squeezed proxy (`push_out`) rests where the static surfaces put it, in contact with
+    the nearest static shape: the finger renders that surface's spring force (never into it),
+    held, no sweep through the moving object that overlaps it."""
+    best, bd, bnx, bny, bnz = -1, math.inf, 0.0, 0.0, 0.0
+    for j in range(int(g.nnear)):
+        s = near[j]
+        if S[s].static:
+            d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, g.x, g.y, g.z)
+            if d < bd:
+                best, bd, bnx, bny, bnz = s, d, nx, ny, nz
+    g.free_x, g.free_y, g.free_z = g.x, g.y, g.z
+    g.nfree = 0
+    if best < 0:  # squeezed against no static shape: not expected (only a static one pushes last)
+        g.contact = False
+        g.touched = -1
+        g.nplanes = 0
+        g.depth = 0.0
+        return
+    g.contact = True
+    g.touched = best
+    g.nx, g.ny, g.nz = bnx, bny, bnz
+    depth = (g.x - xd) * bnx + (g.y - yd) * bny + (g.z - zd) * bnz
+    g.depth = depth if depth > 0.0 else 0.0
+    g.sticking = True
+    g.nplanes = 1
+    g.planes[0, 0], g.planes[0, 1], g.planes[0, 2] = bnx, bny, bnz
+    g.planes[0, 3] = bnx * g.x + bny * g.y + bnz * g.z
+    g.planes[0, 4], g.planes[0, 5] = best, -1.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -478,6 +538,8 @@ def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
         if s != carrier and (carrier >= 0 or not S[s].static):
             push_out(S, T, C, xpos, xmat, g, near)
             break
+    else:
+        g.squeezed = False
     return x, y, z
 
 
@@ -1012,6 +1074,9 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
         follow(S, T, C, xpos, xmat, g, near)
         return False
     x, y, z = _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, False)
+    if g.squeezed:
+        _rest_squeezed(S, T, C, xpos, xmat, g, near, xd, yd, zd)
+        return True
     if g.sticking and g.x == x and g.y == y and g.z == z \
             and _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
         return True

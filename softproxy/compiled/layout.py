@@ -161,6 +161,8 @@ FINGER = np.dtype([
     ("slide_travel", np.float64),                                 # m slid since then
     ("slide_restick", np.float64),                                # re-stick after this long still (s); 0: per tick
     ("nnear", np.int64),                                          # how many shape rows `near` holds
+    ("squeezed", np.bool_),                                       # caught between a moving and a static shape
+    ("squeeze_ticks", np.int64),                                  # ticks it was
     # the finger (`softproxy.finger.SoftFingerProxy`)
     ("placed", np.bool_),
     ("k", np.float64), ("b", np.float64), ("b_tau", np.float64),  # N/m, N·s/m, N·m·s/rad
