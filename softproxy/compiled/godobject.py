@@ -27,7 +27,8 @@ never a neighbour the frictionless solve reached across a seam while friction he
 back. A slipping proxy whose dynamic-cone point lies in free space (the chord across an edge)
 is dropped from there toward the device onto the surface below. The proxy is kept in the
 frame of the geom it touches, so a moving object carries it; an object that moves into it
-pushes it out.
+pushes it out, never through a static surface: caught in a gap narrower than itself, the
+proxy is `squeezed` and rests on the static side (`push_out`).
 
 These kernels are the only god-object: `softproxy.proxy.GodObject` is a view of a finger
 record that calls the `*_row` entries at the end, and `softproxy.compiled.finger` calls
