@@ -14,8 +14,9 @@ from softproxy.cells import Backend, BackendError, SweepStopped, cpu_count, run_
 
 # A few real cells of `bench stability` (a hand-held handle against a wall) and one whose
 # stiffness FingerParams refuses.
-WALL = [{"kind": "wall", "K": K, "B": B, "rate": 250.0, "duration": 0.6} for K in (1e3, 3e4) for B in (0.0, 2.0)]
-BAD = {"kind": "wall", "K": -1.0, "B": 0.0, "rate": 250.0, "duration": 0.6}
+WALL = [{"kind": "wall", "device": "omega.3", "K": K, "B": B, "rate": 250.0, "duration": 0.6}
+        for K in (1e3, 3e4) for B in (0.0, 2.0)]
+BAD = {"kind": "wall", "device": "omega.3", "K": -1.0, "B": 0.0, "rate": 250.0, "duration": 0.6}
 CELLS = WALL[:2] + [BAD] + WALL[2:]
 
 
@@ -25,7 +26,7 @@ def loads_kernels(n: int) -> tuple[int, bool]:
     from softproxy.compiled import servo
 
     first = len(servo.begin_tick.overloads) == 0  # resolved by every loop when it is built
-    stability.wall_cell(1e3, 2.0, 250.0, 0.1 + 0.01 * n)
+    stability.wall_cell("omega.3", 1e3, 2.0, 250.0, duration=0.1 + 0.01 * n)
     return os.getpid(), first
 
 
