@@ -781,8 +781,8 @@ def sweep_cases(scene, shape, u, s, v, length, r, inward):
     return [hit for hit in hits if hit is not None]
 
 
-@pytest.mark.slow  # a long property run
-@settings(max_examples=40, deadline=None)
+@pytest.mark.slow  # a long property run: its dense-sampling oracle costs up to a minute an example
+@settings(max_examples=15, deadline=None)  # on a loaded 2-core machine 40 took over half an hour
 @given(seeds, local_points, st.sampled_from([0.3, 1.0, 2.0, 3.0]), local_points,
        st.sampled_from([0.0, 1e-6, 0.1, 1.0, 3.0, 100.0]), radii,
        st.sampled_from([0.0, 1e-12, 1e-10, 1e-9, 1e-8, 1e-3, 0.3]))
