@@ -506,6 +506,7 @@ def reset(S, T, C, xpos, xmat, g, near, x, y, z):
     g.sticking = False
     g.slide_idle = 0.0
     g.lx = g.ly = g.lz = 0.0
+    g.squeezed = False  # a new place has no past: pushed out of a moving shape as any proxy is
     for s in range(S.shape[0]):
         near[s] = s
     g.nnear = S.shape[0]
