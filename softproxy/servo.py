@@ -209,6 +209,7 @@ class ServoLoop:
         self.audit = audit
         self._started = False
         self.closed = False
+        _claim(device, self)  # before compiling; a loop dropped unclosed leaves a dead reference: the device is free
         self.handle_signals = handle_signals
         self._signals = None  # this loop's claim on softproxy.termination's handlers: its release
         self._unregister_fatal = None  # ... and on the emergency path of a MuJoCo error in a kernel
@@ -244,7 +245,6 @@ class ServoLoop:
         self._limit_array = np.zeros(2)  # [max_force, max_torque] for a compiled block whose device keeps none
         self._coupling = coupling.workspace(world.model.nv, len(fingers))  # the implicit coupling's scratch
         self._compile()
-        _claim(device, self)  # (a loop dropped unclosed leaves a dead reference: the device is free)
 
     # -- views of the state record ---------------------------------------------------------
     @property
@@ -583,12 +583,12 @@ class ServoLoop:
         return thread
 
     def _zero_all(self) -> None:
-        """The emergency path (a MuJoCo error inside the compiled tick): zero force to every finger."""
-        for f in self.fingers:
-            try:
-                self.device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            except BaseException:
-                pass
+        """The emergency path (a MuJoCo error inside the compiled tick): zero force to every finger;
+        nothing may escape it (the process ends right after)."""
+        try:
+            self._zero_sends()
+        except BaseException:
+            pass
 
     def _zero_sends(self) -> None:
         """Zero force to every finger, each one whatever the others' sends raise: a device's

@@ -197,10 +197,8 @@ def within_laws(f, fx, fy, fz, M):
     if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz) and math.isfinite(M)):
         return
     nx, ny, nz = f.nx, f.ny, f.nz
-    P = fx * nx + fy * ny + fz * nz
-    if P < 0.0:
-        P = 0.0
     normal = fx * nx + fy * ny + fz * nz
+    P = normal if normal > 0.0 else 0.0
     tx, ty, tz = fx - normal * nx, fy - normal * ny, fz - normal * nz
     t = math.sqrt(tx * tx + ty * ty + tz * tz)
     cone = f.mu_s * P
@@ -216,10 +214,18 @@ def within_laws(f, fx, fy, fz, M):
     f.fx, f.fy, f.fz = fx, fy, fz
     f.normal_force = P
     if f.has_torsion and f.in_contact:
-        limit, spring = f.limit, abs(f.spring_torque)
-        bound = limit if limit > spring else spring
-        if bound > f.max_torque * f.ramp:
-            bound = f.max_torque * f.ramp
-        M = bound if M > bound else -bound if M < -bound else M
-        f.torque = M
-        f.tx, f.ty, f.tz = M * nx, M * ny, M * nz
+        torque_within_laws(f, M)
+
+
+@njit(cache=True, error_model="numpy")
+def torque_within_laws(f, M):
+    """A torque M about n (N·m) into the finger's record (torque, and M·n): never past what
+    friction holds (the static limit, or the spring torque where that is larger), nor past
+    the clamp (the soft start's ramp included)."""
+    limit, spring = f.limit, abs(f.spring_torque)
+    bound = limit if limit > spring else spring
+    if bound > f.max_torque * f.ramp:
+        bound = f.max_torque * f.ramp
+    M = bound if M > bound else -bound if M < -bound else M
+    f.torque = M
+    f.tx, f.ty, f.tz = M * f.nx, M * f.ny, M * f.nz

@@ -345,17 +345,10 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     # to the surface: never on the proxy's own jump when it slips (which flipped the torque's
     # sign for a tick at every slip). Slipping, dynamic friction acts, not the damper.
     if not f.slipping:
-        M += f.b_tau / dt * (f.body_turn - (twist - f.twist_prev))
+        M += f.b_tau / dt * f.rel_turn
     f.twist_prev = twist
-    # the damping never takes |M| past what friction holds (the static limit, or the spring
-    # torque where that is larger), nor past the clamp
-    limit, torque = f.limit, abs(f.spring_torque)
-    bound = limit if limit > torque else torque
-    if bound > f.max_torque * ramp:
-        bound = f.max_torque * ramp
-    M = bound if M > bound else -bound if M < -bound else M
-    f.torque = M
-    f.tx, f.ty, f.tz = M * nx, M * ny, M * nz
+    # the damping never takes |M| past what friction holds, nor past the clamp
+    coupling.torque_within_laws(f, M)
     return True
 
 
@@ -492,15 +485,13 @@ def tick(m, d, qvel, qacc, S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, 
                 clear_output(f)
         if check:
             audit(S, T, C, xpos, xmat, f)
-    for i in range(F.shape[0]):
-        passivity.observe(F[i])  # last tick's sends times this tick's motion
+        passivity.observe(f)  # last tick's sends times this tick's motion
     if not safe:
         coupling.implicit(m, d, qvel, qacc, F, bodies[FIXED], dt, ws)
-        if control:
-            for i in range(F.shape[0]):
-                passivity.control(F[i], dt)
     for i in range(F.shape[0]):
         f = F[i]
+        if control and not safe:
+            passivity.control(f, dt)
         if not _clamp_for_device(f, safe, fmax, tmax):
             unsafe += 1
             clear_output(f)

@@ -71,6 +71,18 @@ def observe(f):
 
 
 @njit(cache=True, error_model="numpy")
+def _gain_cap(along, square, cap):
+    """The largest damper gain the controller may use on one channel (N/m or N·m/rad over a
+    tick), `along` the wrench times the relative motion, `square` the wrench squared: raising
+    the wrench (along >= 0) `cap`; lowering it, down to zero along the wrench and no further,
+    at most CUT × `cap`."""
+    if along < 0.0:
+        most = square / -along
+        return most if most < CUT * cap else CUT * cap
+    return cap
+
+
+@njit(cache=True, error_model="numpy")
 def control(f, dt):
     """While E < 0: a damper on the relative motion for the next tick of dt s, the wrench the
     same on the device and the body, sized to dissipate the deficit at the last tick's relative
@@ -91,19 +103,10 @@ def control(f, dt):
         return 0.0
     c = -f.energy / room  # N/m of relative motion: dissipates the deficit in one tick at this speed
     c_tau = ratio * c
-    along = f.fx * wx + f.fy * wy + f.fz * wz  # < 0: the wrench gives energy back over this motion
-    if along < 0.0:
-        most = (f.fx * f.fx + f.fy * f.fy + f.fz * f.fz) / -along  # down to zero along the force, no further
-        most = most if most < CUT * cap / dt else CUT * cap / dt
-    else:
-        most = cap / dt
+    # (the wrench times the motion < 0: it gives energy back over this motion)
+    most = _gain_cap(f.fx * wx + f.fy * wy + f.fz * wz, f.fx * f.fx + f.fy * f.fy + f.fz * f.fz, cap / dt)
     c = c if c < most else most
-    spin = f.torque * turn
-    if spin < 0.0:
-        most = f.torque * f.torque / -spin
-        most = most if most < CUT * cap_tau / dt else CUT * cap_tau / dt
-    else:
-        most = cap_tau / dt
+    most = _gain_cap(f.torque * turn, f.torque * f.torque, cap_tau / dt)
     c_tau = c_tau if c_tau < most else most
     planned = c * w2 + c_tau * turn * turn
     if not planned > 0.0:
