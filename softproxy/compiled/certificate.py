@@ -331,6 +331,25 @@ def node_boxes(order: np.ndarray, size: int, lo: np.ndarray, hi: np.ndarray) -> 
     return nlo, nhi
 
 
+@njit(cache=True, error_model="numpy")
+def _set_frame(axes, node, ux, uy, uz, vx, vy, vz):
+    """A node's oriented axes: the unit u, the unit v square to it, and u × v."""
+    axes[node, 0, 0], axes[node, 0, 1], axes[node, 0, 2] = ux, uy, uz
+    axes[node, 1, 0], axes[node, 1, 1], axes[node, 1, 2] = vx, vy, vz
+    axes[node, 2, 0], axes[node, 2, 1], axes[node, 2, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+
+
+@njit(cache=True, error_model="numpy")
+def _widen(axes, ext, node, V, w):
+    """A node's extents along its axes (m), stretched to hold vertex w."""
+    for a in range(3):
+        h = axes[node, a, 0] * V[w, 0] + axes[node, a, 1] * V[w, 1] + axes[node, a, 2] * V[w, 2]
+        if h < ext[node, a, 0]:
+            ext[node, a, 0] = h
+        if h > ext[node, a, 1]:
+            ext[node, a, 1] = h
+
+
 def node_frames(order: np.ndarray, size: int, V: np.ndarray, F: np.ndarray, plane: np.ndarray):
     """Per node of a box tree over triangles (`box_tree`'s order and size): a box oriented by
     its first triangle (axes: that triangle's normal, its longest edge, their cross product;
@@ -369,18 +388,10 @@ def _fill_frames(order, size, V, F, plane, axes, ext):
             length = math.sqrt(best)
             ux, uy, uz = plane[t, 0], plane[t, 1], plane[t, 2]
             vx, vy, vz = ex / length, ey / length, ez / length
-            axes[node, 0, 0], axes[node, 0, 1], axes[node, 0, 2] = ux, uy, uz
-            axes[node, 1, 0], axes[node, 1, 1], axes[node, 1, 2] = vx, vy, vz
-            axes[node, 2, 0], axes[node, 2, 1], axes[node, 2, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            _set_frame(axes, node, ux, uy, uz, vx, vy, vz)
             for j in range(s, min(s + span, n)):
                 for k in range(3):
-                    w = F[order[j], k]
-                    for a in range(3):
-                        h = axes[node, a, 0] * V[w, 0] + axes[node, a, 1] * V[w, 1] + axes[node, a, 2] * V[w, 2]
-                        if h < ext[node, a, 0]:
-                            ext[node, a, 0] = h
-                        if h > ext[node, a, 1]:
-                            ext[node, a, 1] = h
+                    _widen(axes, ext, node, V, F[order[j], k])
             node += 1
         level *= 2
         span //= 2
@@ -436,12 +447,8 @@ def _fill_apex(order, size, V, F, axes, ext, lo, hi, apex):
                         w = F[order[j], k]
                         if w == common:
                             continue
+                        _widen(axes, ext, node, V, w)
                         for a in range(3):
-                            h = axes[node, a, 0] * V[w, 0] + axes[node, a, 1] * V[w, 1] + axes[node, a, 2] * V[w, 2]
-                            if h < ext[node, a, 0]:
-                                ext[node, a, 0] = h
-                            if h > ext[node, a, 1]:
-                                ext[node, a, 1] = h
                             if V[w, a] < lo[node, a]:
                                 lo[node, a] = V[w, a]
                             if V[w, a] > hi[node, a]:
@@ -490,17 +497,9 @@ def _fill_point_frames(order, size, V, N, axes, ext):
                 dx, dy, dz = (uz, 0.0, -ux) if abs(ux) > 0.5 or abs(uz) > 0.5 else (0.0, uz, -uy)
                 length = math.sqrt(dx * dx + dy * dy + dz * dz)
             vx, vy, vz = dx / length, dy / length, dz / length
-            axes[node, 0, 0], axes[node, 0, 1], axes[node, 0, 2] = ux, uy, uz
-            axes[node, 1, 0], axes[node, 1, 1], axes[node, 1, 2] = vx, vy, vz
-            axes[node, 2, 0], axes[node, 2, 1], axes[node, 2, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            _set_frame(axes, node, ux, uy, uz, vx, vy, vz)
             for j in range(s, e):
-                w = order[j]
-                for a in range(3):
-                    h = axes[node, a, 0] * V[w, 0] + axes[node, a, 1] * V[w, 1] + axes[node, a, 2] * V[w, 2]
-                    if h < ext[node, a, 0]:
-                        ext[node, a, 0] = h
-                    if h > ext[node, a, 1]:
-                        ext[node, a, 1] = h
+                _widen(axes, ext, node, V, order[j])
             node += 1
         level *= 2
         span //= 2
