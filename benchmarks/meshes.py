@@ -46,6 +46,23 @@ _GEOM = '<mujoco><worldbody><body name="b"><geom name="g" type="box" size=".01 .
 # Meshes (geom frame, m)
 # ---------------------------------------------------------------------------------------
 
+def cylinder(sections: int, r: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """A closed cylinder (radius r, height h, m; axis z, base at z = 0) as a CAD export
+    tessellates it: two slivers per section down the side, each cap a fan of slivers about
+    its centre."""
+    a = np.linspace(0.0, 2.0 * math.pi, sections, endpoint=False)
+    ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
+    v = np.vstack([np.column_stack([ring, np.zeros(sections)]), np.column_stack([ring, np.full(sections, h)]),
+                   [[0.0, 0.0, 0.0], [0.0, 0.0, h]]])
+    j = np.arange(sections)
+    k = (j + 1) % sections
+    lo, hi, c0, c1 = j, j + sections, 2 * sections, 2 * sections + 1
+    f = np.vstack([np.column_stack([lo, k, hi]), np.column_stack([k, k + sections, hi]),
+                   np.column_stack([np.full(sections, c0), k, lo]),
+                   np.column_stack([np.full(sections, c1), hi, k + sections])])
+    return v, f
+
+
 def slivers(triangles: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """25 closed cylinders (radius 6-8 mm, height 1-3 cm, tilted up to 15°) on a 2.5 cm grid,
     each of `sections` sides as a CAD export tessellates it: two slivers per section running
@@ -55,17 +72,7 @@ def slivers(triangles: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     verts, faces = [], []
     base = 0
     for i in range(25):
-        r, h = rng.uniform(0.006, 0.008), rng.uniform(0.01, 0.03)
-        a = np.linspace(0.0, 2.0 * math.pi, sections, endpoint=False)
-        ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
-        v = np.vstack([np.column_stack([ring, np.zeros(sections)]), np.column_stack([ring, np.full(sections, h)]),
-                       [[0.0, 0.0, 0.0], [0.0, 0.0, h]]])
-        j = np.arange(sections)
-        k = (j + 1) % sections
-        lo, hi, c0, c1 = j, j + sections, 2 * sections, 2 * sections + 1
-        f = np.vstack([np.column_stack([lo, k, hi]), np.column_stack([k, k + sections, hi]),
-                       np.column_stack([np.full(sections, c0), k, lo]),
-                       np.column_stack([np.full(sections, c1), hi, k + sections])])
+        v, f = cylinder(sections, rng.uniform(0.006, 0.008), rng.uniform(0.01, 0.03))
         tilt = rng.uniform(-0.26, 0.26, 2)
         cx, sx, cy, sy = math.cos(tilt[0]), math.sin(tilt[0]), math.cos(tilt[1]), math.sin(tilt[1])
         turn = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
@@ -128,19 +135,7 @@ def fan_cylinder(triangles: int) -> tuple[np.ndarray, np.ndarray]:
     """A cylinder (radius 1 cm, 3 cm tall, axis z, base at z = 0) as a CAD export tessellates
     it: triangles / 4 sections, two slivers per section down the side, each cap a fan of
     slivers about its centre (a vertex of triangles / 4 triangles)."""
-    sections = max(8, triangles // 4)
-    r, h = 0.01, 0.03
-    a = np.linspace(0.0, 2.0 * math.pi, sections, endpoint=False)
-    ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
-    v = np.vstack([np.column_stack([ring, np.zeros(sections)]), np.column_stack([ring, np.full(sections, h)]),
-                   [[0.0, 0.0, 0.0], [0.0, 0.0, h]]])
-    j = np.arange(sections)
-    k = (j + 1) % sections
-    lo, hi, c0, c1 = j, j + sections, 2 * sections, 2 * sections + 1
-    f = np.vstack([np.column_stack([lo, k, hi]), np.column_stack([k, k + sections, hi]),
-                   np.column_stack([np.full(sections, c0), k, lo]),
-                   np.column_stack([np.full(sections, c1), hi, k + sections])])
-    return v, f
+    return cylinder(max(8, triangles // 4), 0.01, 0.03)
 
 
 def uv_sphere(triangles: int) -> tuple[np.ndarray, np.ndarray]:
