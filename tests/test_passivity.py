@@ -11,9 +11,11 @@ import math
 import mujoco
 import numpy as np
 import pytest
+import trimesh
 
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
+from softproxy.geometry import hfield_triangles
 from softproxy.servo import ServoLoop
 from softproxy.world import World
 
@@ -381,13 +383,17 @@ SQUEEZE = """<mujoco><option gravity="0 0 -9.81"/><worldbody><geom name="floor" 
 
 
 class HeldBelow:
-    """A device held 3 mm below where its proxy rests on the floor (a finger pressing 3 N)."""
+    """A device held still at (x, y, z) (m), e.g. 3 mm below where its proxy rests on a floor (a
+    finger pressing 3 N)."""
 
     fingers, max_force, max_torque = 1, 40.0, 1.0
 
+    def __init__(self, x=0.0, y=0.0, z=0.005):
+        self.at = (x, y, z)
+
     def read(self, t, samples):
         s = samples[0]
-        s.x, s.y, s.z, s.twist, s.valid = 0.0, 0.0, 0.005, 0.0, True
+        (s.x, s.y, s.z), s.twist, s.valid = self.at, 0.0, True
 
     def send(self, finger, *w):
         pass
@@ -421,3 +427,110 @@ def test_a_proxy_squeezed_by_a_falling_box_stays_out_of_the_floor(mass):
     assert fz.min() >= 0.0 and fz.max() <= finger.params.max_force  # never into the floor, within the clamp
     assert squeezed > 0 and finger.god.squeeze_ticks == squeezed
     assert fz[-1] == pytest.approx(3.0, rel=1e-6)  # the floor's spring force, the box lying over the finger
+
+
+@pytest.mark.parametrize("depth", [0.003, 0.008])
+def test_a_finger_placed_inside_an_object_renders_only_its_spring(depth):
+    """A finger with no soft start whose device sits still `depth` inside the floor: from the
+    first tick it renders the spring's k·d and nothing more. The damper acts on the device's
+    motion only, and a device that did not move has none (it rendered 18 N at 3 mm, six times
+    the spring, on the first tick: the damper took the proxy's placement for a move)."""
+    world = World(mujoco.MjModel.from_xml_string(FLOOR))
+    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0, soft_start=0.0), world.shapes, model("point"))
+    with ServoLoop(world, [finger], HeldBelow(0.01, 0.01, 0.008 - depth), 1000.0) as loop:
+        fz = []
+        for _ in range(5):
+            loop.tick()
+            fz.append(finger.fz)
+    print(f"{depth * 1e3:g} mm inside: Fz {fz} N")
+    assert fz == pytest.approx([1000.0 * depth] * 5, rel=1e-5)
+
+
+HEIGHT_FIELD = """<mujoco><option gravity="0 0 -9.81"/>
+<asset><hfield name="ground" nrow="16" ncol="16" size="0.2 0.2 0.02 0.015" elevation="{elevation}"/></asset>
+<default><geom friction="0.4"/></default>
+<worldbody><geom name="ground" type="hfield" hfield="ground"/>
+<body name="lens" pos="0 0 0.3">
+<joint type="slide" axis="1 0 0" damping="1"/><joint type="slide" axis="0 1 0" damping="1"/><joint type="slide" axis="0 0 1"/>
+<joint axis="1 0 0" springdamper="0.2 1"/><joint axis="0 1 0" springdamper="0.2 1"/>
+<geom type="ellipsoid" size=".3 .5 .1" mass="{mass}"/></body></worldbody></mujoco>"""
+
+
+def distance_to_triangles(points, vertices, faces):
+    """Each point's distance (m) to the nearest of the triangles, by brute force over all."""
+    tri = vertices[faces]
+    return np.array([np.linalg.norm(trimesh.triangles.closest_point(tri, np.repeat(p[None], len(tri), 0)) - p,
+                                    axis=1).min() for p in points])
+
+
+@pytest.mark.parametrize("mass", [0.1, 1.0])
+def test_a_finger_on_a_height_field_under_a_falling_ellipsoid_stays_out_of_the_ground(mass):
+    """The case of MuJoCo's touch-grid sensor model (an ellipsoid on slide joints and sprung
+    hinges falling onto a height field), with a finger resting on the rough ground, its device
+    3 mm below the resting proxy: the ellipsoid lands on the finger and pushes it down the
+    slope, and the proxy never enters the ground (its centre one radius or more from every
+    ground triangle, by brute force), says it is squeezed, and renders the ground's spring
+    force only: up, within the clamp, no step over 1 N (the landing shoves the proxy 0.7 mm
+    down the slope in one tick: 0.7 N sideways; it went 23 mm into the ground pulling the hand
+    down at 40 N)."""
+    elevation = " ".join(f"{v:.3f}" for v in np.random.default_rng(3).uniform(0.0, 1.0, 16 * 16))
+    mj = mujoco.MjModel.from_xml_string(HEIGHT_FIELD.format(elevation=elevation, mass=mass))
+    world = World(mj)
+    under = np.zeros(1, np.int32)
+    x0, y0 = 0.01, 0.013
+    ground = 0.2 - mujoco.mj_ray(mj, world.data, np.array([x0, y0, 0.2]), np.array([0.0, 0.0, -1.0]), None, 1, 1, under)
+    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0, soft_start=0.0), world.shapes, model("point"))
+    p, f, squeezed = [], [], 0
+    with ServoLoop(world, [finger], HeldBelow(x0, y0, ground + 0.005), 1000.0) as loop:
+        for _ in range(700):
+            loop.tick()
+            p.append((finger.god.x, finger.god.y, finger.god.z))
+            f.append((finger.fx, finger.fy, finger.fz))
+            squeezed += finger.god.squeezed
+    p, f = np.array(p), np.array(f)
+    gap = distance_to_triangles(p, *hfield_triangles(mj, 0))
+    step = np.abs(np.diff(f, axis=0)).max()
+    print(f"{mass:g} kg: nearest ground {gap.min() * 1e3:.6f} mm from the centre, proxy slid "
+          f"{np.ptp(p[:, 0]) * 1e3:.2f} × {np.ptp(p[:, 1]) * 1e3:.2f} mm, Fz {f[:, 2].min():.2f} to {f[:, 2].max():.2f} N, "
+          f"squeezed {squeezed} ticks, largest step {step:.3f} N")
+    assert under[0] == 0
+    assert gap.min() >= finger.params.radius - 1e-6
+    assert squeezed > 0
+    assert f[:, 2].min() > 0.0 and np.linalg.norm(f, axis=1).max() <= finger.params.max_force
+    assert step <= 1.0
+
+
+BELT = """<mujoco><option gravity="0 0 -9.81"/>
+<asset><mesh name="bag" builtin="supersphere" params="32 {shape}" scale=".2 .13 .085"/></asset>
+<worldbody><geom name="floor" type="plane" size="3 3 .1"/>
+<geom name="belt" type="box" pos="0 0 .29" size=".74 .3 .06" surfacevel=".7 0 0 0 0 0"/>
+<body name="bag" pos="-0.4 {y} 0.44"><freejoint/><geom type="mesh" mesh="bag" mass="{mass}"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("mass, shape, y", [(3.0, ".3 .4", 0.0), (0.3, ".3 .4", 0.0), (3.0, ".6 .45", 0.05)])
+def test_a_bag_on_a_moving_belt_runs_over_a_resting_finger(mass, shape, y):
+    """The case of MuJoCo's luggage-carousel model: a bag (a supersphere mesh) carried at
+    0.7 m/s by a static belt that moves its surface runs over a finger resting on the belt, its
+    device 3 mm below the resting proxy. The proxy never enters the belt, says it is squeezed
+    while the bag is over it, and renders the belt's spring force only, up and steady (it was
+    pushed 2.1 mm into the belt)."""
+    world = World(mujoco.MjModel.from_xml_string(BELT.format(mass=mass, shape=shape, y=y)))
+    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0, soft_start=0.0), world.shapes, model("point"))
+    top = 0.29 + 0.06
+    z, f, squeezed, bag = [], [], 0, []
+    with ServoLoop(world, [finger], HeldBelow(0.2, 0.0, top + 0.005), 1000.0) as loop:
+        for _ in range(1500):
+            loop.tick()
+            z.append(finger.god.z)
+            f.append((finger.fx, finger.fy, finger.fz))
+            squeezed += finger.god.squeezed
+            bag.append(world.data.qpos[0])
+    z, f = np.array(z), np.array(f)
+    print(f"{mass:g} kg bag from x {bag[0]:.2f} to {bag[-1]:.2f} m: proxy z {(z.min() - top) * 1e3:.4f} to "
+          f"{(z.max() - top) * 1e3:.4f} mm over the belt, Fz {f[:, 2].min():.3f} to {f[:, 2].max():.3f} N, "
+          f"squeezed {squeezed} ticks, largest step {np.abs(np.diff(f, axis=0)).max():.3f} N")
+    assert bag[-1] > 0.3  # the bag went over the finger at x = 0.2 m
+    assert z.min() >= top + finger.params.radius - 1e-6
+    assert squeezed > 0
+    assert f[:, 2] == pytest.approx(3.0, rel=1e-3) and np.abs(f[:, :2]).max() < 0.5

@@ -297,8 +297,12 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     nx, ny, nz = f.nx, f.ny, f.nz
     if not was_contact:
         # contact made this tick: the proxy stopped on the surface part-way along the device's
-        # move, so |s| is at most the device's move, counted from the touch on
-        wx, wy, wz = sx, sy, sz
+        # move, so |s| is at most the device's move, counted from the touch on; and a device
+        # that moved less than |s| (a finger placed inside an object: not at all) only that
+        w2 = wx * wx + wy * wy + wz * wz
+        s2 = sx * sx + sy * sy + sz * sz
+        q = math.sqrt(w2 / s2) if w2 < s2 else 1.0
+        wx, wy, wz = sx * q, sy * q, sz * q
     elif not f.sticking:  # slipping: along the surface friction acts, not the damper
         wn = wx * nx + wy * ny + wz * nz
         wx, wy, wz = wn * nx, wn * ny, wn * nz
