@@ -88,10 +88,6 @@ class DeviceSample:
             return False
         return True
 
-    def copy_from(self, other: "DeviceSample") -> None:
-        for name in DeviceSample.__slots__:
-            setattr(self, name, getattr(other, name))
-
     def __repr__(self) -> str:
         return (
             f"DeviceSample(t={self.t:.6f}, pos=({self.x:.6g}, {self.y:.6g}, {self.z:.6g}), "

@@ -1,25 +1,10 @@
-"""The 3-DOF god-object: the point a finger of radius r would touch, kept outside every shape.
+"""The 3-DOF god-object of one finger: a view onto its record, solved by the compiled kernel.
 
-Each tick the proxy moves from where it was toward the device position x_d (Zilles &
-Salisbury's god-object, Ruspini's proxy): a sphere of radius r swept against every shape
-(`softproxy.geometry`), stopping at the first surface it moves into, then sliding on up to
-three constraint planes — faces, edges, corners and concave creases — all within one
-tick; a plane the proxy slides off (a curved shape's tangent plane, a rounded edge's, a
-face's past the face's edge) is replaced by the shape's tangent plane under the proxy;
-when the tick's MAX_ITERATIONS sweeps run out just after such a lift (a jump of
-centimetres deep into a curved surface), one more sweep straight toward the device puts
-the proxy back on the surface, in contact, rather than leaving it microns above with no
-force for a tick. Every sweep stays inside the ball whose shapes the tick's broad phase
-gathered. Friction follows the proxy literature's friction cone: the proxy sticks while
-the device stays inside the static cone (tangential offset ≤ μ_s × penetration) and
-otherwise slides to the edge of the dynamic cone; once slipping it stays in the dynamic
-cone until the motion stops or reverses (a slip state; docs/friction.md).
-
-The proxy is stored in the frame of the geom it touches, so a moving object carries it;
-an object that moves into it pushes it out. Units: m, N, N/m, N·s/m.
-
-The solver is the compiled kernel `softproxy.compiled.godobject`; `GodObject` is a view onto
-its finger record (`softproxy.finger_rows`), usable alone or as part of a `SoftFingerProxy`.
+The solver (sweep, slide on up to three constraint planes, friction cone with a slip state,
+the touched geom's frame carrying the proxy) is `softproxy.compiled.godobject`, whose
+docstring describes it; `GodObject` here reads and writes its finger record
+(`softproxy.finger_rows`), usable alone or as part of a `SoftFingerProxy`. Units: m, N,
+N/m, N·s/m.
 """
 
 from __future__ import annotations

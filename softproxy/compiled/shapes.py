@@ -47,7 +47,7 @@ def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
 
 @njit(cache=True, error_model="numpy")
 def _capsule_local(radius, half, x, y, z):
-    """CapsuleShape.local_distance: signed distance (m) and outward normal, geom frame."""
+    """Capsule (radius, half-length along z): signed distance (m) and outward normal, geom frame."""
     h = half
     zc = z - (h if z > h else -h if z < -h else z)
     n = math.sqrt(x * x + y * y + zc * zc)
@@ -58,7 +58,7 @@ def _capsule_local(radius, half, x, y, z):
 
 @njit(cache=True, error_model="numpy")
 def _cylinder_local(radius, half, x, y, z):
-    """CylinderShape.local_distance: signed distance (m) and outward normal, geom frame."""
+    """Cylinder (radius, half-height along z): signed distance (m) and outward normal, geom frame."""
     rho = math.sqrt(x * x + y * y)
     dr = rho - radius
     dz = abs(z) - half
@@ -101,7 +101,7 @@ def _ellipsoid_f(k0, k1, k2, d0, d1, d2, w):
 
 @njit(cache=True, error_model="numpy")
 def _ellipsoid_local(a, b, c, x, y, z):
-    """EllipsoidShape.local_distance: signed distance (m) and outward normal, geom frame.
+    """Ellipsoid (semi-axes a, b, c): signed distance (m) and outward normal, geom frame.
 
     The nearest point is q_i = a_i² p_i / (a_i² + t) for the root t > -m² (m: the shortest
     semi-axis) of Σ (a_i p_i / (a_i² + t))² = 1. It is solved for w = t + m² > 0, so that w

@@ -55,7 +55,7 @@ def _offscreen(model, reader, names, args, servo) -> int:
         reader.set_status(VIEWER_FAILED)
         print(f"softproxy viewer: {exc}", file=sys.stderr)
         return 3
-    reader.set_status(VIEWER_RUNNING, os.getpid())
+    reader.set_status(VIEWER_RUNNING)
     period = 1.0 / args.fps
     begin = time.perf_counter()
     image = frame = None
@@ -142,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
             reader.set_status(VIEWER_FAILED)
             print(f"softproxy viewer: {exc}", file=sys.stderr)
             return 3
-        reader.set_status(VIEWER_RUNNING, os.getpid())
+        reader.set_status(VIEWER_RUNNING)
         try:
             window.run(args.fps, args.stall_ms / 1000.0, servo)
         finally:

@@ -54,10 +54,6 @@ class OrbitCamera:
         lookat, self.distance, self.azimuth, self.elevation = self.home
         self.lookat = lookat.copy()
 
-    def set_home(self, other: "OrbitCamera") -> None:
-        self.home = other.home
-        self.fovy = other.fovy
-
     # -- matrices ----------------------------------------------------------------------
     def forward(self) -> np.ndarray:
         az, el = math.radians(self.azimuth), math.radians(self.elevation)

@@ -47,8 +47,8 @@ HEADER_BYTES = HEADER_SLOTS * 8
 MAX_FINGERS = 16
 
 # header slots (int64)
-SEQ, H_MAGIC, H_NGEOM, H_NFINGER, H_CLOSED, H_VIEWER_STATUS, H_VIEWER_FRAMES, H_VIEWER_PID = range(8)
-H_REQUEST = 8  # .. 8 + MAX_FINGERS
+SEQ, H_MAGIC, H_NGEOM, H_NFINGER, H_CLOSED, H_VIEWER_STATUS, H_VIEWER_FRAMES = range(7)
+H_REQUEST = 8  # .. 8 + MAX_FINGERS (slot 7 is free)
 H_VIEWER_BEAT = H_REQUEST + MAX_FINGERS  # the viewer's heartbeat: +1 per display-loop turn
 H_SERVO_PID = H_VIEWER_BEAT + 1          # the publisher's process id
 
@@ -387,11 +387,6 @@ class StatePublisher(_Block):
         """The viewer's heartbeat counter (it changes while the viewer's display loop turns)."""
         return int(self.header[H_VIEWER_BEAT]) if self.header is not None else 0
 
-    @property
-    def viewer_pid(self) -> int:
-        """The viewer's process id once it runs (0 before)."""
-        return int(self.header[H_VIEWER_PID]) if self.header is not None else 0
-
     def close(self) -> None:
         """Unmap and unlink the block (a viewer still attached keeps its own mapping)."""
         if self.header is not None:
@@ -454,10 +449,8 @@ class StateReader(_Block):
             raise ValueError(f"mode must be SOFT (0) or POINT (1), got {mode!r}")
         self.header[H_REQUEST + finger] = mode
 
-    def set_status(self, status: int, pid: int | None = None) -> None:
+    def set_status(self, status: int) -> None:
         self.header[H_VIEWER_STATUS] = status
-        if pid is not None:
-            self.header[H_VIEWER_PID] = pid
 
     def count_frame(self) -> None:
         self.header[H_VIEWER_FRAMES] += 1
