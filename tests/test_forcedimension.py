@@ -16,6 +16,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from fake_dhd import FALCON, OMEGA3, OMEGA7_RIGHT, SIGMA7_RIGHT, FakeDHD, Hardware  # noqa: E402
 
+from conftest import BOX_ON_PLANE_XML, Clock  # noqa: E402
+
 from softproxy.device import DeviceError, DeviceSample, check_device  # noqa: E402
 from softproxy.devices import forcedimension as fdmod  # noqa: E402
 from softproxy.devices.forcedimension import (  # noqa: E402
@@ -25,19 +27,11 @@ from softproxy.devices.forcedimension import (  # noqa: E402
 )
 
 
-class Clock:
-    def __init__(self):
-        self.now = 10.0
-
-    def __call__(self):
-        return self.now
-
-
 def make(kind=SIGMA7_RIGHT, **kwargs):
     kwargs.setdefault("stall_ms", 0)  # no watchdog thread writing zero between a send and its check
     hw = Hardware(kind)
     dhd = FakeDHD(hw)
-    clock = Clock()
+    clock = Clock(10.0)
     dev = ForceDimensionDevice(dhd, clock=clock, **kwargs)
     return dev, dhd, hw, clock
 
@@ -329,12 +323,6 @@ def test_configuration_from_a_scene_table_and_the_argument():
 # ---------------------------------------------------------------------------------------------
 # in the servo loop
 
-XML = """<mujoco><option timestep="0.001"/><worldbody>
-  <geom type="plane" size="1 1 .1"/>
-  <body name="box" pos="0 0 0.03"><freejoint/><geom type="box" size=".03 .03 .03" mass="0.1"/></body>
-</worldbody></mujoco>"""
-
-
 def test_servo_loop_presses_survives_a_failure_and_ends_at_zero_force():
     """A ServoLoop drives the fake omega.3 (one finger) down onto a box: it renders the contact,
     a device failing for 50 ticks costs zero force those ticks (counted), it renders again after,
@@ -346,7 +334,7 @@ def test_servo_loop_presses_survives_a_failure_and_ends_at_zero_force():
 
     dev, dhd, hw, clock = make(OMEGA3)
     hw.position = [0.0, 0.0, 0.08]  # above the box (top at 0.06 m, finger radius 8 mm)
-    world = World(mujoco.MjModel.from_xml_string(XML))
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
     finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
     loop = ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
     ticks = [0]
@@ -494,7 +482,7 @@ def test_an_exception_in_a_with_block_leaves_zero_force_and_a_closed_device():
 
     dev, dhd, hw, clock = make(SIGMA7_RIGHT)
     hw.position, hw.gap = [0.0, 0.0, 0.065], 0.02  # both fingers 3 mm into the box's top
-    world = World(mujoco.MjModel.from_xml_string(XML))
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
     fingers = [SoftFingerProxy(FingerParams(name=f"f{i}", radius=0.008, stiffness=1000.0, device_finger=i,
                                             soft_start=0.0), world.shapes, model("CH")) for i in range(2)]
     with pytest.raises(ZeroDivisionError):

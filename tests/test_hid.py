@@ -14,6 +14,8 @@ import mujoco
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+from conftest import BOX_ON_PLANE_XML, Clock, oh_state
+
 from softproxy.devices.hid import HidDevice, devices_main, list_devices
 from softproxy.devices.hid_profile import (
     PROFILE_DIR,
@@ -127,18 +129,6 @@ class FakeHid:
 
     def close(self):
         self.closed = True
-
-
-class Clock:
-    def __init__(self):
-        self.now = 100.0
-
-    def __call__(self):
-        return self.now
-
-
-def oh_state(seq, status=0x01, x_um=0, y_um=0, z_um=0, twist_urad=0, buttons=0):
-    return bytes([1]) + struct.pack("<HBBiiii", seq & 0xFFFF, status, buttons, x_um, y_um, z_um, twist_urad)
 
 
 def make(name="open_haptic", *reports, **kw):
@@ -800,9 +790,11 @@ def test_devices_main_table_and_json():
 
 
 def test_list_devices_real_hid_module():
-    """This machine has no HID devices: the real enumeration works and finds none (or some)."""
-    pytest.importorskip("hid")
-    assert isinstance(list_devices(), list)
+    """With the real hidapi module: one row per device `hid.enumerate()` reports, in its order,
+    with its vendor and product ids (this machine may have none: then both are empty)."""
+    hid = pytest.importorskip("hid")
+    want = [(info.get("vendor_id"), info.get("product_id")) for info in hid.enumerate()]
+    assert [(row["vendor_id"], row["product_id"]) for row in list_devices()] == want
 
 
 class FakeHidModule:
@@ -913,12 +905,6 @@ def test_from_config_without_device_is_device_error():
 # ---------------------------------------------------------------------------------------------
 # in the servo loop
 
-XML = """<mujoco><option timestep="0.001"/><worldbody>
-  <geom type="plane" size="1 1 .1"/>
-  <body name="box" pos="0 0 0.03"><freejoint/><geom type="box" size=".03 .03 .03" mass="0.1"/></body>
-</worldbody></mujoco>"""
-
-
 class StreamingHid(FakeHid):
     """A firmware stand-in: one report per read call, the fingertip descending onto the box."""
 
@@ -946,7 +932,7 @@ def test_servo_loop_renders_through_hid_and_survives_disconnect():
 
     t = StreamingHid()
     dev = HidDevice("open_haptic", t, clock=time.monotonic, stale_ms=0)
-    world = World(mujoco.MjModel.from_xml_string(XML))
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
     finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
     loop = ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
     loop.run(600)

@@ -17,6 +17,8 @@ import mujoco
 import numpy as np
 import pytest
 
+from conftest import BOX_ON_PLANE_XML, Clock, oh_state
+
 from softproxy.devices.hid import CLOSE_ZERO_ATTEMPTS, NO_REOPEN_NOTICE_ERRORS, REOPEN_INTERVAL_S, HidDevice, devices_main
 from softproxy.devices.hid_profile import (
     MAX_FORCE_N,
@@ -36,21 +38,6 @@ PATH = b"/dev/hidraw4"
 OPEN_HAPTIC_INFO = {"path": PATH, "vendor_id": 0x1209, "product_id": 0x0001, "serial_number": "A1",
                     "usage_page": 0xFF00, "usage": 1, "interface_number": 0,
                     "manufacturer_string": "maker", "product_string": "open haptic"}
-
-
-def oh_state(seq, status=0x01, x_um=0, y_um=0, z_um=0, twist_urad=0, buttons=0):
-    """An open haptic input report (id 1)."""
-    return bytes([1]) + struct.pack("<HBBiiii", seq & 0xFFFF, status, buttons, x_um, y_um, z_um, twist_urad)
-
-
-class Clock:
-    """The device's clock, stepped by the test (s)."""
-
-    def __init__(self):
-        self.now = 100.0
-
-    def __call__(self):
-        return self.now
 
 
 class Port:
@@ -459,12 +446,6 @@ def test_given_transport_retries_and_says_once_it_will_not_reopen():
     assert_zero(decoded(dev.profile, port.wire)[-1])
 
 
-XML = """<mujoco><option timestep="0.001"/><worldbody>
-  <geom type="plane" size="1 1 .1"/>
-  <body name="box" pos="0 0 0.03"><freejoint/><geom type="box" size=".03 .03 .03" mass="0.1"/></body>
-</worldbody></mujoco>"""
-
-
 class PressingPort(Port):
     """A finger descending onto the box's top face (z = 0.06 m + 8 mm radius) and pressing 1 mm in."""
 
@@ -488,7 +469,7 @@ def test_servo_loop_renders_again_after_the_transport_comes_back():
     port = PressingPort()
     clock = Clock()
     dev = HidDevice("open_haptic", PortHandle(port), clock=clock)
-    world = World(mujoco.MjModel.from_xml_string(XML))
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
     finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
     loop = ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
 

@@ -18,22 +18,16 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from fake_openhaptics import FakeOpenHaptics  # noqa: E402
 
+from conftest import BOX_ON_PLANE_XML, Clock  # noqa: E402
+
 from softproxy.device import DeviceError, DeviceSample, check_device  # noqa: E402
 from softproxy.devices import openhaptics as ohmod  # noqa: E402
 from softproxy.devices.openhaptics import FAIL_AFTER_S, REOPEN_INTERVAL_S, OpenHapticsDevice  # noqa: E402
 
 
-class Clock:
-    def __init__(self):
-        self.now = 10.0
-
-    def __call__(self):
-        return self.now
-
-
 def make(fake=None, **kwargs):
     fake = fake or FakeOpenHaptics()
-    clock = Clock()
+    clock = Clock(10.0)
     dev = OpenHapticsDevice(fake, clock=clock, sleep=lambda s: fake.step(1), **kwargs)
     return dev, fake, clock
 
@@ -285,19 +279,13 @@ def test_configuration_from_the_argument_and_a_scene_table():
 # ---------------------------------------------------------------------------------------------
 # in the servo loop
 
-XML = """<mujoco><option timestep="0.001"/><worldbody>
-  <geom type="plane" size="1 1 .1"/>
-  <body name="box" pos="0 0 0.03"><freejoint/><geom type="box" size=".03 .03 .03" mass="0.1"/></body>
-</worldbody></mujoco>"""
-
-
 def _loop(dev):
     from softproxy.finger import FingerParams, SoftFingerProxy
     from softproxy.fingertip import model
     from softproxy.servo import ServoLoop
     from softproxy.world import World
 
-    world = World(mujoco.MjModel.from_xml_string(XML))
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
     finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
     return ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from conftest import ScriptedDevice
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
 from softproxy.geometry import hfield_triangles
@@ -173,7 +174,7 @@ CUBE = """<mujoco><option gravity="0 0 0"/><worldbody>
 </worldbody></mujoco>"""
 
 
-class Holding:
+class Holding(ScriptedDevice):
     """Fingers held still at given device positions (m), no twist: a hand that does not move."""
 
     max_force, max_torque = 40.0, 1.0
@@ -185,12 +186,6 @@ class Holding:
     def read(self, t, samples):
         for s, (x, y, z) in zip(samples, self.positions):
             s.x, s.y, s.z, s.twist, s.valid = x, y, z, 0.0, True
-
-    def send(self, finger, *w):
-        pass
-
-    def close(self):
-        pass
 
 
 def kinetic_energy(world) -> float:
@@ -337,7 +332,7 @@ def test_a_stiff_wall_gives_the_hand_no_net_energy(rate, stiffness, damping):
         assert work_on <= 0.0 and work_off <= 0.0
 
 
-class Pressing2mm:
+class Pressing2mm(ScriptedDevice):
     """Presses a finger slowly 2 mm into the floor over 2 s and withdraws it over 2 s."""
 
     fingers, max_force, max_torque = 1, 100.0, 1.0
@@ -346,12 +341,6 @@ class Pressing2mm:
         depth = 0.002 * (t / 2.0 if t < 2.0 else max(0.0, 2.0 - (t - 2.0)) / 2.0)
         s = samples[0]
         s.x, s.y, s.z, s.twist, s.valid = 0.0, 0.0, 0.008 - depth, 0.0, True
-
-    def send(self, finger, *w):
-        pass
-
-    def close(self):
-        pass
 
 
 def test_the_observer_counts_a_lossless_spring_exactly():
@@ -382,7 +371,7 @@ SQUEEZE = """<mujoco><option gravity="0 0 -9.81"/><worldbody><geom name="floor" 
 </body></worldbody></mujoco>"""
 
 
-class HeldBelow:
+class HeldBelow(ScriptedDevice):
     """A device held still at (x, y, z) (m), e.g. 3 mm below where its proxy rests on a floor (a
     finger pressing 3 N)."""
 
@@ -394,12 +383,6 @@ class HeldBelow:
     def read(self, t, samples):
         s = samples[0]
         (s.x, s.y, s.z), s.twist, s.valid = self.at, 0.0, True
-
-    def send(self, finger, *w):
-        pass
-
-    def close(self):
-        pass
 
 
 @pytest.mark.parametrize("mass", [0.1, 1.0, 10.0])

@@ -18,6 +18,7 @@ import zlib
 import numpy as np
 import pytest
 
+from conftest import ScriptedDevice
 from softproxy.devices.replay import ReplayDevice
 from softproxy import cli
 from softproxy.device import DeviceError, DeviceSample
@@ -275,10 +276,8 @@ def test_a_long_planned_run_allocates_nothing_for_its_length(tmp_path):
     assert load_recording(path).recovered == 51
 
 
-class _Script:
+class _Script(ScriptedDevice):
     """A one-finger device reading a counter into x (so each read's sample is known)."""
-
-    fingers, max_force, max_torque = 1, 10.0, 0.0
 
     def __init__(self):
         self.closed = False
@@ -286,9 +285,6 @@ class _Script:
     def read(self, t, samples):
         s = samples[0]
         s.t, s.x, s.valid = t, t * 2.0, True
-
-    def send(self, *wrench):
-        pass
 
     def close(self):
         self.closed = True

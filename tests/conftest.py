@@ -1,0 +1,44 @@
+"""What several test files share: a stepped clock, the box-on-a-floor world, an open haptic
+input report, and a scripted device's do-nothing send and close.
+
+The test files import these by name (`from conftest import Clock`): pytest puts this folder
+on the import path, as it does for the fakes beside it (`fake_dhd`, `mesh_oracle`).
+"""
+
+import struct
+
+BOX_ON_PLANE_XML = """<mujoco><option timestep="0.001"/><worldbody>
+  <geom type="plane" size="1 1 .1"/>
+  <body name="box" pos="0 0 0.03"><freejoint/><geom type="box" size=".03 .03 .03" mass="0.1"/></body>
+</worldbody></mujoco>"""
+"""A floor and a free 6 cm box resting on it (top face at z = 0.06 m), 1 ms steps."""
+
+
+class Clock:
+    """A device's clock, stepped by the test: `clock.now += dt` (s)."""
+
+    def __init__(self, start: float = 100.0):
+        self.now = start
+
+    def __call__(self):
+        return self.now
+
+
+def oh_state(seq, status=0x01, x_um=0, y_um=0, z_um=0, twist_urad=0, buttons=0):
+    """An open haptic input report (id 1): sequence, status bits, buttons, position (µm), twist (µrad)."""
+    return bytes([1]) + struct.pack("<HBBiiii", seq & 0xFFFF, status, buttons, x_um, y_um, z_um, twist_urad)
+
+
+class ScriptedDevice:
+    """A device whose `read` the test writes; what the loop sends is dropped, closing is a no-op."""
+
+    fingers, max_force, max_torque = 1, 10.0, 0.0
+
+    def read(self, t, samples):
+        raise NotImplementedError
+
+    def send(self, finger, *wrench):
+        pass
+
+    def close(self):
+        pass
