@@ -9,15 +9,21 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 
 
 def test_embedding_example_runs(tmp_path):
+    """The example runs as printed and its finger rests on the puck: the force it prints is the
+    spring's, stiffness × (proxy height - device height), the proxy held up by the puck's top
+    face (puck centre + half-height + finger radius) above the device's last z."""
     text = README.read_text()
     section = text.split("## Embedding", 1)[1]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     script = tmp_path / "example.py"
-    script.write_text(code)
+    script.write_text(code + 'print(f"proxy z {float(finger.god.z)!r}; puck z {float(world.data.body(\'puck\').xpos[2])!r}")\n')
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     force = float(re.search(r"pressing with ([0-9.]+) N", out.stdout).group(1))
-    assert 0.5 < force < 3.0
+    proxy_z, puck_z = (float(v) for v in re.search(r"proxy z (\S+); puck z (\S+)", out.stdout).groups())
+    stiffness, radius, half_height, device_z = 1000.0, 0.008, 0.01, 0.028 - 0.5 * 0.004  # as the example sets them
+    assert abs(proxy_z - (puck_z + half_height + radius)) < 5e-4, (proxy_z, puck_z)
+    assert force > 0.5 and abs(force - stiffness * (proxy_z - device_z)) <= 0.006, (force, proxy_z)
 
 
 def test_the_readme_test_command_is_what_ci_runs():

@@ -281,10 +281,58 @@ def test_rates(rate):
     assert abs(r["object_rotation_deg"]) < 2.0
 
 
+def test_the_pacer_starts_each_tick_at_its_deadline_and_counts_a_late_one(monkeypatch):
+    """The pacer (`pace`, `paced_done`) on a clock the test steps: tick k begins at the first
+    reading at or past its deadline d0 + k·period, never before; it sleeps until `spin_ns`
+    before a deadline still that far off and spins the rest; a tick that ends after the next
+    deadline is one miss, and the deadlines stay on the period grid (a late tick does not
+    shift the ones after it: the next begins at once)."""
+    from softproxy.compiled import servo as kernel
+
+    step = 1_000  # ns the clock moves per reading, so a spin ends
+    clock = [5_000_000]
+    slept_to = []
+
+    def monotonic_ns():
+        clock[0] += step
+        return clock[0]
+
+    def sleep_until_ns(deadline):
+        slept_to.append(deadline)
+        clock[0] = max(clock[0], deadline)
+
+    monkeypatch.setattr(kernel, "monotonic_ns", monotonic_ns)
+    monkeypatch.setattr(kernel, "sleep_until_ns", sleep_until_ns)
+    period, spin = 1_000_000, 200_000
+    loop = np.zeros(1, dtype=kernel.LOOP).view(np.recarray)
+    loop.period_ns, loop.spin_ns, loop.next_ns = period, spin, clock[0]
+    counters = np.zeros(2, dtype=np.int64)
+    d0 = clock[0]
+    work = [300_000] * 40
+    work[10], work[25] = 2_500_000, 1_200_000  # two ticks too long for their period
+    late = 0
+    for k, w in enumerate(work):
+        deadline = d0 + k * period
+        due_in = deadline - (clock[0] + step)  # at the pacer's first reading
+        sleeps = len(slept_to)
+        kernel.pace.py_func(loop)
+        begun = clock[0]
+        assert begun >= deadline, (k, begun - deadline)
+        if due_in > 0:  # not due yet: it begins on the first reading at or past its deadline
+            assert begun < deadline + step, (k, begun - deadline)
+        assert slept_to[sleeps:] == ([deadline - spin] if due_in > spin else []), k
+        clock[0] += w
+        late += clock[0] + step > deadline + period  # the miss check reads the clock once more
+        kernel.paced_done.py_func(loop, counters)
+        assert loop.next_ns[0] == deadline + period, k
+    assert late >= 2 and counters[kernel.MISSES] == late
+
+
+@pytest.mark.slow
 def test_a_paced_tick_never_starts_before_its_deadline():
-    """Paced mode: tick k reads the device no sooner than k periods after the run began (a
-    loaded machine can only make it later; how close it keeps to the period is `softproxy
-    bench latency`'s to measure)."""
+    """Paced mode on the real clock: tick k reads the device no sooner than k periods after the
+    run began (a loaded machine can only make it later; how close it keeps to the period is
+    `softproxy bench latency`'s to measure)."""
     dev = Scripted()
     loop = plane_loop(dev)
     loop.start()

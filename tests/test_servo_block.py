@@ -90,6 +90,7 @@ def test_request_stop_ends_a_background_run_with_zero_force():
     assert loop.ticks == ticks + 5
 
 
+@pytest.mark.slow
 def test_a_paced_block_takes_its_real_time():
     """A paced compiled run of 200 ticks at 1 kHz lasts at least until its last tick's deadline,
     199 periods after it began (a lockstep one of the same ticks far less): the kernel waits
