@@ -20,113 +20,16 @@ read the same record.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import ClassVar
+from dataclasses import replace
 
 from softproxy.compiled import finger as kernel
-from softproxy.compiled.godobject import RESTICK_TIME, WORKSPACE_LIMIT
 from softproxy.finger_rows import Field, FingerRows, RecordView
-from softproxy.fingertip import MODELS, FingertipModel, _check_finite
+from softproxy.fingertip import MODELS, FingertipModel
 from softproxy.fingertip import model as fingertip_model
 from softproxy.geometry import Shape, ShapeSet
 from softproxy.proxy import GodObject
+from softproxy.schema import FingerParams  # noqa: F401 (declared, with its bounds, in softproxy.schema)
 from softproxy.torsion import TorsionalFriction
-
-
-
-@dataclass
-class FingerParams:
-    """Per-finger settings of a scene (SI units). Validated on construction: every number
-    finite and within `LIMITS`, so no setting can drive a force to overflow (Inf, then NaN
-    at the clamp); ValueError naming the field, its range and its unit otherwise."""
-
-    name: str = "finger"
-    radius: float = 0.008           # proxy sphere radius, m
-    stiffness: float = 2000.0       # k, N/m
-    damping: float = 5.0            # b, N·s/m
-    torsion_stiffness: float = 2.0  # k_τ, N·m/rad
-    torsion_damping: float = 0.002  # b_τ, N·m·s/rad
-    model: str = "CH"               # fingertip model: CH, MH, VS, LFM or point
-    mu_s: float = 1.0               # translational static friction
-    mu_d: float = 0.8               # translational dynamic friction
-    torsion_mu_s: float | None = None  # static torsional coefficient, N·m/N^γ (default: Table 1)
-    torsion_mu_d: float | None = None  # dynamic torsional coefficient (default: 0.8 static)
-    saturate: bool = True           # torsion limit follows eq 26 (linear above P*); False: μ'|P|^γ at every P.
-                                    # eq 26 is the default: closer to the measured fingertip (docs/peer.md)
-    restick_time: float = RESTICK_TIME  # a slipping contact (cone, torsion) stopped this long re-sticks, s;
-                                        # 0: static limits re-tested every tick (seed 002 eq 39 as printed)
-    max_force: float = 40.0         # clamp on |F|, N
-    max_torque: float = 1.0         # clamp on |M|, N·m
-    max_speed: float = 20.0         # a device sample farther than max_speed·dt from the last is a spike, m/s
-    soft_start: float = 0.1         # after placement the force clamp ramps from 0 to max_force over this, s
-    device_finger: int = 0          # which finger of the device drives this one
-    offset: tuple = (0.0, 0.0, 0.0)  # device-to-world offset, m
-    scale: float = 1.0              # device-to-world workspace scale
-
-    LIMITS: ClassVar[dict[str, tuple[float, float, str]]] = {
-        # field: (lowest, highest, unit). Why the highest: a device position is believed
-        # within ±WORKSPACE_LIMIT (1 km) and a tick is at least 10 µs (100 kHz), so the
-        # spring stretch is < ~2e6 m (with `scale`) and its rate < ~2e11 m/s; at these
-        # bounds k·stretch + b·rate stays below ~1e17 N, far from float overflow (a
-        # damping of 1e308 made b·rate Inf and the clamp Inf·0 = NaN). Each bound is also
-        # orders of magnitude past any real setting, so it only catches mistakes (mm typed
-        # as m, an exponent slip) and admits the extremes the tests and benchmarks drive
-        # (k = 1e7 N/m, b = 1e3 N·s/m, k_τ = 1e6 N·m/rad, a 1e4 N clamp).
-        "radius": (0.0, 0.1, "m"),                 # a fingertip or a tool tip (shipped: 5–50 mm)
-        "stiffness": (0.0, 1e8, "N/m"),            # devices render ≤ ~1e4 N/m; tests 1e7
-        "damping": (0.0, 1e5, "N·s/m"),            # devices render ≤ ~1e2 N·s/m; tests 1e3
-        "torsion_stiffness": (0.0, 1e7, "N·m/rad"),  # shipped 0.5–2; tests 1e6
-        "torsion_damping": (0.0, 1e4, "N·m·s/rad"),  # shipped ≤ 0.01
-        "mu_s": (0.0, 10.0, ""),                   # a friction cone of 84°; skin is ~0.5–3
-        "mu_d": (0.0, 10.0, ""),
-        "torsion_mu_s": (0.0, 1.0, "N·m/N^γ"),     # ~100 × Table 1's μ' (~0.008 N·m/N^γ)
-        "torsion_mu_d": (0.0, 1.0, "N·m/N^γ"),
-        "max_force": (0.0, 1e5, "N"),              # devices render ≤ ~1e2 N; the wall benchmark 200 N, tests 1e4
-        "max_torque": (0.0, 1e3, "N·m"),           # devices render ≤ ~1 N·m
-        "max_speed": (0.0, 1e4, "m/s"),            # a hand moves at ≤ ~5 m/s; the spike test is off well below this
-        "soft_start": (0.0, 60.0, "s"),            # a ramp of a minute is already no force at all to a user
-        "restick_time": (0.0, 60.0, "s"),          # shipped 0.05; a minute is already never re-sticking
-        "scale": (0.0, 1e3, ""),                   # device workspace (cm) to world; 1e3 maps 1 mm to 1 m
-        "offset": (-WORKSPACE_LIMIT, WORKSPACE_LIMIT, "m"),  # each component: inside the workspace
-    }
-    """Allowed range of every numeric field, (lowest, highest, unit); see the comments for why."""
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name:
-            raise ValueError(f"name must be a non-empty string, got {self.name!r}")
-        if self.model not in MODELS:
-            raise ValueError(f"model must be one of {', '.join(MODELS)}, got {self.model!r}")
-        if not isinstance(self.saturate, bool):
-            raise ValueError(f"saturate must be true or false, got {self.saturate!r}")
-        for name in ("radius", "damping", "torsion_damping", "mu_s", "mu_d", "soft_start", "restick_time"):
-            self._check_range(name, _check_finite(name, getattr(self, name), non_negative=True))
-        for name in ("stiffness", "torsion_stiffness", "max_force", "max_torque", "scale", "max_speed"):
-            self._check_range(name, _check_finite(name, getattr(self, name), positive=True))
-        for name in ("torsion_mu_s", "torsion_mu_d"):
-            if getattr(self, name) is not None:
-                self._check_range(name, _check_finite(name, getattr(self, name), non_negative=True))
-        if self.mu_d > self.mu_s:
-            raise ValueError(f"mu_d ({self.mu_d}) must be <= mu_s ({self.mu_s})")
-        if (self.torsion_mu_s is not None and self.torsion_mu_d is not None
-                and self.torsion_mu_d > self.torsion_mu_s):
-            raise ValueError(f"torsion_mu_d ({self.torsion_mu_d}) must be <= torsion_mu_s ({self.torsion_mu_s})")
-        if isinstance(self.device_finger, bool) or not isinstance(self.device_finger, int) or self.device_finger < 0:
-            raise ValueError(f"device_finger must be an integer >= 0, got {self.device_finger!r}")
-        try:
-            if len(self.offset) != 3:
-                raise TypeError
-        except TypeError:
-            raise ValueError(f"offset must be 3 numbers (m), got {self.offset!r}") from None
-        self.offset = tuple(self._check_range("offset", _check_finite("offset", v)) for v in self.offset)
-
-    def _check_range(self, name: str, value: float) -> float:
-        """`value` if within LIMITS[name], else ValueError naming the field, the range and the unit."""
-        low, high, unit = self.LIMITS[name]
-        if not low <= value <= high:
-            unit = f" {unit}" if unit else ""
-            raise ValueError(f"{name} must be at most {high:g}{unit}"
-                             f"{f' and at least {low:g}{unit}' if low < 0.0 else ''}, got {value!r}")
-        return value
 
 
 class SoftFingerProxy(RecordView):

@@ -31,6 +31,9 @@ import math
 from dataclasses import dataclass
 
 from softproxy import units
+from softproxy.input_error import check_finite
+
+_check_finite = check_finite  # the name softproxy.torsion imports
 
 # ---------------------------------------------------------------------------
 # Seed 002 constants, in the paper's units, converted to SI once.
@@ -75,24 +78,9 @@ _TABLE_1 = {
 }
 
 
-def _check_finite(name: str, value: float, *, positive: bool = False, non_negative: bool = False) -> float:
-    """Return `value` as float or raise ValueError naming the parameter."""
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    if positive and value <= 0.0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    if non_negative and value < 0.0:
-        raise ValueError(f"{name} must be >= 0, got {value!r}")
-    return value
-
-
 def _check_force(name: str, P: float) -> float:
     """Validate a normal-force magnitude for the model laws (not the tick): finite and >= 0."""
-    return _check_finite(name, P, non_negative=True)
+    return check_finite(name, P, non_negative=True)
 
 
 @dataclass(frozen=True)
@@ -113,9 +101,9 @@ class FingertipModel:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(f"name must be a non-empty string, got {self.name!r}")
-        _check_finite("gamma", self.gamma, positive=True)
-        _check_finite("mu_prime", self.mu_prime, non_negative=True)
-        _check_finite("r0", self.r0, positive=True)
+        check_finite("gamma", self.gamma, positive=True)
+        check_finite("mu_prime", self.mu_prime, non_negative=True)
+        check_finite("r0", self.r0, positive=True)
 
     @property
     def has_torsion(self) -> bool:
@@ -189,7 +177,7 @@ def model(name: str) -> FingertipModel:
 # ---------------------------------------------------------------------------
 def e1_force(delta: float, delta0: float = 0.0) -> float:
     """E1 (eq 22): normal force P = b/m (e^{m(δ-δ0)} - 1) for indentation δ (m), N."""
-    delta = _check_finite("delta", delta)
+    delta = check_finite("delta", delta)
     return E1_B / E1_M * math.expm1(E1_M * (delta - delta0))
 
 
@@ -222,14 +210,14 @@ def e3_torque(P: float) -> float:
 def hertz_contact_radius(P: float, R: float, E_star: float) -> float:
     """Hertz contact radius a = (3PR / 4E*)^(1/3) (eq 14 as corrected), m."""
     P = _check_force("P", P)
-    R = _check_finite("R", R, positive=True)
-    E_star = _check_finite("E_star", E_star, positive=True)
+    R = check_finite("R", R, positive=True)
+    E_star = check_finite("E_star", E_star, positive=True)
     return (3.0 * P * R / (4.0 * E_star)) ** (1.0 / 3.0)
 
 
 def ch_torque_ratio(a: float, mu: float) -> float:
     """CH and MH: M/P = (3π/16) μ a (eq 12), m."""
-    return 3.0 * math.pi / 16.0 * _check_finite("mu", mu, non_negative=True) * _check_finite("a", a, non_negative=True)
+    return 3.0 * math.pi / 16.0 * check_finite("mu", mu, non_negative=True) * check_finite("a", a, non_negative=True)
 
 
 def ch_torque(P: float, mu: float, R: float, E_star: float) -> float:
@@ -239,7 +227,7 @@ def ch_torque(P: float, mu: float, R: float, E_star: float) -> float:
 
 def lfm_torque_ratio(a: float, mu: float) -> float:
     """LFM: M/P = (2/3) μ a (eq 21), m (uniform pressure over the contact disc)."""
-    return 2.0 / 3.0 * _check_finite("mu", mu, non_negative=True) * _check_finite("a", a, non_negative=True)
+    return 2.0 / 3.0 * check_finite("mu", mu, non_negative=True) * check_finite("a", a, non_negative=True)
 
 
 def lfm_radius_ratio(P: float) -> float:
@@ -250,21 +238,21 @@ def lfm_radius_ratio(P: float) -> float:
 
 def mh_force(delta: float) -> float:
     """MH (eq 31): P = p1 δ^p2 for indentation δ (m), N."""
-    delta = _check_finite("delta", delta, non_negative=True)
+    delta = check_finite("delta", delta, non_negative=True)
     return MH_P1 * delta**MH_P2
 
 
 def mh_force_from_radius(a: float, R: float) -> float:
     """MH (eq 33): P = p1 / R^p2 · a^(2 p2), using a² = Rδ (eq 6), N."""
-    a = _check_finite("a", a, non_negative=True)
-    R = _check_finite("R", R, positive=True)
+    a = check_finite("a", a, non_negative=True)
+    R = check_finite("R", R, positive=True)
     return MH_P1 / R**MH_P2 * a ** (2.0 * MH_P2)
 
 
 def vs_force(delta: float, R: float = VS_RADIUS, k1: float = VS_K1, n: float = VS_N) -> float:
     """VS (eq 17): P = (π/3) k δ² (3R - δ) with k = k' δ^n, N. Requires 0 <= δ <= R."""
-    delta = _check_finite("delta", delta, non_negative=True)
-    R = _check_finite("R", R, positive=True)
+    delta = check_finite("delta", delta, non_negative=True)
+    R = check_finite("R", R, positive=True)
     if delta > R:
         raise ValueError(f"delta must be <= R ({R} m), got {delta}")
     return math.pi / 3.0 * k1 * delta**n * delta**2 * (3.0 * R - delta)
@@ -277,9 +265,9 @@ def vs_torque(delta: float, mu: float, R: float = VS_RADIUS, k1: float = VS_K1, 
     (eq 15), k = k' δ^n and φ = arcsin(a/R) (the seed leaves φ undefined; this reading
     makes eq 18 equal the integral of μ k z(r) 2π r² dr over the contact disc).
     """
-    delta = _check_finite("delta", delta, non_negative=True)
-    mu = _check_finite("mu", mu, non_negative=True)
-    R = _check_finite("R", R, positive=True)
+    delta = check_finite("delta", delta, non_negative=True)
+    mu = check_finite("mu", mu, non_negative=True)
+    R = check_finite("R", R, positive=True)
     if delta > R:
         raise ValueError(f"delta must be <= R ({R} m), got {delta}")
     a = math.sqrt(max(R * R - (R - delta) ** 2, 0.0))

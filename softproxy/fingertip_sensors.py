@@ -73,19 +73,11 @@ from __future__ import annotations
 import math
 import random
 from collections import deque
-from dataclasses import dataclass
 
+from softproxy.schema import SensingSpec, TactileSpec  # noqa: F401 (the options, declared in softproxy.schema)
 from softproxy.sensing import FORCE_LSB, TORQUE_LSB, ContactSensor, Fingertip
-from softproxy.tactile import PAPER_CELLS, PAPER_YOUNGS_MODULUS, TactileSensor
+from softproxy.tactile import TactileSensor
 
-DEFAULT_RATE_HZ = 100.0
-"""Frames per second of either channel unless the scene says otherwise, Hz."""
-DEFAULT_HISTORY = 20
-"""Frames kept for the run result."""
-NOISE = ("none", "gauss", "quantise")
-"""Sensor noise models of the sensing channel (seed 003 §2.1 Nano17 resolution)."""
-INDENTATION = ("force", "depth")
-"""Where the tactile indentation comes from: the normal force or the device penetration."""
 _VERTICAL = math.cos(math.radians(25.0))
 ROLL_DEADBAND = 1e-3
 """A roll (rad) below which the tactile image is computed unrolled (cost: see the module docstring)."""
@@ -93,127 +85,9 @@ MAX_TILT = math.radians(60.0)
 """Largest pad-to-normal angle (roll) the tactile channel images (TactileSensor's clamp), rad."""
 
 
-def _unit(name: str, v) -> tuple[float, float, float] | None:
-    """`v` as a finite unit 3-vector (None stays None); ValueError naming `name` otherwise."""
-    if v is None:
-        return None
-    try:
-        x, y, z = (float(c) for c in v)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be [x, y, z], got {v!r}") from None
-    n = math.sqrt(x * x + y * y + z * z)
-    if not (math.isfinite(n) and n > 0.0):
-        raise ValueError(f"{name} must be a finite non-zero vector, got {v!r}")
-    return (x / n, y / n, z / n)
-
-
 def _r(v: float, digits: int = 7) -> float:
     """Rounded for the JSON result, with -0.0 written as 0.0."""
     return round(v, digits) + 0.0
-
-
-MAX_RATE_HZ = 100_000.0
-"""Highest channel rate, Hz: the servo loop's own highest rate (a channel runs at most every tick)."""
-MIN_RATE_HZ = 0.01
-"""Lowest channel rate, Hz (a frame every 100 s); below it the decimation count overflows."""
-MAX_HISTORY = 10_000
-"""Most frames a channel keeps for the run result (each tactile frame holds its image)."""
-MAX_CELLS = 64
-"""Most tactile cells per side (the paper's sensor has 10)."""
-MAX_SUPERSAMPLE = 8
-"""Most sample points per cell and side."""
-MAX_POINTS_PER_SIDE = 256
-"""Most sample points per side, cells × supersample: the spring fields are (side points)²
-arrays, ~10 MB here; 100000 cells asked for ~300 GB before this bound."""
-MAX_SUBSTEPS = 1000
-"""Most history sub-steps per tactile frame (a frame's cost is linear in them)."""
-MAX_FINGERTIP_M = 0.1
-"""Largest tactile fingertip radius and sensor side, m (a fingertip; mm typed as m is caught)."""
-YOUNGS_MODULUS_PA = (1.0, 1e12)
-"""Range of the tactile skin's Young's modulus E, Pa (the paper's 0.36 MPa; steel is 2e11)."""
-
-
-def _positive(name: str, v, integer: bool = False, at_most: float | None = None, unit: str = ""):
-    """`v` if a finite number (an integer if asked) > 0 and <= `at_most`; ValueError naming `name`."""
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
-        raise ValueError(f"{name} must be {'an integer' if integer else 'a number'} > 0, got {v!r}")
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be > 0, got {v!r}")
-    if at_most is not None and v > at_most:
-        raise ValueError(f"{name} must be at most {at_most:g}{f' {unit}' if unit else ''}, got {v!r}")
-    return v
-
-
-@dataclass(frozen=True)
-class _ChannelSpec:
-    """What every channel has: frame rate (Hz), pad frame, frames of history kept."""
-
-    rate_hz: float = DEFAULT_RATE_HZ
-    pad: tuple | None = None
-    distal: tuple | None = None
-    history: int = DEFAULT_HISTORY
-
-    def __post_init__(self) -> None:
-        _positive("rate_hz", self.rate_hz, at_most=MAX_RATE_HZ, unit="Hz")
-        if self.rate_hz < MIN_RATE_HZ:
-            raise ValueError(f"rate_hz must be at least {MIN_RATE_HZ:g} Hz, got {self.rate_hz!r}")
-        _positive("history", self.history, integer=True, at_most=MAX_HISTORY, unit="frames")
-        object.__setattr__(self, "pad", _unit("pad", self.pad))
-        object.__setattr__(self, "distal", _unit("distal", self.distal))
-        _check_pad_distal(self.pad, self.distal)
-
-
-@dataclass(frozen=True)
-class TactileSpec(_ChannelSpec):
-    """A finger's tactile channel (SI): frame rate (Hz), fingertip and sensor, pad frame."""
-
-    radius: float | None = None          # Inoue–Hirai fingertip radius r, m (None: the proxy radius)
-    side: float | None = None            # sensor side, m (None: 2 r)
-    cells: int = PAPER_CELLS
-    supersample: int = 2
-    youngs_modulus: float = PAPER_YOUNGS_MODULUS  # E, Pa
-    indentation: str = "force"
-    max_substeps: int = 10
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        _positive("youngs_modulus", self.youngs_modulus, at_most=YOUNGS_MODULUS_PA[1], unit="Pa")
-        if self.youngs_modulus < YOUNGS_MODULUS_PA[0]:
-            raise ValueError(f"youngs_modulus must be at least {YOUNGS_MODULUS_PA[0]:g} Pa, got {self.youngs_modulus!r}")
-        for name in ("radius", "side"):
-            if getattr(self, name) is not None:
-                _positive(name, getattr(self, name), at_most=MAX_FINGERTIP_M, unit="m")
-        _positive("cells", self.cells, integer=True, at_most=MAX_CELLS)
-        _positive("supersample", self.supersample, integer=True, at_most=MAX_SUPERSAMPLE)
-        _positive("max_substeps", self.max_substeps, integer=True, at_most=MAX_SUBSTEPS)
-        if self.cells * self.supersample > MAX_POINTS_PER_SIDE:
-            raise ValueError(f"cells × supersample must be at most {MAX_POINTS_PER_SIDE} sample points per side, "
-                             f"got {self.cells} × {self.supersample}")
-        if self.indentation not in INDENTATION:
-            raise ValueError(f"indentation must be one of {', '.join(INDENTATION)}, got {self.indentation!r}")
-
-
-@dataclass(frozen=True)
-class SensingSpec(_ChannelSpec):
-    """A finger's contact-sensing channel: frame rate (Hz), Nano17 noise model and seed, pad frame."""
-
-    noise: str = "none"
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.noise not in NOISE:
-            raise ValueError(f"noise must be one of {', '.join(NOISE)}, got {self.noise!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int):
-            raise ValueError(f"seed must be an integer, got {self.seed!r}")
-
-
-def _check_pad_distal(pad, distal) -> None:
-    if distal is not None and pad is None:
-        raise ValueError("distal needs pad (a latched pad takes the default distal)")
-    if pad is not None and distal is not None:
-        if abs(pad[0] * distal[0] + pad[1] * distal[1] + pad[2] * distal[2]) > 0.99:
-            raise ValueError(f"distal {list(distal)} must not be parallel to pad {list(pad)}")
 
 
 def default_distal(pad: tuple) -> tuple[float, float, float]:

@@ -9,13 +9,12 @@ N/m, N·s/m.
 
 from __future__ import annotations
 
-import math
-
 from softproxy.compiled import godobject as kernel
 from softproxy.compiled.godobject import RESTICK_TIME
 from softproxy.compiled.godobject import WORKSPACE_LIMIT  # noqa: F401 (the workspace a device position must lie in)
 from softproxy.finger_rows import Field, FingerRows, RecordView
 from softproxy.geometry import Shape, ShapeSet
+from softproxy.input_error import check_finite, must_be
 
 
 class GodObject(RecordView):
@@ -54,15 +53,12 @@ class GodObject(RecordView):
 
     def __init__(self, shapes: list[Shape], radius: float, mu_s: float = 0.0, mu_d: float = 0.0,
                  position: tuple[float, float, float] = (0.0, 0.0, 0.0), restick_time: float = RESTICK_TIME) -> None:
-        if not (math.isfinite(radius) and radius >= 0.0):
-            raise ValueError(f"radius must be a finite number >= 0 (m), got {radius!r}")
-        for name, mu in (("mu_s", mu_s), ("mu_d", mu_d)):
-            if not (math.isfinite(mu) and mu >= 0.0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {mu!r}")
+        radius = check_finite("radius", radius, non_negative=True)  # m
+        mu_s = check_finite("mu_s", mu_s, non_negative=True)
+        mu_d = check_finite("mu_d", mu_d, non_negative=True)
         if mu_d > mu_s:
-            raise ValueError(f"mu_d ({mu_d}) must be <= mu_s ({mu_s})")
-        if not (math.isfinite(restick_time) and restick_time >= 0.0):
-            raise ValueError(f"restick_time must be a finite number >= 0 (s), got {restick_time!r}")
+            raise must_be("mu_d", f"<= mu_s ({mu_s!r})", mu_d)
+        restick_time = check_finite("restick_time", restick_time, non_negative=True)  # s
         shapes = ShapeSet.of(shapes)
         shapes.prepare(float(radius))  # nothing the queries need is built in the tick
         self._bind(FingerRows(shapes, 1), 0)

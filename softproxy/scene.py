@@ -35,8 +35,6 @@ geoms or flexes of the model, a `[measure]` object that is a body.
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import tomllib
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
@@ -44,31 +42,17 @@ from pathlib import Path
 
 import mujoco
 
-from softproxy.finger import FingerParams
-from softproxy.fingertip import MODELS
-from softproxy.fingertip_sensors import SensingSpec, TactileSpec
+from softproxy import schema
+from softproxy.geometry import exclusions, unsupported_geoms, unsupported_message
 from softproxy.mjcf_files import ModelFileError, check_model_files
-from softproxy.geometry import GEOM_GROUPS, MESH_SURFACES, exclusions, unsupported_geoms, unsupported_message
-from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ
+from softproxy.schema import MAX_DURATION_S  # noqa: F401 (the longest run, s; softproxy.cli reads it here)
+from softproxy.schema import FingerParams, InputError, SensingSpec, TactileSpec
 
-"""Servo rates a run accepts, Hz (what `ServoLoop` can run)."""
-MAX_DURATION_S = 86_400.0
-"""Longest run a scene (duration_s) or `softproxy run --duration` may ask for, s (24 h); more is
-taken for a mistake (a run's recording and video grow with its length)."""
-
-_SCENE_KEYS = {"mjcf", "description", "rate_hz", "duration_s", "audit", "force_shading"}
-_MEASURE_KEYS = {"object", "axis", "start_s"}
-_HAPTICS_KEYS = {"exclude", "exclude_groups", "mesh_surface"}
-_FINGER_KEYS = {f.name for f in dataclasses.fields(FingerParams)}
-_OPTION_SPECS = {"tactile": TactileSpec, "sensing": SensingSpec}
-_OPTION_KEYS = {name: {f.name for f in dataclasses.fields(spec)} for name, spec in _OPTION_SPECS.items()}
-_OPTION_STRINGS = {"indentation", "noise"}
-_OPTION_VECTORS = {"pad", "distal"}
-_OPTION_INTEGERS = {"cells", "supersample", "max_substeps", "history", "seed"}
+_CHANNELS = {"tactile": TactileSpec, "sensing": SensingSpec}
 
 
-class SceneError(ValueError):
-    """A scene file that cannot be used; the message names the file and the field."""
+class SceneError(InputError):
+    """A scene file that cannot be used; the message (one line) names the file and the field."""
 
 
 @dataclass
@@ -168,124 +152,27 @@ def find_scene(name_or_path: str) -> Path:
     raise SceneError(f"no scene {name_or_path!r}: give a .toml path or one of: {known}")
 
 
-def _number(where: str, key: str, value, *, positive=False, non_negative=False, within=None) -> float:
-    """`value` as a finite float (> 0, >= 0, in `within` = (low, high, unit) if asked); SceneError otherwise."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f"{where}: {key} must be a number, got {value!r}")
-    try:
-        value = float(value)
-    except OverflowError:  # a TOML integer past a float's range
-        raise SceneError(f"{where}: {key} must be finite, got {value!r}") from None
-    if not math.isfinite(value):
-        raise SceneError(f"{where}: {key} must be finite, got {value!r}")
-    if positive and value <= 0.0:
-        raise SceneError(f"{where}: {key} must be > 0, got {value!r}")
-    if non_negative and value < 0.0:
-        raise SceneError(f"{where}: {key} must be >= 0, got {value!r}")
-    if within is not None and not within[0] <= value <= within[1]:
-        low, high, unit = within
-        raise SceneError(f"{where}: {key} must be between {low:g} and {high:g} {unit}, got {value!r}")
-    return value
-
-
-def _flag(where: str, key: str, value) -> bool:
-    if not isinstance(value, bool):
-        raise SceneError(f"{where}: {key} must be true or false, got {value!r}")
-    return value
-
-
-def _table(where: str, doc: dict, key: str, allowed: set | None) -> dict:
-    t = doc.get(key, {})
-    if not isinstance(t, dict):
-        raise SceneError(f"{where}: [{key}] must be a table")
-    if allowed is not None:
-        unknown = set(t) - allowed
-        if unknown:
-            raise SceneError(f"{where}: [{key}] has unknown field(s) {sorted(unknown)}; expected some of {sorted(allowed)}")
-    return t
-
-
-def _option(where: str, name: str, label: str, default, value):
-    """A finger's `tactile` / `sensing` entry (true, false or a table, over the default's) -> spec or None."""
-    for v, lab in ((default, f"finger_defaults.{name}"), (value, label)):
-        if v is not None and not isinstance(v, (bool, dict)):
-            raise SceneError(f"{where}: {lab} must be true, false or a table, got {v!r}")
+def _channel(where: str, name: str, label: str, default, value):
+    """A finger's `tactile` / `sensing` entry (true, false or a table, over the default's; both
+    already checked against the schema) -> spec or None."""
     chosen = value if value is not None else default
     if chosen is None or chosen is False:
         return None
     table = dict(default) if isinstance(default, dict) else {}
     if isinstance(value, dict):
         table.update(value)
-    unknown = set(table) - _OPTION_KEYS[name]
-    if unknown:
-        raise SceneError(f"{where}: {label} has unknown field(s) {sorted(unknown)}; "
-                         f"expected some of {sorted(_OPTION_KEYS[name])}")
-    for key, v in table.items():
-        field_name = f"{label}.{key}"
-        if key in _OPTION_STRINGS:
-            if not isinstance(v, str):
-                raise SceneError(f"{where}: {field_name} must be a string, got {v!r}")
-        elif key in _OPTION_VECTORS:
-            if not isinstance(v, list) or len(v) != 3:
-                raise SceneError(f"{where}: {field_name} must be [x, y, z] (a world direction), got {v!r}")
-            table[key] = tuple(_number(where, field_name, c) for c in v)
-        elif key in _OPTION_INTEGERS:
-            if isinstance(v, bool) or not isinstance(v, int):
-                raise SceneError(f"{where}: {field_name} must be an integer, got {v!r}")
-        else:
-            table[key] = _number(where, field_name, v, positive=True)
-    try:
-        return _OPTION_SPECS[name](**table)
-    except (ValueError, TypeError) as exc:
-        raise SceneError(f"{where}: {label}: {exc}") from None
+    return schema.build(_CHANNELS[name], table, source=where, path=label)
 
 
 def _finger(where: str, defaults: dict, entry: dict, index: int) -> tuple[FingerParams, TactileSpec | None,
                                                                            SensingSpec | None]:
-    if not isinstance(entry, dict):
-        raise SceneError(f"{where}: finger[{index}] must be a table")
-    options = [_option(where, name, f"finger[{index}].{name}", defaults.get(name), entry.get(name))
-               for name in _OPTION_SPECS]
-    merged = {k: v for k, v in {**defaults, **entry}.items() if k not in _OPTION_SPECS}
-    unknown = set(merged) - _FINGER_KEYS
-    if unknown:
-        raise SceneError(f"{where}: finger[{index}] has unknown field(s) {sorted(unknown)}; expected some of {sorted(_FINGER_KEYS)}")
+    """One [[finger]] merged over [finger_defaults] (each checked against the schema already)."""
+    label = f"finger[{index}]"
+    tactile, sensing = (_channel(where, name, f"{label}.{name}", defaults.get(name), entry.get(name))
+                        for name in _CHANNELS)
+    merged = {k: v for k, v in {**defaults, **entry}.items() if k not in _CHANNELS}
     merged.setdefault("name", f"finger{index}")
-    if "model" in merged and merged["model"] not in MODELS:
-        raise SceneError(f"{where}: finger[{index}].model is {merged['model']!r}; expected one of {', '.join(MODELS)}")
-    if "offset" in merged:
-        off = merged["offset"]
-        if not isinstance(off, list) or len(off) != 3:
-            raise SceneError(f"{where}: finger[{index}].offset must be [x, y, z] in m, got {off!r}")
-        merged["offset"] = tuple(_number(where, f"finger[{index}].offset", v) for v in off)
-    for key, value in merged.items():
-        if key in ("name", "model", "offset", "saturate", "device_finger"):
-            continue
-        if value is not None:
-            merged[key] = _number(where, f"finger[{index}].{key}", value)
-    if "device_finger" in merged and (isinstance(merged["device_finger"], bool) or not isinstance(merged["device_finger"], int)):
-        raise SceneError(f"{where}: finger[{index}].device_finger must be an integer, got {merged['device_finger']!r}")
-    try:
-        return FingerParams(**merged), options[0], options[1]
-    except (ValueError, TypeError) as exc:
-        raise SceneError(f"{where}: finger[{index}]: {exc}") from None
-
-
-def _haptics(where: str, table: dict, scene: Scene) -> None:
-    """The [haptics] table into `scene` (names are checked against the model by `load_model`)."""
-    names = table.get("exclude", [])
-    if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names):
-        raise SceneError(f'{where}: haptics.exclude must be a list of geom or flex names, e.g. ["ring"], got {names!r}')
-    groups = table.get("exclude_groups", [])
-    if not isinstance(groups, list) or not all(
-            isinstance(g, int) and not isinstance(g, bool) and 0 <= g < GEOM_GROUPS for g in groups):
-        raise SceneError(f"{where}: haptics.exclude_groups must be a list of geom groups "
-                         f"(integers 0 to {GEOM_GROUPS - 1}), got {groups!r}")
-    surface = table.get("mesh_surface", "true")
-    if surface not in MESH_SURFACES:
-        raise SceneError(f"{where}: haptics.mesh_surface must be one of {', '.join(map(repr, MESH_SURFACES))} "
-                         f"(a mesh's own triangles, or the convex hull MuJoCo collides with), got {surface!r}")
-    scene.exclude, scene.exclude_groups, scene.mesh_surface = tuple(names), tuple(groups), surface
+    return schema.build(FingerParams, merged, source=where, path=label), tactile, sensing
 
 
 def load_scene(name_or_path: str) -> Scene:
@@ -298,46 +185,33 @@ def load_scene(name_or_path: str) -> Scene:
         raise SceneError(f"{where}: not valid TOML: {exc}") from None
     except RecursionError:  # tomllib parses nested arrays and inline tables recursively
         raise SceneError(f"{where}: not valid TOML: arrays or tables nested too deeply") from None
-    unknown = set(doc) - {"scene", "measure", "finger_defaults", "finger", "device", "haptics"}
-    if unknown:
-        raise SceneError(f"{where}: unknown table(s) {sorted(unknown)}")
-    s = _table(where, doc, "scene", _SCENE_KEYS)
-    if "mjcf" not in s or not isinstance(s["mjcf"], str):
-        raise SceneError(f"{where}: [scene] mjcf is required: the MJCF file name, relative to the scene file")
-    mjcf = (path.parent / s["mjcf"]).resolve()
+    try:
+        return _scene(path, doc)
+    except SceneError:
+        raise
+    except InputError as exc:  # the schema's one line, as a SceneError
+        raise SceneError(str(exc)) from None
+
+
+def _scene(path: Path, doc: dict) -> Scene:
+    """A parsed scene file checked against `schema.SceneFile` and built into a Scene."""
+    where = str(path)
+    checked = schema.validate(schema.SceneFile, doc, source=where)
+    s = checked.scene
+    mjcf = (path.parent / s.mjcf).resolve()
     if not mjcf.is_file():
-        raise SceneError(f"{where}: [scene] mjcf {s['mjcf']!r} does not exist ({mjcf})")
-    scene = Scene(
-        name=path.stem, path=path, mjcf=mjcf, description=str(s.get("description", "")),
-        rate_hz=_number(where, "scene.rate_hz", s.get("rate_hz", 1000.0), positive=True,
-                        within=(MIN_RATE_HZ, MAX_RATE_HZ, "Hz")),
-        duration_s=_number(where, "scene.duration_s", s.get("duration_s", 5.0), positive=True,
-                           within=(0.0, MAX_DURATION_S, "s")),
-        audit=_flag(where, "scene.audit", s.get("audit", True)),
-        force_shading=_flag(where, "scene.force_shading", s.get("force_shading", False)),
-    )
-    defaults = _table(where, doc, "finger_defaults", _FINGER_KEYS | set(_OPTION_SPECS))
-    fingers = doc.get("finger", [])
-    if not isinstance(fingers, list) or not fingers:
-        raise SceneError(f"{where}: at least one [[finger]] table is required")
-    parsed = [_finger(where, defaults, f, i) for i, f in enumerate(fingers)]
+        raise SceneError(f"{where}: scene.mjcf {s.mjcf!r} does not exist ({mjcf})")
+    scene = Scene(name=path.stem, path=path, mjcf=mjcf, description=s.description, rate_hz=s.rate_hz,
+                  duration_s=s.duration_s, audit=s.audit, force_shading=s.force_shading)
+    defaults = doc.get("finger_defaults", {})
+    parsed = [_finger(where, defaults, f, i) for i, f in enumerate(doc["finger"])]
     scene.fingers = [p[0] for p in parsed]
     scene.tactile = [p[1] for p in parsed]
     scene.sensing = [p[2] for p in parsed]
-    scene.device = _table(where, doc, "device", None)
-    _haptics(where, _table(where, doc, "haptics", _HAPTICS_KEYS), scene)
-    if "measure" in doc:
-        g = _table(where, doc, "measure", _MEASURE_KEYS)
-        axis = g.get("axis", [1.0, 0.0, 0.0])
-        if not isinstance(axis, list) or len(axis) != 3:
-            raise SceneError(f"{where}: measure.axis must be [x, y, z], got {axis!r}")
-        axis = [_number(where, "measure.axis", v) for v in axis]
-        norm = math.sqrt(sum(v * v for v in axis))
-        if not 0.0 < norm < math.inf:
-            raise SceneError(f"{where}: measure.axis must be a non-zero direction of finite length, got {axis!r}")
-        if not isinstance(g.get("object"), str):
-            raise SceneError(f"{where}: measure.object must be the name of a body")
-        scene.measure = MeasureSpec(g["object"], tuple(v / norm for v in axis),
-                                    _number(where, "measure.start_s", g.get("start_s", 0.0), non_negative=True,
-                                            within=(0.0, MAX_DURATION_S, "s")))
+    scene.device = doc.get("device", {})
+    h = checked.haptics
+    scene.exclude, scene.exclude_groups, scene.mesh_surface = tuple(h.exclude), tuple(h.exclude_groups), h.mesh_surface
+    if checked.measure is not None:
+        g = checked.measure
+        scene.measure = MeasureSpec(g.object, g.axis, g.start_s)
     return scene

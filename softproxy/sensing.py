@@ -108,6 +108,7 @@ import math
 from dataclasses import dataclass
 
 from softproxy import units
+from softproxy.input_error import check_finite
 
 # ---------------------------------------------------------------------------
 # Seed 003 constants, in the paper's units, converted to SI once.
@@ -161,21 +162,6 @@ _LAWS = ("E1", "E2", "rigid")
 _CHART_LIMIT = 1e4  # ‖(α, β)‖ beyond which the normal is within 1e-4 rad of grazing
 
 
-def _check_finite(name: str, value: float, *, positive: bool = False, non_negative: bool = False) -> float:
-    """Return `value` as float or raise ValueError naming the parameter."""
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    if positive and value <= 0.0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    if non_negative and value < 0.0:
-        raise ValueError(f"{name} must be >= 0, got {value!r}")
-    return value
-
-
 def _check_vector(name: str, value, n: int = 3) -> tuple:
     """Return `value` as a tuple of `n` finite floats or raise ValueError naming the parameter."""
     try:
@@ -222,10 +208,10 @@ class Fingertip:
 
     def __post_init__(self) -> None:
         for name in ("a", "b", "c", "E1", "E2", "skin_thickness", "mu_max"):
-            _check_finite(name, getattr(self, name), positive=True)
-        _check_finite("min_force", self.min_force, non_negative=True)
+            check_finite(name, getattr(self, name), positive=True)
+        check_finite("min_force", self.min_force, non_negative=True)
         if self.z_min is not None:
-            _check_finite("z_min", self.z_min)
+            check_finite("z_min", self.z_min)
         if self.law not in _LAWS:
             raise ValueError(f"law must be one of {', '.join(_LAWS)}, got {self.law!r}")
         if self.skin_thickness >= min(self.a, self.b, self.c):
@@ -233,7 +219,7 @@ class Fingertip:
 
     def deformation(self, normal_force: float) -> float:
         """Δd for a normal force magnitude (eq 1 inverted), m."""
-        fn = _check_finite("normal_force", normal_force, non_negative=True)
+        fn = check_finite("normal_force", normal_force, non_negative=True)
         if self.law == "E1":
             return fn / self.E1
         if self.law == "E2":
@@ -246,7 +232,7 @@ class Fingertip:
         On an ellipsoid ∇S ∝ B⁻¹p, so p = B n / √(nᵀBn) with B = diag((a-Δd)², …).
         """
         nx, ny, nz = _check_vector("normal", normal)
-        dd = _check_finite("deformation", deformation, non_negative=True)
+        dd = check_finite("deformation", deformation, non_negative=True)
         A = self.a - dd, self.b - dd, self.c - dd
         if min(A) <= 0.0:
             raise ValueError(f"deformation must be < the smallest semi-axis, got {deformation!r}")
@@ -260,7 +246,7 @@ class Fingertip:
     def normal_at(self, point, deformation: float = 0.0) -> tuple:
         """Outward unit normal ∇S/‖∇S‖ (eq 7) of the deformed ellipsoid at `point`."""
         x, y, z = _check_vector("point", point)
-        dd = _check_finite("deformation", deformation, non_negative=True)
+        dd = check_finite("deformation", deformation, non_negative=True)
         gx, gy, gz = x / (self.a - dd) ** 2, y / (self.b - dd) ** 2, z / (self.c - dd) ** 2
         g = math.sqrt(gx * gx + gy * gy + gz * gz)
         if not g > 0.0:
@@ -280,7 +266,7 @@ class SensorMount:
     centre: tuple = SENSOR_CENTRE
 
     def __post_init__(self) -> None:
-        _check_finite("theta", self.theta)
+        check_finite("theta", self.theta)
         object.__setattr__(self, "centre", _check_vector("centre", self.centre))
 
     def vector_to_ellipsoid(self, v) -> tuple:
@@ -417,9 +403,9 @@ class ContactSensor:
         self.mount = SensorMount() if mount is None else mount
         if not isinstance(self.mount, SensorMount):
             raise ValueError(f"mount must be a SensorMount, got {mount!r}")
-        self.tol = _check_finite("tol", tol, positive=True)
-        self.lambda0 = _check_finite("lambda0", lambda0, non_negative=True)
-        self.eps1 = _check_finite("eps1", eps1, non_negative=True)
+        self.tol = check_finite("tol", tol, positive=True)
+        self.lambda0 = check_finite("lambda0", lambda0, non_negative=True)
+        self.eps1 = check_finite("eps1", eps1, non_negative=True)
         if not isinstance(max_iter, int) or max_iter < 1:
             raise ValueError(f"max_iter must be an int >= 1, got {max_iter!r}")
         self.max_iter = max_iter
@@ -670,11 +656,11 @@ def wrench_from_contact(normal, normal_force: float, friction=(0.0, 0.0, 0.0), l
     if not nn > 0.0:
         raise ValueError("normal must be non-zero")
     nx, ny, nz = nx / nn, ny / nn, nz / nn
-    fn = _check_finite("normal_force", normal_force, positive=True)
+    fn = check_finite("normal_force", normal_force, positive=True)
     tx, ty, tz = _check_vector("friction", friction)
     tn = tx * nx + ty * ny + tz * nz
     tx, ty, tz = tx - tn * nx, ty - tn * ny, tz - tn * nz
-    tau = _check_finite("local_torque", local_torque)
+    tau = check_finite("local_torque", local_torque)
     dd = tip.deformation(fn)
     p = tip.point_with_normal((nx, ny, nz), dd)
     F = (-fn * nx + tx, -fn * ny + ty, -fn * nz + tz)

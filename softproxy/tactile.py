@@ -128,7 +128,7 @@ from pathlib import Path
 import numpy as np
 
 from softproxy import units
-from softproxy.fingertip import _check_finite
+from softproxy.input_error import check_finite
 
 # ---------------------------------------------------------------------------
 # Seed 000 §III / §IV constants, in the paper's units, converted to SI once.
@@ -180,9 +180,9 @@ class SensorGrid:
     def __init__(self, cells: int = PAPER_CELLS, side: float = PAPER_SIDE, supersample: int = 4,
                  margin: float = 0.0) -> None:
         self.cells = _check_int("cells", cells, 1)
-        self.side = _check_finite("side", side, positive=True)
+        self.side = check_finite("side", side, positive=True)
         self.supersample = _check_int("supersample", supersample, 1)
-        margin = _check_finite("margin", margin, non_negative=True)
+        margin = check_finite("margin", margin, non_negative=True)
         self.pitch = self.side / self.cells
         self.spacing = self.pitch / self.supersample
         self.pad = int(math.ceil(margin / self.spacing - 1e-9)) if margin > 0.0 else 0
@@ -237,12 +237,12 @@ class VirtualSpringFingertip:
         if not isinstance(grid, SensorGrid):
             raise ValueError(f"grid must be a SensorGrid, got {grid!r}")
         self.grid = grid
-        self.L = _check_finite("joint_distance", joint_distance, non_negative=True)
-        self.r = _check_finite("radius", radius, positive=True)
-        self.E = _check_finite("youngs_modulus", youngs_modulus, positive=True)
+        self.L = check_finite("joint_distance", joint_distance, non_negative=True)
+        self.r = check_finite("radius", radius, positive=True)
+        self.E = check_finite("youngs_modulus", youngs_modulus, positive=True)
         self.project_history = bool(project_history)
-        self.max_step_rad = _check_finite("max_step_rad", max_step_rad, positive=True)
-        self.max_step_m = _check_finite("max_step_m", max_step_m, positive=True)
+        self.max_step_rad = check_finite("max_step_rad", max_step_rad, positive=True)
+        self.max_step_m = check_finite("max_step_m", max_step_m, positive=True)
         x, y = grid.x, grid.y
         rho2 = x * x + y * y
         self._inside = rho2 < self.r * self.r
@@ -301,8 +301,8 @@ class VirtualSpringFingertip:
         Returns the number of steps taken (≥ 1 unless the pose is unchanged). With
         `max_substeps` the step count is capped (larger, less accurate steps).
         """
-        theta = _check_finite("theta", theta)
-        d = _check_finite("d", d)
+        theta = check_finite("theta", theta)
+        d = check_finite("d", d)
         if abs(theta) >= math.pi / 2.0:
             raise ValueError(f"theta must be within ±90°, got {theta!r}")
         dt, dd = theta - self.theta, d - self.indentation
@@ -329,7 +329,7 @@ class VirtualSpringFingertip:
 
     def rolled_pressure(self, beta: float) -> np.ndarray:
         """dP_new = dP + δdP after the object rolls by `beta` (rad) about the tip (eqs 20–30), Pa."""
-        beta = _check_finite("beta", beta)
+        beta = check_finite("beta", beta)
         phi0 = self.theta
         phi1 = phi0 + beta
         if abs(phi1) >= math.pi / 2.0:
@@ -387,7 +387,7 @@ class TactileSensor:
         self.model = VirtualSpringFingertip(grid, joint_distance, radius, youngs_modulus, project_history,
                                             max_step_rad, max_step_m)
         self.max_substeps = _check_int("max_substeps", max_substeps, 1)
-        self.max_tilt_rad = _check_finite("max_tilt_rad", max_tilt_rad, positive=True)
+        self.max_tilt_rad = check_finite("max_tilt_rad", max_tilt_rad, positive=True)
         if self.max_tilt_rad >= math.pi / 2.0:
             raise ValueError(f"max_tilt_rad must be < π/2, got {max_tilt_rad!r}")
         self.grid = grid
@@ -470,17 +470,17 @@ def inoue_hirai(joint_distance: float = PAPER_JOINT_DISTANCE, radius: float = PA
     fingertip base, not clipped by the sensor). `images` are the cell images (Pa) at the phase
     angles nearest `image_angles_deg` (positive: rotation; the last two: rolling).
     """
-    step = _check_finite("step", step, positive=True)
-    tilt = _check_finite("tilt", tilt, positive=True)
-    roll = _check_finite("roll", roll)
-    record_every = _check_finite("record_every", record_every, positive=True)
-    roll_step = _check_finite("roll_step", roll_step, positive=True)
+    step = check_finite("step", step, positive=True)
+    tilt = check_finite("tilt", tilt, positive=True)
+    roll = check_finite("roll", roll)
+    record_every = check_finite("record_every", record_every, positive=True)
+    roll_step = check_finite("roll_step", roll_step, positive=True)
     if tilt >= math.pi / 2.0:
         raise ValueError(f"tilt must be < 90°, got {tilt!r}")
     if abs(tilt + roll) >= math.pi / 2.0:
         raise ValueError(f"tilt + roll must be within ±90°, got {tilt + roll!r}")
-    radius = _check_finite("radius", radius, positive=True)
-    side = _check_finite("side", side, positive=True)
+    radius = check_finite("radius", radius, positive=True)
+    side = check_finite("side", side, positive=True)
     grid = SensorGrid(cells, side, supersample, margin=max(0.0, radius - side / 2.0))
     tip = VirtualSpringFingertip(grid, joint_distance, radius, youngs_modulus, project_history,
                                  max_step_rad=step)

@@ -48,12 +48,12 @@ def scene_file(tmp_path, a="", b="", defaults=""):
     "a, defaults, words",
     [
         ('tactile = "yes"', "", ["finger[0].tactile", "true, false or a table", "yes"]),
-        ("tactile = { rate_hz = -1 }", "", ["finger[0].tactile.rate_hz", "> 0"]),
+        ("tactile = { rate_hz = -1 }", "", ["finger[0].tactile.rate_hz", "between 0.01 and 100000 Hz"]),
         ("tactile = { rate_hz = true }", "", ["finger[0].tactile.rate_hz", "number"]),
         ("tactile = { colour = 1 }", "", ["finger[0].tactile", "unknown", "colour", "rate_hz"]),
         ('tactile = { indentation = "deep" }', "", ["finger[0].tactile", "indentation", "force", "depth"]),
         ("tactile = { cells = 2.5 }", "", ["finger[0].tactile.cells", "integer"]),
-        ("tactile = { cells = 0 }", "", ["finger[0].tactile", "cells", "> 0"]),
+        ("tactile = { cells = 0 }", "", ["finger[0].tactile.cells", "between 1 and 64"]),
         ('sensing = { noise = "loud" }', "", ["finger[0].sensing", "noise", "gauss", "quantise"]),
         ("sensing = { seed = 1.5 }", "", ["finger[0].sensing.seed", "integer"]),
         ("sensing = { pad = [1, 0] }", "", ["finger[0].sensing.pad", "[x, y, z]"]),
@@ -61,7 +61,7 @@ def scene_file(tmp_path, a="", b="", defaults=""):
         ("sensing = { distal = [1, 0, 0] }", "", ["finger[0].sensing", "distal needs pad"]),
         ("sensing = { pad = [1, 0, 0], distal = [-2, 0, 0] }", "", ["finger[0].sensing", "parallel"]),
         ("", "tactile = 3", ["finger_defaults.tactile", "true, false or a table"]),
-        ("", 'sensing = { noise = "loud" }', ["finger[0].sensing", "noise"]),
+        ("", 'sensing = { noise = "loud" }', ["finger_defaults.sensing.noise", "gauss"]),
     ],
 )
 def test_scene_errors_name_the_file_and_field(tmp_path, a, defaults, words):

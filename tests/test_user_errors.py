@@ -227,7 +227,9 @@ def test_every_finger_bound_is_admitted_and_its_unit_given(field):
         extra = {"mu_s": high} if field == "mu_d" else {"torsion_mu_s": high} if field == "torsion_mu_d" else {}
         FingerParams(**{field: high, **extra})
         value = {field: math.nextafter(high, math.inf), **extra}
-    expected = f"{field} must be at most {high:g}{' ' + unit if unit else ''}"
+    u = " " + unit if unit else ""
+    expected = (f"offset[2] must be at least {low:g}{u} and at most {high:g}{u}" if field == "offset"  # a component
+                else f"{field} must be at most {high:g}{u}")
     with pytest.raises(ValueError, match=re.escape(expected)):
         FingerParams(**value)
 

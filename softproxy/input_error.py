@@ -1,0 +1,48 @@
+"""The one error format of bad input, and the finite-number check of the laws' arguments.
+
+Every input mistake (a scene file, a HID profile, a [device] table, `FingerParams(...)`, an
+argument of a fingertip or sensing law) is one line:
+
+    [FILE: ]PATH must be REQUIREMENT, got VALUE[ (HINT)]
+
+e.g. `scene.toml: finger[0].stiffness must be at least 10 N/m, got 2.0 (stiffness is in N/m:
+2 N/mm is 2000 N/m)`. FILE is left out where there is none (a Python call), PATH is the
+field's path in the file (`finger[0].tactile.cells`), HINT the likely fix where the bound
+makes the mistake unambiguous. This module is the bottom layer of validation (it imports
+nothing of softproxy): the laws check their arguments with it, and `softproxy.schema`, which
+declares every input's fields, words its errors with it.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+class InputError(ValueError):
+    """Bad input: one line naming the file (where there is one), the field, what was wrong and the fix."""
+
+
+def must_be(path: str, requirement: str, value, *, source: str = "", hint: str = "") -> InputError:
+    """The one-line error `[source: ]path must be requirement, got value[ (hint)]`."""
+    where = f"{source}: " if source else ""
+    fix = f" ({hint})" if hint else ""
+    return InputError(f"{where}{path} must be {requirement}, got {value!r}{fix}")
+
+
+def check_finite(name: str, value, *, positive: bool = False, non_negative: bool = False) -> float:
+    """`value` as a finite float (> 0 or >= 0 if asked); InputError naming `name` otherwise."""
+    if isinstance(value, (str, bytes)):  # float("5") would take a string for a number
+        raise must_be(name, "a number", value)
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise must_be(name, "a number", value) from None
+    except OverflowError:  # an integer past a float's range
+        raise must_be(name, "finite", value) from None
+    if not math.isfinite(number):
+        raise must_be(name, "finite", value)
+    if positive and number <= 0.0:
+        raise must_be(name, "> 0", value)
+    if non_negative and number < 0.0:
+        raise must_be(name, ">= 0", value)
+    return number

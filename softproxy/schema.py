@@ -1,0 +1,584 @@
+"""The declared schema of every input: each field once, with its type, bounds and SI unit.
+
+Declared here: `FingerParams` (a finger's settings), `TactileSpec` / `SensingSpec` (a finger's
+fingertip-sensor channels), the scene TOML's tables (`SceneFile`), a HID profile's file
+(`HidProfileFile`) and the [device] tables of the device types (`DeviceTable`). A field's
+bounds and unit are declared once, in its `Field` (`quantity`, `count`); the validation, the
+one-line errors and the JSON Schema an editor reads (`softproxy schema`) all come from them.
+
+Errors: every mistake is one `InputError` line (a ValueError), in the one format of
+`softproxy.input_error`: `[FILE: ]PATH must be REQUIREMENT, got VALUE[ (HINT)]`, e.g.
+`scene.toml: finger[0].stiffness must be at least 10 N/m, got 2.0 (stiffness is in N/m: 2 N/mm
+is 2000 N/m)`. `validate(model, data, source=..., path=...)` turns pydantic's ValidationError
+(several lines) into that line, naming the first mistake.
+
+Decision: `FingerParams`, `TactileSpec` and `SensingSpec` stay stdlib dataclasses (their
+fields are plain floats, ints and tuples that `softproxy.finger` copies into the compiled
+core's records, `dataclasses.replace` and `fields` work on them), their fields declared with
+pydantic's `Annotated[..., Field(...)]`; `__post_init__` validates the instance through a
+pydantic model built once from those same annotations (`_check_dataclass`). A pydantic
+dataclass was not used: it raises a multi-line ValidationError from `__init__`, which the
+one-line error format (and every caller catching ValueError) would have to unwrap.
+
+Layering: this module imports the constants it bounds fields with from the modules that own
+them (`fingertip`, `tactile`, `geometry`, `compiled.godobject`), none of which imports it; the
+servo loop's rate range is repeated here (`SERVO_RATE_HZ`; `softproxy.servo` imports
+`softproxy.finger`, which imports this module) and a test checks the two agree.
+"""
+
+import dataclasses
+import math
+import operator
+import typing
+from typing import Annotated, Any, Literal, Optional, Union
+
+from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag,
+                      ValidationError, create_model, model_validator)
+from pydantic_core import PydanticCustomError
+
+from softproxy.compiled.godobject import RESTICK_TIME, WORKSPACE_LIMIT
+from softproxy.fingertip import MODELS
+from softproxy.geometry import GEOM_GROUPS, MESH_SURFACES
+from softproxy.input_error import InputError, check_finite, must_be  # noqa: F401 (the format, re-exported)
+from softproxy.tactile import PAPER_CELLS, PAPER_YOUNGS_MODULUS
+
+SERVO_RATE_HZ = (10.0, 100_000.0)
+"""Servo rates a scene may ask for, Hz: what `softproxy.servo.ServoLoop` runs (its MIN_RATE_HZ, MAX_RATE_HZ)."""
+MAX_DURATION_S = 86_400.0
+"""Longest run a scene (duration_s) or `softproxy run --duration` may ask for, s (24 h); more is
+taken for a mistake (a run's recording and video grow with its length)."""
+
+# ---------------------------------------------------------------------------------------------
+# Declaring a field once: a number with its unit and bounds, an integer count, a 3-vector.
+
+
+def _number(value):
+    """Before the float check: a real number (not a bool or a string), finite, as a float."""
+    if isinstance(value, (bool, str, bytes)):
+        raise PydanticCustomError("input", "a number")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise PydanticCustomError("input", "a number") from None
+    except OverflowError:  # a TOML integer past a float's range
+        raise PydanticCustomError("input", "finite") from None
+    if not math.isfinite(number):
+        raise PydanticCustomError("input", "finite")
+    return number
+
+
+def _integer(value):
+    """Before the int check: an integer (not a bool, not 2.0)."""
+    if isinstance(value, bool):
+        raise PydanticCustomError("input", "an integer")
+    try:
+        return operator.index(value)  # int and numpy's integers, never a float
+    except TypeError:
+        raise PydanticCustomError("input", "an integer") from None
+
+
+def _bounds_text(low, high, unit: str, open_low: bool) -> str:
+    u = f" {unit}" if unit else ""
+    if low is not None and high is not None and low < 0.0:
+        return f"at least {low:g}{u} and at most {high:g}{u}"
+    if open_low and low == 0.0 and high is None:
+        return "> 0"
+    return ""
+
+
+def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high: str):
+    """An after-validator: `low <= v <= high` (`low < v` when open_low); the error words the bound with its unit."""
+    u = f" {unit}" if unit else ""
+    both = low is not None and high is not None and low < 0.0  # a signed range: say both ends
+
+    def check(v):
+        if low is not None and (v <= low if open_low else v < low):
+            if both:
+                text = _bounds_text(low, high, unit, open_low)
+            elif high is not None and low > 0.0:
+                text = f"between {low:g} and {high:g}{u}"
+            else:
+                text = f"> {low:g}{u}" if open_low else f"at least {low:g}{u}"
+            # a unit slip gives a positive number too small: a negative one is another mistake
+            raise PydanticCustomError("bound", text, {"hint": hint_low if v > 0 else ""})
+        if high is not None and v > high:
+            text = _bounds_text(low, high, unit, open_low) if both else f"at most {high:g}{u}"
+            raise PydanticCustomError("bound", text, {"hint": hint_high})
+        return v
+
+    return check
+
+
+def quantity(unit: str, description: str, *, low: float | None = None, high: float | None = None,
+             open_low: bool = False, hint_low: str = "", hint_high: str = "", optional: bool = False):
+    """A finite number in `unit` (SI; "" for a ratio) within [low, high] ((low, high] when open_low).
+
+    `hint_low` / `hint_high`: the likely mistake when the value is past that bound (a unit slip),
+    appended to the error. `optional`: None is allowed too (a default chosen elsewhere).
+    """
+    extra: dict[str, Any] = {"unit": unit} if unit else {}
+    if low is not None:
+        extra["exclusiveMinimum" if open_low else "minimum"] = low
+    if high is not None:
+        extra["maximum"] = high
+    number = Annotated[float, BeforeValidator(_number),
+                       AfterValidator(_bound_check(low, high, unit, open_low, hint_low, hint_high))]
+    kind = Optional[number] if optional else number
+    return Annotated[kind, Field(description=f"{description} ({unit})" if unit else description,
+                                 json_schema_extra=extra)]
+
+
+def count(description: str, *, low: int | None = None, high: int | None = None, unit: str = ""):
+    """An integer within [low, high] (a count of cells, frames, a seed, a finger index)."""
+    extra: dict[str, Any] = {}
+    if low is not None:
+        extra["minimum"] = low
+    if high is not None:
+        extra["maximum"] = high
+    return Annotated[int, BeforeValidator(_integer),
+                     AfterValidator(_bound_check(low, high, unit, False, "", "")),
+                     Field(description=description, json_schema_extra=extra)]
+
+
+def _vector3(value):
+    """Before the tuple check: a list or tuple of exactly 3 items."""
+    if isinstance(value, (str, bytes, dict)):
+        raise PydanticCustomError("input", "[x, y, z]")
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise PydanticCustomError("input", "[x, y, z]") from None
+    if len(items) != 3:
+        raise PydanticCustomError("input", "[x, y, z] (3 numbers)")
+    return items
+
+
+def vector3(description: str, unit: str = "", *, low: float | None = None, high: float | None = None,
+            direction: bool = False, optional: bool = False):
+    """[x, y, z]: 3 finite numbers (each within [low, high]); `direction`: non-zero, made a unit vector."""
+    item = Annotated[float, BeforeValidator(_number), AfterValidator(_bound_check(low, high, unit, False, "", ""))]
+    checks: list = [BeforeValidator(_vector3)]
+    if direction:
+        checks.append(AfterValidator(_unit_vector))
+    kind = Annotated[tuple[item, item, item], *checks]
+    kind = Optional[kind] if optional else kind
+    extra: dict[str, Any] = {"unit": unit} if unit else {}
+    if low is not None:
+        extra["items_minimum"] = low
+    if high is not None:
+        extra["items_maximum"] = high
+    return Annotated[kind, Field(description=f"{description} ({unit})" if unit else description,
+                                 json_schema_extra=extra)]
+
+
+def _unit_vector(v):
+    n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if not (math.isfinite(n) and n > 0.0):
+        raise PydanticCustomError("input", "a finite non-zero vector")
+    return (v[0] / n, v[1] / n, v[2] / n)
+
+
+def choice(options, description: str):
+    """One of `options` (strings)."""
+    return Annotated[Literal[tuple(options)], Field(description=description)]
+
+
+Flag = Annotated[bool, Field(strict=True)]
+"""true or false (never 1 or "yes")."""
+Text = Annotated[str, Field(strict=True)]
+Name = Annotated[str, Field(strict=True, min_length=1)]
+
+# ---------------------------------------------------------------------------------------------
+# The one error format: pydantic's ValidationError -> one InputError line.
+
+_KIND = {
+    "model_type": "a table", "model_attributes_type": "a table", "dict_type": "a table", "dataclass_type": "a table",
+    "list_type": "a list", "tuple_type": "[x, y, z]", "bool_type": "true or false", "string_type": "a string",
+    "int_type": "an integer", "float_type": "a number", "string_too_short": "a non-empty string",
+    "too_short": "non-empty",
+}
+
+
+def _path(prefix: str, loc) -> str:
+    """`finger[0].tactile.cells` from a pydantic location (a union member's tag dropped)."""
+    text = prefix
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        elif isinstance(part, str) and (part.startswith(("function-", "tagged-union[")) or part in _UNION_TAGS):
+            continue
+        else:
+            text += f".{part}" if text else str(part)
+    return text
+
+
+_UNION_TAGS = {"flag", "table"}
+
+
+_REQUIRED = {
+    "finger": "at least one [[finger]] table is required",
+    "scene": "a [scene] table is required, with mjcf: the MJCF file name, relative to the scene file",
+    "scene.mjcf": "scene.mjcf is required: the MJCF file name, relative to the scene file",
+}
+"""What a missing key of a scene file means, by path (others: `PATH is required`)."""
+
+
+def _rank(error: dict) -> int:
+    """Which of a union's errors to report: a table's own complaint beats 'must be true or false'."""
+    return 1 if error["type"] in ("bool_type",) else 0
+
+
+def one_line(exc: ValidationError, *, source: str = "", path: str = "") -> InputError:
+    """The first mistake of a ValidationError as one InputError line (`source`: the file; `path`:
+    where the validated data sits in it, e.g. "finger[0]")."""
+    errors = sorted(exc.errors(include_url=False), key=_rank)
+    e = errors[0]
+    loc = e["loc"]
+    where = _path(path, loc)
+    kind, ctx = e["type"], e.get("ctx") or {}
+    if kind == "unknown_fields":
+        lead = f"{source}: " if source else ""
+        if not where:  # the file's own keys are its tables
+            return InputError(f"{lead}unknown table(s) {ctx['unknown']}; expected some of {ctx['allowed']}")
+        return InputError(f"{lead}{where} has unknown field(s) {ctx['unknown']}; expected some of {ctx['allowed']}")
+    if kind == "missing" or (kind == "too_short" and where in _REQUIRED):
+        lead = f"{source}: " if source else ""
+        return InputError(f"{lead}{_REQUIRED.get(where, f'{where} is required')}")
+    if kind == "cross_field":
+        return must_be(where or ctx["field"], e["msg"], ctx["value"], source=source, hint=ctx.get("hint", ""))
+    if kind in ("input", "bound"):
+        requirement = e["msg"]
+    elif kind == "literal_error":
+        requirement = f"one of {ctx['expected'].replace(' or ', ', ')}"
+    elif kind == "extra_forbidden":
+        lead = f"{source}: " if source else ""
+        return InputError(f"{lead}{where} is not a field of this table")
+    else:
+        requirement = _KIND.get(kind, e["msg"].lower())
+    return must_be(where, requirement, e.get("input"), source=source, hint=ctx.get("hint", ""))
+
+
+def build(cls, data: dict, *, source: str = "", path: str = ""):
+    """`cls(**data)` for a validated dataclass; its InputError with `source: path.` in front."""
+    try:
+        return cls(**data)
+    except InputError as exc:
+        raise InputError(f"{source}: {path}.{exc}" if source else f"{path}.{exc}") from None
+
+
+def validate(model, data, *, source: str = "", path: str = ""):
+    """`model.model_validate(data)`; InputError (one line naming `source` and the field) otherwise."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise one_line(exc, source=source, path=path) from None
+
+
+class Table(BaseModel):
+    """A TOML table: every key declared (a misspelt one is named, with the keys it may be)."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, data):
+        if isinstance(data, dict):
+            allowed = {f.alias or name for name, f in cls.model_fields.items()}
+            unknown = sorted(str(k) for k in set(data) - allowed)
+            if unknown:
+                raise PydanticCustomError("unknown_fields", "unknown field(s)",
+                                          {"unknown": unknown, "allowed": sorted(allowed)})
+        return data
+
+
+def _cross_field(field: str, requirement: str, value, hint: str = "") -> PydanticCustomError:
+    return PydanticCustomError("cross_field", requirement, {"field": field, "value": value, "hint": hint})
+
+
+# ---------------------------------------------------------------------------------------------
+# Dataclasses validated on construction (FingerParams, TactileSpec, SensingSpec).
+
+_MODELS: dict[type, type[BaseModel]] = {}
+
+
+def _fields_model(cls) -> type[BaseModel]:
+    """A pydantic model of a dataclass's fields, from their annotations (built once per class)."""
+    model = _MODELS.get(cls)
+    if model is None:
+        hints = typing.get_type_hints(cls, include_extras=True)
+        model = create_model(f"{cls.__name__}Fields", __base__=Table,
+                             **{f.name: (hints[f.name], f.default) for f in dataclasses.fields(cls)})
+        _MODELS[cls] = model
+    return model
+
+
+def _check_dataclass(obj) -> None:
+    """Validate a dataclass instance's fields against their declarations; store the checked values
+    (a list offset becomes a tuple of floats). InputError naming the field otherwise."""
+    cls = type(obj)
+    names = [f.name for f in dataclasses.fields(cls)]
+    checked = validate(_fields_model(cls), {n: getattr(obj, n) for n in names})
+    for n in names:
+        object.__setattr__(obj, n, getattr(checked, n))
+
+
+def fields_of(cls) -> dict[str, Any]:
+    """The declared fields of a validated dataclass: name -> (annotation, default), to build tables from."""
+    hints = typing.get_type_hints(cls, include_extras=True)
+    return {f.name: (hints[f.name], f.default) for f in dataclasses.fields(cls)}
+
+
+def limits(cls) -> dict[str, tuple[float, float, str]]:
+    """(lowest, highest, unit) of every bounded numeric field of a validated dataclass."""
+    out = {}
+    for name, info in _fields_model(cls).model_fields.items():
+        schema = info.json_schema_extra or {}
+        if "maximum" in schema:
+            out[name] = (schema.get("minimum", schema.get("exclusiveMinimum", 0.0)), schema["maximum"],
+                         schema.get("unit", ""))
+        elif "items_maximum" in schema:  # a vector: each component's range
+            out[name] = (schema["items_minimum"], schema["items_maximum"], schema.get("unit", ""))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# A finger
+
+
+@dataclasses.dataclass
+class FingerParams:
+    """Per-finger settings of a scene (SI units). Validated on construction: every number finite
+    and within its declared bounds (`LIMITS`), so no setting can drive a force to overflow (Inf,
+    then NaN at the clamp); InputError (a ValueError) naming the field, its range and its unit.
+
+    Why the highest bounds: a device position is believed within ±WORKSPACE_LIMIT (1 km) and a
+    tick is at least 10 µs (100 kHz), so the spring stretch is < ~2e6 m (with `scale`) and its
+    rate < ~2e11 m/s; at these bounds k·stretch + b·rate stays below ~1e17 N, far from float
+    overflow (a damping of 1e308 made b·rate Inf and the clamp Inf·0 = NaN). Each bound is also
+    orders of magnitude past any real setting, so it only catches mistakes (mm typed as m, an
+    exponent slip) and admits the extremes the tests and benchmarks drive (k = 1e7 N/m, b = 1e3
+    N·s/m, k_τ = 1e6 N·m/rad, a 1e4 N clamp).
+    """
+
+    name: Annotated[Name, Field(description="the finger's name (recordings, messages)")] = "finger"
+    radius: quantity("m", "proxy sphere radius: a fingertip or a tool tip (shipped: 5-50 mm)", low=0.0, high=0.1,
+                     hint_high="radius is in m: 8 mm is 0.008") = 0.008
+    stiffness: quantity("N/m", "coupling stiffness k. Lowest 10 N/m: a softer spring renders nothing a hand "
+                        "feels, and a stiffness typed in N/mm (2 for 2000 N/m) falls below it; devices render "
+                        "<= ~1e4 N/m, tests 1e7", low=10.0, high=1e8,
+                        hint_low="stiffness is in N/m: 2 N/mm is 2000 N/m") = 2000.0
+    damping: quantity("N·s/m", "coupling damping b (devices render <= ~1e2 N·s/m; tests 1e3)",
+                      low=0.0, high=1e5) = 5.0
+    torsion_stiffness: quantity("N·m/rad", "torsional stiffness k_τ (shipped 0.5-2; tests 1e6)",
+                                low=0.0, high=1e7, open_low=True) = 2.0
+    torsion_damping: quantity("N·m·s/rad", "torsional damping b_τ (shipped <= 0.01)", low=0.0, high=1e4) = 0.002
+    model: choice(MODELS, "fingertip model: the torsion law (softproxy.fingertip)") = "CH"
+    mu_s: quantity("", "translational static friction (a cone of 84° at 10; skin is ~0.5-3)",
+                   low=0.0, high=10.0) = 1.0
+    mu_d: quantity("", "translational dynamic friction, <= mu_s", low=0.0, high=10.0) = 0.8
+    torsion_mu_s: quantity("N·m/N^γ", "static torsional coefficient μ' (default: Table 1's; ~100 × Table 1 "
+                           "at most)", low=0.0, high=1.0, optional=True) = None
+    torsion_mu_d: quantity("N·m/N^γ", "dynamic torsional coefficient (default: 0.8 × static), <= torsion_mu_s",
+                           low=0.0, high=1.0, optional=True) = None
+    saturate: Annotated[Flag, Field(description="torsion limit follows eq 26 (linear above P*), the default: "
+                                    "closer to the measured fingertip (docs/peer.md); false: μ'|P|^γ at every P")] = True
+    restick_time: quantity("s", "a slipping contact (cone, torsion) stopped this long re-sticks; 0: static limits "
+                           "re-tested every tick (seed 002 eq 39 as printed); a minute is already never",
+                           low=0.0, high=60.0) = RESTICK_TIME
+    max_force: quantity("N", "clamp on |F| (devices render <= ~1e2 N; the wall benchmark 200 N, tests 1e4)",
+                        low=0.0, high=1e5, open_low=True) = 40.0
+    max_torque: quantity("N·m", "clamp on |M| (devices render <= ~1 N·m)", low=0.0, high=1e3, open_low=True) = 1.0
+    max_speed: quantity("m/s", "a device sample farther than max_speed·dt from the last is a spike (a hand "
+                        "moves at <= ~5 m/s)", low=0.0, high=1e4, open_low=True) = 20.0
+    soft_start: quantity("s", "after placement the force clamp ramps from 0 to max_force over this (a minute "
+                         "is already no force at all to a user)", low=0.0, high=60.0) = 0.1
+    device_finger: count("which finger of the device drives this one", low=0) = 0
+    offset: vector3("device-to-world offset, each component inside the workspace", "m",
+                    low=-WORKSPACE_LIMIT, high=WORKSPACE_LIMIT) = (0.0, 0.0, 0.0)
+    scale: quantity("", "device-to-world workspace scale (1e3 maps 1 mm to 1 m)", low=0.0, high=1e3,
+                    open_low=True) = 1.0
+
+    LIMITS: typing.ClassVar[dict[str, tuple[float, float, str]]] = {}
+    """Allowed range of every numeric field, (lowest, highest, unit), from the declarations above."""
+
+    def __post_init__(self) -> None:
+        _check_dataclass(self)
+        if self.mu_d > self.mu_s:
+            raise must_be("mu_d", f"<= mu_s ({self.mu_s!r})", self.mu_d)
+        if (self.torsion_mu_s is not None and self.torsion_mu_d is not None
+                and self.torsion_mu_d > self.torsion_mu_s):
+            raise must_be("torsion_mu_d", f"<= torsion_mu_s ({self.torsion_mu_s!r})", self.torsion_mu_d)
+
+
+FingerParams.LIMITS = limits(FingerParams)
+
+# ---------------------------------------------------------------------------------------------
+# A finger's fingertip-sensor channels (softproxy.fingertip_sensors)
+
+CHANNEL_RATE_HZ = (0.01, 100_000.0)
+"""A channel's frame rate, Hz: at most the servo's highest rate (a frame at most every tick), at
+least a frame every 100 s (below it the decimation count overflows)."""
+MAX_HISTORY = 10_000
+"""Most frames a channel keeps for the run result (each tactile frame holds its image)."""
+MAX_CELLS = 64
+"""Most tactile cells per side (the paper's sensor has 10)."""
+MAX_SUPERSAMPLE = 8
+"""Most sample points per cell and side."""
+MAX_POINTS_PER_SIDE = 256
+"""Most sample points per side, cells × supersample: the spring fields are (side points)²
+arrays, ~10 MB here; 100000 cells asked for ~300 GB before this bound."""
+MAX_SUBSTEPS = 1000
+"""Most history sub-steps per tactile frame (a frame's cost is linear in them)."""
+MAX_FINGERTIP_M = 0.1
+"""Largest tactile fingertip radius and sensor side, m (a fingertip; mm typed as m is caught)."""
+YOUNGS_MODULUS_PA = (1.0, 1e12)
+"""Range of the tactile skin's Young's modulus E, Pa (the paper's 0.36 MPa; steel is 2e11)."""
+NOISE = ("none", "gauss", "quantise")
+"""Sensor noise models of the sensing channel (seed 003 §2.1 Nano17 resolution)."""
+INDENTATION = ("force", "depth")
+"""Where the tactile indentation comes from: the normal force or the device penetration."""
+DEFAULT_RATE_HZ = 100.0
+"""Frames per second of either channel unless the scene says otherwise, Hz."""
+DEFAULT_HISTORY = 20
+"""Frames kept for the run result."""
+
+
+@dataclasses.dataclass(frozen=True)
+class _ChannelSpec:
+    """What every channel has: frame rate (Hz), pad frame, frames of history kept."""
+
+    rate_hz: quantity("Hz", "frames per second", low=CHANNEL_RATE_HZ[0], high=CHANNEL_RATE_HZ[1]) = DEFAULT_RATE_HZ
+    pad: vector3("world direction the pad faces (default: latched at each contact as -n)",
+                 direction=True, optional=True) = None
+    distal: vector3("world direction toward the fingertip's end (default: world +z made ⟂ pad)",
+                    direction=True, optional=True) = None
+    history: count("frames kept for the run result", low=1, high=MAX_HISTORY, unit="frames") = DEFAULT_HISTORY
+
+    def __post_init__(self) -> None:
+        _check_dataclass(self)
+        if self.distal is not None and self.pad is None:
+            raise InputError("distal needs pad (a latched pad takes the default distal)")
+        if self.pad is not None and self.distal is not None:
+            if abs(sum(p * d for p, d in zip(self.pad, self.distal))) > 0.99:
+                raise InputError(f"distal {list(self.distal)} must not be parallel to pad {list(self.pad)}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TactileSpec(_ChannelSpec):
+    """A finger's tactile channel (SI): frame rate (Hz), fingertip and sensor, pad frame."""
+
+    radius: quantity("m", "Inoue-Hirai fingertip radius r (default: the proxy radius)", low=0.0,
+                     high=MAX_FINGERTIP_M, open_low=True, optional=True, hint_high="radius is in m: 8 mm is 0.008") = None
+    side: quantity("m", "sensor side (default: 2 r)", low=0.0, high=MAX_FINGERTIP_M, open_low=True, optional=True,
+                   hint_high="side is in m: 12 mm is 0.012") = None
+    cells: count("tactile cells per side", low=1, high=MAX_CELLS) = PAPER_CELLS
+    supersample: count("sample points per cell and side", low=1, high=MAX_SUPERSAMPLE) = 2
+    youngs_modulus: quantity("Pa", "skin Young's modulus E (the paper's 0.36 MPa)", low=YOUNGS_MODULUS_PA[0],
+                             high=YOUNGS_MODULUS_PA[1], hint_low="E is in Pa: 0.36 MPa is 3.6e5") = PAPER_YOUNGS_MODULUS
+    indentation: choice(INDENTATION, "indentation from the normal force or the device penetration") = "force"
+    max_substeps: count("history sub-steps per frame at most", low=1, high=MAX_SUBSTEPS) = 10
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.cells * self.supersample > MAX_POINTS_PER_SIDE:
+            raise InputError(f"cells × supersample must be at most {MAX_POINTS_PER_SIDE} sample points per side, "
+                             f"got {self.cells} × {self.supersample}")
+
+
+@dataclasses.dataclass(frozen=True)
+class SensingSpec(_ChannelSpec):
+    """A finger's contact-sensing channel: frame rate (Hz), Nano17 noise model and seed, pad frame."""
+
+    noise: choice(NOISE, "sensor noise model (seed 003 §2.1, the Nano17's resolution)") = "none"
+    seed: count("seed of the noise's random generator") = 0
+
+
+# ---------------------------------------------------------------------------------------------
+# The scene TOML (softproxy.scene)
+
+def _channel_table(spec) -> type[Table]:
+    return create_model(f"{spec.__name__}Table", __base__=Table, __doc__=f"The fields of {spec.__name__}.",
+                        **{name: (Optional[kind], None) for name, (kind, _) in fields_of(spec).items()})
+
+
+def _flag_or_table(value) -> str | None:
+    return "flag" if isinstance(value, bool) else "table" if isinstance(value, dict) else None
+
+
+def channel(table: type[Table], description: str):
+    """A finger's `tactile` / `sensing` entry: true, false, or a table of the channel's fields."""
+    either = Annotated[Union[Annotated[bool, Tag("flag")], Annotated[table, Tag("table")]],
+                       Discriminator(_flag_or_table, custom_error_type="input",
+                                     custom_error_message="true, false or a table")]
+    return Annotated[Optional[either], Field(None, description=description)]
+
+
+TactileTable = _channel_table(TactileSpec)
+SensingTable = _channel_table(SensingSpec)
+
+
+def _finger_table(name: str, doc: str) -> type[Table]:
+    fields = {n: (Optional[kind] if n not in ("torsion_mu_s", "torsion_mu_d") else kind, None)
+              for n, (kind, _) in fields_of(FingerParams).items()}
+    fields["tactile"] = (channel(TactileTable, "the tactile channel (softproxy.fingertip_sensors): true, or a "
+                                "table over [finger_defaults]'s; false turns it off"), None)
+    fields["sensing"] = (channel(SensingTable, "the contact-sensing channel: true, or a table over "
+                                "[finger_defaults]'s; false turns it off"), None)
+    return create_model(name, __base__=Table, __doc__=doc, **fields)
+
+
+FingerTable = _finger_table("FingerTable", "One [[finger]]: FingerParams fields (over [finger_defaults]) and channels.")
+FingerDefaults = _finger_table("FingerDefaults", "[finger_defaults]: fields every [[finger]] starts from.")
+
+
+class SceneTable(Table):
+    """[scene]: the MJCF and the run's rate and length."""
+
+    mjcf: Annotated[Name, Field(description="the MJCF file, relative to the scene file")]
+    description: Text = ""
+    rate_hz: quantity("Hz", "servo rate", low=SERVO_RATE_HZ[0], high=SERVO_RATE_HZ[1],
+                      hint_low="rate_hz is in Hz: 1 kHz is 1000") = 1000.0
+    duration_s: quantity("s", "length of the run (24 h at most)", low=0.0, high=MAX_DURATION_S, open_low=True,
+                         hint_high="duration_s is in s") = 5.0
+    audit: Annotated[Flag, Field(description="track proxy penetration every tick")] = True
+    force_shading: Annotated[Flag, Field(description="mesh contacts report the normal interpolated from the "
+                                          "vertex normals (false: the faceted normal)")] = False
+
+
+class MeasureTable(Table):
+    """[measure]: the run reports how far `object` turned about `axis` from `start_s` to the end."""
+
+    object: Annotated[Name, Field(description="a body of the MJCF")]
+    axis: vector3("world axis", direction=True) = (1.0, 0.0, 0.0)
+    start_s: quantity("s", "from when", low=0.0, high=MAX_DURATION_S) = 0.0
+
+
+GeomGroup = count("a geom group", low=0, high=GEOM_GROUPS - 1)
+
+
+class HapticsTable(Table):
+    """[haptics]: what the fingers touch (docs/models.md)."""
+
+    exclude: Annotated[list[Name], Field(description="geom or flex names kept out of haptic contact, "
+                                         "still in MuJoCo's physics, e.g. [\"ring\"]")] = []
+    exclude_groups: Annotated[list[GeomGroup], Field(description="geom groups kept out of haptic contact")] = []
+    mesh_surface: choice(MESH_SURFACES, "\"true\": a mesh's own triangles; \"hull\": the convex hull MuJoCo "
+                         "collides it with") = "true"
+
+
+class DeviceTableAny(BaseModel):
+    """[device]: handed as is to the device its `type` names (each device type checks its fields)."""
+
+    model_config = ConfigDict(extra="allow")
+    type: Annotated[Name, Field(description="the device type, e.g. \"sim\", \"hid\"")] = "sim"
+
+
+class SceneFile(Table):
+    """A scene TOML file: the MJCF beside it and what the haptic side needs (softproxy.scene)."""
+
+    scene: SceneTable
+    measure: Optional[MeasureTable] = None
+    finger_defaults: FingerDefaults = Field(default_factory=FingerDefaults)
+    finger: Annotated[list[FingerTable], Field(min_length=1, description="one [[finger]] table per finger")]
+    device: DeviceTableAny = Field(default_factory=DeviceTableAny)
+    haptics: HapticsTable = Field(default_factory=HapticsTable)
