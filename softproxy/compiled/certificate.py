@@ -32,8 +32,8 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, FEW_SLOTS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
-    V_RING, V_SINES, V_THRESHOLD, V_X,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, FEW_SLOTS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
+    V_RING, V_SINES, V_THRESHOLD, V_X, VERTEX_A,
 )
 
 ABOVE_TOL = 1e-9
@@ -151,12 +151,12 @@ def _face_few(T, C, i, side, at, lists=T_CLEAR):
 
 @njit(cache=True, error_model="numpy")
 def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
-    """`static_clear` when the nearest point is vertex `feature - 4` of row `hint`: the fan lies
+    """`static_clear` when the nearest point is vertex `feature - VERTEX_A` of row `hint`: the fan lies
     behind the tangent plane when n is inside the vertex's cone (else every edge leaving it is
     tested); a triangle off the fan does when its vertices lie more than the plane's tilt
     below the cone (sin β, from the table); the fans of the few that may not and rise above
     the plane are listed."""
-    vertex = int(T[hint, T_TV + feature - 4])
+    vertex = int(T[hint, T_TV + feature - VERTEX_A])
     verts = int(S[k].verts)
     rec = verts + VERTEX_WIDTH * vertex
     c = nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2]
@@ -209,11 +209,11 @@ def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
         return -1
     dot0 = nx * T[hint, T_N] + ny * T[hint, T_N + 1] + nz * T[hint, T_N + 2]
     side0 = 1.0 if dot0 >= 0.0 else -1.0
-    if feature == 0:
+    if feature == FACE:
         return _face_few(T, C, hint, side0, 0)
-    if feature > 3:
+    if feature >= VERTEX_A:
         return _vertex_few(S, T, C, k, hint, feature, nx, ny, nz)
-    other = int(T[hint, T_ADJ + feature - 1])
+    other = int(T[hint, T_ADJ + feature - EDGE_AB])
     if other < 0:
         return -1
     side1 = _convex_edge(T, hint, other, nx, ny, nz, side0, dot0)

@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.finite import finite
-from softproxy.compiled.layout import GEOM_MESH, PLANE_WIDTH
+from softproxy.compiled.layout import GEOM_MESH, PLANE_OFFSET, PLANE_ROW, PLANE_SHAPE, PLANE_WIDTH
 from softproxy.compiled.shapes import (shape_distance, shape_feature, shape_feature_distance, shape_on_face, shape_sweep,
                                        shape_to_local, shape_to_world, shape_walk_distance)
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
@@ -129,6 +129,32 @@ for none."""
 
 
 @njit(cache=True, error_model="numpy")
+def plane(pl, i):
+    """Plane i of pl: its unit normal and offset (nx, ny, nz, c; the plane is n·x = c, m)."""
+    return pl[i, 0], pl[i, 1], pl[i, 2], pl[i, PLANE_OFFSET]
+
+
+@njit(cache=True, error_model="numpy")
+def normal(pl, i):
+    """Plane i's unit normal (nx, ny, nz)."""
+    return pl[i, 0], pl[i, 1], pl[i, 2]
+
+
+@njit(cache=True, error_model="numpy")
+def along(pl, i, x, y, z):
+    """Plane i's normal dotted with (x, y, z): a point's n·x (m, compared with the offset) or a
+    direction's cosine to it."""
+    return pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z
+
+
+@njit(cache=True, error_model="numpy")
+def set_plane(pl, i, nx, ny, nz, c, shape, row):
+    """Row i of pl := the plane n·x = c of shape row `shape`, from row `row` of T (-1: none)."""
+    pl[i, 0], pl[i, 1], pl[i, 2], pl[i, PLANE_OFFSET] = nx, ny, nz, c
+    pl[i, PLANE_SHAPE], pl[i, PLANE_ROW] = shape, row
+
+
+@njit(cache=True, error_model="numpy")
 def _load_planes(g, pl):
     """Copy the finger's planes into the scratch list pl; returns their count."""
     n = int(g.nplanes)
@@ -159,7 +185,7 @@ def _feasible(pl, n, x, y, z, skip0, skip1):
     """True when (x, y, z) is on or above every plane of pl[:n] (within CONTACT_TOL) but
     pl[skip0] and pl[skip1], the ones it was put on."""
     for i in range(n):
-        if i != skip0 and i != skip1 and pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z < pl[i, 3] - CONTACT_TOL:
+        if i != skip0 and i != skip1 and along(pl, i, x, y, z) < pl[i, PLANE_OFFSET] - CONTACT_TOL:
             return False
     return True
 
@@ -168,9 +194,9 @@ def _feasible(pl, n, x, y, z, skip0, skip1):
 def _corner(px, py, pz, pl):
     """The point q on all three planes of pl when it is the projection of p, i.e. q - p =
     Σ λ_i n_i with every λ_i >= 0 (each plane pushes, none pulls): (found, qx, qy, qz)."""
-    ax, ay, az, ca = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
-    bx, by, bz, cb = pl[1, 0], pl[1, 1], pl[1, 2], pl[1, 3]
-    cx, cy, cz, cc = pl[2, 0], pl[2, 1], pl[2, 2], pl[2, 3]
+    ax, ay, az, ca = plane(pl, 0)
+    bx, by, bz, cb = plane(pl, 1)
+    cx, cy, cz, cc = plane(pl, 2)
     # the columns of the inverse of N = [a; b; c] (normals as rows) are b × c, c × a, a × b over det N
     ux, uy, uz = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
     vx, vy, vz = cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax
@@ -205,7 +231,7 @@ def _project_by_enumeration(px, py, pz, pl, n):
     if _feasible(pl, n, px, py, pz, -1, -1):
         return True, px, py, pz
     for i in range(n):  # one active plane
-        nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
+        nx, ny, nz, c = plane(pl, i)
         lam = c - (nx * px + ny * py + nz * pz)
         if lam > 0.0:
             qx, qy, qz = px + lam * nx, py + lam * ny, pz + lam * nz
@@ -213,8 +239,8 @@ def _project_by_enumeration(px, py, pz, pl, n):
                 return True, qx, qy, qz
     for i in range(n):  # two active planes: q = p + a n_i + b n_j on both planes, a, b >= 0
         for j in range(i + 1, n):
-            ax, ay, az, ci = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
-            bx, by, bz, cj = pl[j, 0], pl[j, 1], pl[j, 2], pl[j, 3]
+            ax, ay, az, ci = plane(pl, i)
+            bx, by, bz, cj = plane(pl, j)
             g = ax * bx + ay * by + az * bz
             det = 1.0 - g * g
             if det < 1e-12:
@@ -229,9 +255,9 @@ def _project_by_enumeration(px, py, pz, pl, n):
             if _feasible(pl, n, qx, qy, qz, i, j):
                 return True, qx, qy, qz
     if n == 3:  # three active planes: the corner point
-        ax, ay, az, ca = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
-        bx, by, bz, cb = pl[1, 0], pl[1, 1], pl[1, 2], pl[1, 3]
-        cx, cy, cz, cc = pl[2, 0], pl[2, 1], pl[2, 2], pl[2, 3]
+        ax, ay, az, ca = plane(pl, 0)
+        bx, by, bz, cb = plane(pl, 1)
+        cx, cy, cz, cc = plane(pl, 2)
         det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
         if abs(det) > 1e-12:  # Cramer's rule for N q = c
             qx = (ca * (by * cz - bz * cy) - ay * (cb * cz - bz * cc) + az * (cb * cy - by * cc)) / det
@@ -247,14 +273,14 @@ def _project(px, py, pz, pl, n):
     sets): (found, qx, qy, qz); not found when the planes admit no point (a degenerate set,
     e.g. opposite parallel faces closer than the proxy's diameter)."""
     if n == 1:  # the common case, a face: inline
-        nx, ny, nz, c = pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3]
+        nx, ny, nz, c = plane(pl, 0)
         lam = c - (nx * px + ny * py + nz * pz)
         if lam > 0.0:
             return True, px + lam * nx, py + lam * ny, pz + lam * nz
         return True, px, py, pz
     outside = False
     for i in range(n):
-        if pl[i, 0] * px + pl[i, 1] * py + pl[i, 2] * pz < pl[i, 3] - CONTACT_TOL:
+        if along(pl, i, px, py, pz) < pl[i, PLANE_OFFSET] - CONTACT_TOL:
             outside = True
             break
     if not outside:
@@ -270,7 +296,7 @@ def _project(px, py, pz, pl, n):
 def _plane_of(pl, n, s, nx, ny, nz):
     """Index in pl[:n] of shape s's plane of normal n (parallel within PARALLEL), or -1."""
     for i in range(n):
-        if int(pl[i, 4]) == s and pl[i, 0] * nx + pl[i, 1] * ny + pl[i, 2] * nz > PARALLEL:
+        if int(pl[i, PLANE_SHAPE]) == s and along(pl, i, nx, ny, nz) > PARALLEL:
             return i
     return -1
 
@@ -286,7 +312,7 @@ def _add_plane(pl, n, nx, ny, nz, c, s, f):
             for k in range(PLANE_WIDTH):
                 pl[j, k] = pl[j + 1, k]
         n -= 1
-    pl[n, 0], pl[n, 1], pl[n, 2], pl[n, 3], pl[n, 4], pl[n, 5] = nx, ny, nz, c, s, f
+    set_plane(pl, n, nx, ny, nz, c, s, f)
     n += 1
     if n > 3:
         for j in range(n - 1):
@@ -300,11 +326,11 @@ def _add_plane(pl, n, nx, ny, nz, c, s, f):
 def _touched(pl, n, nx, ny, nz):
     """The touched shape of a proxy resting on all the planes pl[:n] (a corner): the row whose
     plane is most aligned with the force's n, `_touched_at`'s rule."""
-    best, best_dot = int(pl[0, 4]), -2.0
+    best, best_dot = int(pl[0, PLANE_SHAPE]), -2.0
     for i in range(n):
-        dot = pl[i, 0] * nx + pl[i, 1] * ny + pl[i, 2] * nz
+        dot = along(pl, i, nx, ny, nz)
         if dot > best_dot:
-            best, best_dot = int(pl[i, 4]), dot
+            best, best_dot = int(pl[i, PLANE_SHAPE]), dot
     return best
 
 
@@ -327,9 +353,8 @@ def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz, rested):
         s = near[j]
         dot = -2.0
         for i in range(rested):
-            p = g.planes[i]
-            if int(p[4]) == s:
-                c = p[0] * nx + p[1] * ny + p[2] * nz
+            if int(g.planes[i, PLANE_SHAPE]) == s:
+                c = along(g.planes, i, nx, ny, nz)
                 if c > dot:
                     dot = c
         if dot > -2.0:  # resting on it (within LIFT_TOL): gap 0
@@ -384,8 +409,8 @@ def _on_static_faces(S, xmat, pl, n):
     """True when every plane is a planar face of a shape that never moves: such a plane holds
     from tick to tick for as long as the proxy touches the face."""
     for i in range(n):
-        s = int(pl[i, 4])
-        if not (S[s].static and shape_on_face(S, xmat, s, pl[i, 0], pl[i, 1], pl[i, 2])):
+        s = int(pl[i, PLANE_SHAPE])
+        if not (S[s].static and shape_on_face(S, xmat, s, *normal(pl, i))):
             return False
     return True
 
@@ -486,9 +511,7 @@ def _rest_squeezed(S, T, C, xpos, xmat, g, near, xd, yd, zd):
     g.depth = depth if depth > 0.0 else 0.0
     g.sticking = True
     g.nplanes = 1
-    g.planes[0, 0], g.planes[0, 1], g.planes[0, 2] = bnx, bny, bnz
-    g.planes[0, 3] = bnx * g.x + bny * g.y + bnz * g.z
-    g.planes[0, 4], g.planes[0, 5] = best, -1.0
+    set_plane(g.planes, 0, bnx, bny, bnz, bnx * g.x + bny * g.y + bnz * g.z, best, -1.0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -568,7 +591,7 @@ def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
         if S[s].convex:
             behind = False
             for i in range(n):
-                if int(pl[i, 4]) == s:
+                if int(pl[i, PLANE_SHAPE]) == s:
                     behind = True
                     break
             if behind:
@@ -587,12 +610,12 @@ def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
     falls away from its tangent plane, and a point friction held back short of the plane (on
     a rounded edge below a face's plane) does not rest on it. `on_surface`: the shape's
     surface is known to be under the proxy already, or its own triangle is (a mesh's)."""
-    nx, ny, nz, c = pl[i, 0], pl[i, 1], pl[i, 2], pl[i, 3]
+    nx, ny, nz, c = plane(pl, i)
     if not abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL:
         return False
     if on_surface:
         return True
-    s, f = int(pl[i, 4]), int(pl[i, 5])
+    s, f = int(pl[i, PLANE_SHAPE]), int(pl[i, PLANE_ROW])
     if f >= 0 and shape_feature_distance(S, T, xpos, xmat, s, f, x, y, z)[0] - g.radius <= LIFT_TOL:
         return True
     return shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0] - g.radius <= LIFT_TOL
@@ -606,7 +629,7 @@ def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
     newest three become the finger's planes: what the next tick's warm start builds on."""
     for i in range(n):
         if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, False) and \
-                _plane_of(resting, nr, int(pl[i, 4]), pl[i, 0], pl[i, 1], pl[i, 2]) < 0:
+                _plane_of(resting, nr, int(pl[i, PLANE_SHAPE]), *normal(pl, i)) < 0:
             for k in range(PLANE_WIDTH):
                 resting[nr, k] = pl[i, k]
             nr += 1
@@ -669,8 +692,7 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
         s = near[j]
         if s != shape and shape_sweep(S, T, C, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
             return False
-    p = g.planes[0]
-    p[0], p[1], p[2], p[3], p[4], p[5] = nx, ny, nz, nx * x + ny * y + nz * z, shape, -1.0
+    set_plane(g.planes, 0, nx, ny, nz, nx * x + ny * y + nz * z, shape, -1.0)
     g.nplanes = 1
     g.nx, g.ny, g.nz = nx, ny, nz
     g.depth = depth
@@ -697,10 +719,10 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
     count = 0
     for j in range(n):
         p = g.planes[j]
-        s = int(p[4])
+        s = int(p[PLANE_SHAPE])
         if not S[s].static:
             return 0
-        if shape_on_face(S, xmat, s, p[0], p[1], p[2]):
+        if shape_on_face(S, xmat, s, *normal(g.planes, j)):
             for k in range(PLANE_WIDTH):
                 warm[count, k] = p[k]
             count += 1
@@ -709,7 +731,7 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
             return 0
         if not S[s].convex:
             # a static mesh's plane, while the proxy is stuck and still on it
-            if not g.sticking or abs(p[0] * x + p[1] * y + p[2] * z - p[3]) > LIFT_TOL:
+            if not g.sticking or abs(along(g.planes, j, x, y, z) - g.planes[j, PLANE_OFFSET]) > LIFT_TOL:
                 return 0
             for k in range(PLANE_WIDTH):
                 warm[count, k] = p[k]
@@ -751,7 +773,7 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
     m = 0
     for j in range(n):
         p = g.free_planes[j]
-        s, f = int(p[4]), int(p[5])
+        s, f = int(p[PLANE_SHAPE]), int(p[PLANE_ROW])
         if S[s].convex:
             return 0, 0.0
         for k in range(PLANE_WIDTH):
@@ -845,7 +867,7 @@ def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
     for j in range(int(g.nnear)):
         if shape_distance(S, T, C, xpos, xmat, near[j], px, py, pz)[0] - r < -LIFT_TOL:
             return False, x, y, z
-    pl[0, 0], pl[0, 1], pl[0, 2], pl[0, 3], pl[0, 4], pl[0, 5] = nx, ny, nz, nx * px + ny * py + nz * pz, s, f
+    set_plane(pl, 0, nx, ny, nz, nx * px + ny * py + nz * pz, s, f)
     return True, px, py, pz
 
 
@@ -925,7 +947,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             lifted = False
             fd = fnx = fny = fnz = 0.0
             for i in range(n):
-                si, fi = int(pl[i, 4]), int(pl[i, 5])
+                si, fi = int(pl[i, PLANE_SHAPE]), int(pl[i, PLANE_ROW])
                 if fi >= 0:
                     d, mx, my, mz = shape_feature_distance(S, T, xpos, xmat, si, fi, x, y, z)
                     if d - r <= LIFT_TOL:
@@ -940,7 +962,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                     d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, si, x, y, z)
                     f = shape_feature(S, si)
                 if d - r <= LIFT_TOL:
-                    if S[si].convex or 1.0 - (mx * pl[i, 0] + my * pl[i, 1] + mz * pl[i, 2]) <= LIFT_TOL / r:
+                    if S[si].convex or 1.0 - along(pl, i, mx, my, mz) <= LIFT_TOL / r:
                         # on its shape's surface; on a mesh, on the next facet in its plane
                         for k in range(PLANE_WIDTH):
                             kept[nk, k] = pl[i, k]
@@ -1025,7 +1047,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             for k in range(PLANE_WIDTH):
                 pl[nr, k] = pl[i, k]
             nr += 1
-        elif nwarm > 0 and abs(pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z - pl[i, 3]) <= LIFT_TOL:
+        elif nwarm > 0 and abs(along(pl, i, x, y, z) - pl[i, PLANE_OFFSET]) <= LIFT_TOL:
             # on a plane, off its shape: solve again from no planes, as above
             return True, x, y, z, hx, hy, hz, straight, 0
     if not has_first:
@@ -1122,7 +1144,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
     if depth > 0.0:
         nx, ny, nz = ex / depth, ey / depth, ez / depth
     else:
-        nx, ny, nz = pl[n - 1, 0], pl[n - 1, 1], pl[n - 1, 2]
+        nx, ny, nz = normal(pl, n - 1)
 
     # friction cone, tested from the first surface point the proxy reached this tick
     sx, sy, sz = hx - fx, hy - fy, hz - fz

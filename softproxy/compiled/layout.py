@@ -19,9 +19,10 @@ GEOM_BOX = 6
 GEOM_MESH = 7
 """MuJoCo's geom types (mjtGeom) a shape can have."""
 
+KEPT_POINT, KEPT_DISTANCE, KEPT_NORMAL, KEPT_ROW = 0, 3, 4, 7
 KEPT_WIDTH = 8
-"""Columns of a kept query: the point (3), the distance, the normal (3), the row of T of its
-nearest point."""
+"""Columns of a kept query: the point (3, from KEPT_POINT), the distance, the normal (3, from
+KEPT_NORMAL), the row of T of its nearest point."""
 HINT_SLOTS = 16
 """Hint slots per mesh shape in SHAPE["key"]: the queries of each finger on one mesh keep to
 their own (`softproxy.compiled.mesh._slot`), two a finger (its proxy's and its frictionless
@@ -63,9 +64,20 @@ SHAPE = np.dtype([
 ], align=True)
 """A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
 
+FACE = 0
+EDGE_AB, EDGE_BC, EDGE_CA = 1, 2, 3
+VERTEX_A, VERTEX_B, VERTEX_C = 4, 5, 6
+"""A triangle's features, the codes a nearest point or a touch reports: its face, its edges
+(edge e = EDGE_AB + e, e = 0, 1, 2) and its vertices (vertex v = VERTEX_A + v); the order of
+its pseudo-normals in T (T_PSEUDO + 3 × feature)."""
+
+PLANE_NORMAL, PLANE_OFFSET, PLANE_SHAPE, PLANE_ROW = 0, 3, 4, 5
 PLANE_WIDTH = 6
-"""A constraint plane: unit normal (nx, ny, nz), offset c (m), the shape row it belongs to,
-and on a mesh the row of T of the triangle it came from (-1: none or not known)."""
+"""A constraint plane, a row of a finger's `planes`: unit normal (nx, ny, nz from
+PLANE_NORMAL), offset c (m; the plane is n·x = c), the shape row it belongs to (PLANE_SHAPE),
+and on a mesh the row of T of the triangle it came from (PLANE_ROW; -1: none or not known).
+`softproxy.compiled.godobject` reads and writes them through `plane`, `normal`, `along` and
+`set_plane`."""
 
 # -- mesh triangle table T: one row per triangle, geom frame (softproxy.compiled.mesh) -------
 # the first 22 columns are the triangle as `softproxy.mesh.MeshShape` builds it: A, B, C, AB, AC, unit normal N,

@@ -80,10 +80,12 @@ from softproxy.compiled.certificate import (
 )
 from softproxy.compiled.finite import finite
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, CUT_NODES, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, KEPT_WIDTH, N_AXES, N_EXT, N_HI, N_LO,
-    NODE_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, R_CENTRE, R_ROW,
-    RECORD_WIDTH, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_BALL, T_COLUMNS, T_EDGES, T_N, T_PSEUDO, T_TV, T_VN, TREE_NODES,
-    TREE_RECORDS, TREE_SIZE, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
+    CUT_NODES, C_FEW, C_STAMP, C_STAMPS, EDGE_AB, EDGE_WIDTH, FACE, GEOM_MESH, HINT_SLOTS, KEPT_DISTANCE,
+    KEPT_NORMAL, KEPT_POINT, KEPT_ROW, KEPT_WIDTH, NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, PATCH_RECORDS,
+    PATCH_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, RECORD_WIDTH, R_CENTRE, R_ROW,
+    SLOT_AGE, SLOT_HINT, SLOT_KEPT, TREE_NODES, TREE_RECORDS, TREE_SIZE, T_A, T_AA, T_AB, T_ABAC, T_AC, T_ADJ,
+    T_BALL, T_CC, T_COLUMNS, T_EDGES, T_INV, T_N, T_PSEUDO, T_TV, T_VN, VERTEX_A, VERTEX_WIDTH, V_AXIS, V_COS,
+    V_RING,
 )
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 from softproxy.compiled.triangle import closest
@@ -243,8 +245,11 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------------------
-# One triangle: features 0 the face, 1-3 its edges AB, BC, CA, 4-6 its vertices A, B, C
+# One triangle: its features FACE, EDGE_AB/BC/CA, VERTEX_A/B/C (softproxy.compiled.layout)
 # ---------------------------------------------------------------------------------------
+
+MISS = (-1.0, 0.0, 0.0, 0.0, FACE)
+"""A sweep's answer when the sphere does not touch the triangle: lam -1 (no feature)."""
 
 @njit(cache=True, error_model="numpy")
 def _pressed(dist, into, r, graze):
@@ -269,15 +274,15 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
     squared distance from a beyond which the triangle is out of reach, graze = GRAZE |d|."""
     t = T[i]
     nx, ny, nz = t[T_N], t[T_N + 1], t[T_N + 2]
-    h0 = nx * (ax - t[0]) + ny * (ay - t[1]) + nz * (az - t[2])
+    h0 = nx * (ax - t[T_A]) + ny * (ay - t[T_A + 1]) + nz * (az - t[T_A + 2])
     hd = nx * dx + ny * dy + nz * dz
     h1 = h0 + hd
     reach = r + CONTACT_TOL
     if (h0 > reach and h1 > reach) or (h0 < -reach and h1 < -reach):
-        return (-1.0, 0.0, 0.0, 0.0, 0)  # the segment never comes within r of the plane
+        return MISS  # the segment never comes within r of the plane
     d2, qx, qy, qz, feature = closest(T, i, ax, ay, az)
     if d2 > far2:
-        return (-1.0, 0.0, 0.0, 0.0, 0)  # farther than the sphere can reach on this segment
+        return MISS  # farther than the sphere can reach on this segment
     if d2 <= reach * reach:
         # touching now: a hit only if pressed into it (`_pressed`)
         dist = math.sqrt(d2)
@@ -287,35 +292,35 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
             s = -1.0 if hd > 0.0 else 1.0
             mx, my, mz = s * nx, s * ny, s * nz
         else:
-            return (-1.0, 0.0, 0.0, 0.0, 0)
+            return MISS
         if _pressed(dist, mx * dx + my * dy + mz * dz, r, graze):
             return (0.0, mx, my, mz, feature)
-        return (-1.0, 0.0, 0.0, 0.0, 0)
+        return MISS
     # 1. the face: the slab |h| <= r is entered at most once; if the sphere enters it over
     #    the triangle's interior, nothing of the inflated triangle was reached before
     if h0 > r or h0 < -r:
         s = 1.0 if h0 > 0.0 else -1.0
         rate = s * hd
         if rate >= -graze:
-            return (-1.0, 0.0, 0.0, 0.0, 0)  # along or away from the plane: never entered
+            return MISS  # along or away from the plane: never entered
         lam = (s * h0 - r) / -rate
         if lam >= 1.0:
-            return (-1.0, 0.0, 0.0, 0.0, 0)
-        wx = ax + lam * dx - s * r * nx - t[0]
-        wy = ay + lam * dy - s * r * ny - t[1]
-        wz = az + lam * dz - s * r * nz - t[2]
-        d1 = t[9] * wx + t[10] * wy + t[11] * wz
-        e2 = t[12] * wx + t[13] * wy + t[14] * wz
-        inv = t[21]
-        v = (t[20] * d1 - t[19] * e2) * inv
-        w = (t[18] * e2 - t[19] * d1) * inv
+            return MISS
+        wx = ax + lam * dx - s * r * nx - t[T_A]
+        wy = ay + lam * dy - s * r * ny - t[T_A + 1]
+        wz = az + lam * dz - s * r * nz - t[T_A + 2]
+        d1 = t[T_AB] * wx + t[T_AB + 1] * wy + t[T_AB + 2] * wz
+        e2 = t[T_AC] * wx + t[T_AC + 1] * wy + t[T_AC + 2] * wz
+        inv = t[T_INV]
+        v = (t[T_CC] * d1 - t[T_ABAC] * e2) * inv
+        w = (t[T_AA] * e2 - t[T_ABAC] * d1) * inv
         if v >= 0.0 and w >= 0.0 and v + w <= 1.0:
-            return (lam, s * nx, s * ny, s * nz, 0)
+            return (lam, s * nx, s * ny, s * nz, FACE)
     # 2. the edges (cylinders of radius r; their ends belong to the vertex balls)
     best = 1.0
     found = False
     mx = my = mz = 0.0
-    feature = 1
+    feature = EDGE_AB
     for e in range(3):
         c = T_EDGES + EDGE_WIDTH * e
         px, py, pz, ex, ey, ez, length = t[c], t[c + 1], t[c + 2], t[c + 3], t[c + 4], t[c + 5], t[c + 6]
@@ -339,10 +344,10 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
                 best = lam
                 found = True
                 mx, my, mz = wx + lam * dx - s * ex, wy + lam * dy - s * ey, wz + lam * dz - s * ez
-                feature = 1 + e
+                feature = EDGE_AB + e
     # 3. the vertices (balls of radius r)
     for k in range(3):
-        wx, wy, wz = ax - t[3 * k], ay - t[3 * k + 1], az - t[3 * k + 2]
+        wx, wy, wz = ax - t[T_A + 3 * k], ay - t[T_A + 3 * k + 1], az - t[T_A + 3 * k + 2]
         qb = wx * dx + wy * dy + wz * dz
         if qb >= 0.0:
             continue
@@ -355,13 +360,13 @@ def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
             best = lam
             found = True
             mx, my, mz = wx + lam * dx, wy + lam * dy, wz + lam * dz
-            feature = 4 + k
+            feature = VERTEX_A + k
     if not found:
-        return (-1.0, 0.0, 0.0, 0.0, 0)
+        return MISS
     n = math.sqrt(mx * mx + my * my + mz * mz)
     mx, my, mz = mx / n, my / n, mz / n
     if mx * dx + my * dy + mz * dz >= -graze:
-        return (-1.0, 0.0, 0.0, 0.0, 0)  # a tangent graze: the sphere touches without entering
+        return MISS  # a tangent graze: the sphere touches without entering
     return (best if best > 0.0 else 0.0, mx, my, mz, feature)
 
 
@@ -370,11 +375,11 @@ def _shade(T, i, qx, qy, qz, nx, ny, nz):
     """Force shading: the vertex normals of triangle row i interpolated at q (barycentric,
     clamped to the triangle), on n's side; n itself where they disagree with the face."""
     t = T[i]
-    wx, wy, wz = qx - t[0], qy - t[1], qz - t[2]
-    d1 = t[9] * wx + t[10] * wy + t[11] * wz
-    d2 = t[12] * wx + t[13] * wy + t[14] * wz
-    v = (t[20] * d1 - t[19] * d2) * t[21]
-    w = (t[18] * d2 - t[19] * d1) * t[21]
+    wx, wy, wz = qx - t[T_A], qy - t[T_A + 1], qz - t[T_A + 2]
+    d1 = t[T_AB] * wx + t[T_AB + 1] * wy + t[T_AB + 2] * wz
+    d2 = t[T_AC] * wx + t[T_AC + 1] * wy + t[T_AC + 2] * wz
+    v = (t[T_CC] * d1 - t[T_ABAC] * d2) * t[T_INV]
+    w = (t[T_AA] * d2 - t[T_ABAC] * d1) * t[T_INV]
     v = 0.0 if v < 0.0 else 1.0 if v > 1.0 else v
     w = 0.0 if w < 0.0 else 1.0 - v if w > 1.0 - v else w
     u = 1.0 - v - w
@@ -382,7 +387,7 @@ def _shade(T, i, qx, qy, qz, nx, ny, nz):
     sx = u * t[a] + v * t[a + 3] + w * t[a + 6]
     sy = u * t[a + 1] + v * t[a + 4] + w * t[a + 7]
     sz = u * t[a + 2] + v * t[a + 5] + w * t[a + 8]
-    if sx * t[15] + sy * t[16] + sz * t[17] < 0.0:
+    if sx * t[T_N] + sy * t[T_N + 1] + sz * t[T_N + 2] < 0.0:
         return (nx, ny, nz)  # the vertex normals disagree with the face: the geometric one
     if sx * nx + sy * ny + sz * nz < 0.0:  # n on the back of the face (an open mesh)
         sx, sy, sz = -sx, -sy, -sz
@@ -561,12 +566,12 @@ def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
     or vertex reached then holds more often. Returns (d2, qx, qy, qz, feature, hint)."""
     verts = int(S[k].verts)
     for _ in range(WALK_STEPS):
-        if feature == 0 or d2 <= 0.0:
+        if feature == FACE or d2 <= 0.0:
             break
-        if feature < 4:
-            step = int(T[hint, T_ADJ + feature - 1])
+        if feature < VERTEX_A:
+            step = int(T[hint, T_ADJ + feature - EDGE_AB])
         else:
-            rec = verts + VERTEX_WIDTH * int(T[hint, T_TV + feature - 4])
+            rec = verts + VERTEX_WIDTH * int(T[hint, T_TV + feature - VERTEX_A])
             dist = math.sqrt(d2)
             nx, ny, nz = (x - qx) / dist, (y - qy) / dist, (z - qz) / dist
             if nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2] >= C[rec + V_COS]:
@@ -1067,7 +1072,7 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
         elif best == 0.0:
             n = math.sqrt(px * px + py * py + pz * pz)
             nx, ny, nz = px / n, py / n, pz / n
-    if S[k].shading and feature <= 3:
+    if S[k].shading and feature < VERTEX_A:
         nx, ny, nz = _shade(T, i, qx, qy, qz, nx, ny, nz)
     return sign * best, nx, ny, nz
 
@@ -1086,9 +1091,11 @@ def _keep(S, k, sl, x, y, z, d, nx, ny, nz, row):
     key = S[k].key
     for c in range(KEPT_WIDTH):
         key[sl, SLOT_KEPT + KEPT_WIDTH + c] = key[sl, SLOT_KEPT + c]
-    c = SLOT_KEPT
+    c = SLOT_KEPT + KEPT_POINT
     key[sl, c], key[sl, c + 1], key[sl, c + 2] = x, y, z
-    key[sl, c + 3], key[sl, c + 4], key[sl, c + 5], key[sl, c + 6], key[sl, c + 7] = d, nx, ny, nz, row
+    c = SLOT_KEPT + KEPT_NORMAL
+    key[sl, c], key[sl, c + 1], key[sl, c + 2] = nx, ny, nz
+    key[sl, SLOT_KEPT + KEPT_DISTANCE], key[sl, SLOT_KEPT + KEPT_ROW] = d, row
 
 
 @njit(cache=True, error_model="numpy")
@@ -1168,9 +1175,10 @@ def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
             d, nx, ny, nz = _local_distance(S, T, C, k, sl, lx, ly, lz)
             _keep(S, k, sl, lx, ly, lz, d, nx, ny, nz, S[k].hint)
             _touch(S, k, sl, lx, ly, lz, S[k].hint)
-    S[k].feature = int(key[sl, a + 7])
-    nx, ny, nz = _to_world(xmat, g, key[sl, a + 4], key[sl, a + 5], key[sl, a + 6])
-    return key[sl, a + 3], nx, ny, nz
+    S[k].feature = int(key[sl, a + KEPT_ROW])
+    n = a + KEPT_NORMAL
+    nx, ny, nz = _to_world(xmat, g, key[sl, n], key[sl, n + 1], key[sl, n + 2])
+    return key[sl, a + KEPT_DISTANCE], nx, ny, nz
 
 
 @njit(cache=True, error_model="numpy")
