@@ -22,17 +22,27 @@ def bench(tmp_path, name, *extra):
 
 
 def test_latency_bench(tmp_path):
+    """The latency figures agree with each other: ordered percentiles, the ratio of the two
+    medians, as many ticks as the durations ask for, miss rates of the counts, and no stage's
+    median longer than the tick's that holds it."""
     data, text = bench(tmp_path, "latency", "--duration", "0.5", "--paced", "0.3")
     for key in ("tick_us", "mj_step_us"):
-        assert set(data[key]) == {"p50", "p99", "max"} and data[key]["p50"] > 0
-    assert data["ratio_p50"] > 0
+        t = data[key]
+        assert set(t) == {"p50", "p99", "max"} and 0 < t["p50"] <= t["p99"] <= t["max"], (key, t)
+    assert data["ratio_p50"] == round(data["tick_us"]["p50"] / data["mj_step_us"]["p50"], 2)
+    assert data["ticks_timed"] == int(0.5 * data["rate_hz"])
     assert [p["rate_hz"] for p in data["paced"]] == [1000.0, 1000.0, 10000.0, 10000.0]
     assert "SCHED_FIFO" not in data["paced"][0]["scheduling"] and "SCHED_FIFO" in data["paced"][1]["scheduling"]
-    assert all(0 <= p["miss_rate"] <= 1 and p["ticks"] > 0 for p in data["paced"])
-    assert all(0 <= p["pacer_alone_misses"] <= p["ticks"] for p in data["paced"])
+    for p in data["paced"]:
+        assert p["ticks"] == int(0.3 * p["rate_hz"]), p
+        assert 0 <= p["misses"] <= p["ticks"] and p["miss_rate"] == p["misses"] / p["ticks"], p
+        assert 0 <= p["pacer_alone_misses"] <= p["ticks"], p
+        assert p["pacer_alone_miss_rate"] == p["pacer_alone_misses"] / p["ticks"], p
+        assert 0 < p["tick_us"]["p50"] <= p["tick_us"]["p99"] <= p["tick_us"]["max"], p
     stages = data["stages_us_p50"]
     assert list(STAGES) == list(stages)
-    assert all(v > 0 for v in stages.values())
+    # each stage is timed inside its tick, so its median is at most the tick's (+ rounding)
+    assert all(0 < v <= data["tick_us"]["p50"] + 0.01 for v in stages.values()), (stages, data["tick_us"])
     assert "/ mj_step" in text and "stages" in text
 
 
@@ -128,8 +138,19 @@ def test_tradeoff_bench(tmp_path):
     rows = data["rows"]
     assert {r["model"] for r in rows} == {"point", "CH", "MH", "VS", "LFM"}
     ref = [r for r in rows if r["model"] == "LFM" and r["rate_hz"] == data["reference"]["rate_hz"]]
-    assert all(r["force_rms_error_N"] == 0.0 for r in ref)  # the reference against itself
-    assert any(r["pareto"] for r in rows)
+    assert ref and all(r["force_rms_error_N"] == r["torque_rms_error_Nmm"] == r["outcome_error_deg"] == 0.0
+                       for r in ref)  # the reference against itself
+    step = data["mj_step_us_p50"]
+    for scene in data["scenes"]:
+        ours = [r for r in rows if r["scene"] == scene]
+        assert len({(r["model"], r["rate_hz"]) for r in ours}) == len(ours)  # one row a configuration
+        key = [(r["tick_us_p50"], r["force_rms_error_N"], r["torque_rms_error_Nmm"]) for r in ours]
+        for r, k in zip(ours, key):
+            # on the Pareto front exactly when no other configuration is as good on every
+            # criterion and better on one (computed here again, from the rows)
+            beaten = any(all(o <= m for o, m in zip(other, k)) and other != k for other in key)
+            assert r["pareto"] == (not beaten), r
+            assert abs(r["cost_x_mj_step"] - r["tick_us_p50"] / step) <= 0.01 + 1e-3 * r["cost_x_mj_step"], r
     fid = {r["config"]: r for r in data["fingertip_sensors"]["rows"]}
     assert set(fid) == {"off", "off (again)", "tactile 100 Hz", "sensing 100 Hz", "sensing 1 kHz",
                         "tactile + sensing 100 Hz"}
