@@ -118,34 +118,32 @@ class SphereShape(Shape):
         r.a = self.radius
 
 
-class CapsuleShape(Shape):
+class _AxialShape(Shape):
+    """A shape round about the geom's z axis: radius and half-length (m), MuJoCo's geom_size[:2]."""
+
+    convex = True
+    __slots__ = ("radius", "half")
+
+    def __init__(self, model, data, geom, static):
+        self.radius, self.half = (float(v) for v in model.geom_size[geom][:2])
+        super().__init__(model, data, geom, static)
+
+    def record(self, r) -> None:
+        r.a, r.b = self.radius, self.half
+
+
+class CapsuleShape(_AxialShape):
     """Capsule: radius, half-length along the geom's z axis."""
 
     gtype = GEOM_CAPSULE
-    convex = True
-    __slots__ = ("radius", "half")
-
-    def __init__(self, model, data, geom, static):
-        self.radius, self.half = (float(v) for v in model.geom_size[geom][:2])
-        super().__init__(model, data, geom, static)
-
-    def record(self, r) -> None:
-        r.a, r.b = self.radius, self.half
+    __slots__ = ()
 
 
-class CylinderShape(Shape):
+class CylinderShape(_AxialShape):
     """Cylinder: radius, half-height along the geom's z axis (flat caps, sharp rims)."""
 
     gtype = GEOM_CYLINDER
-    convex = True
-    __slots__ = ("radius", "half")
-
-    def __init__(self, model, data, geom, static):
-        self.radius, self.half = (float(v) for v in model.geom_size[geom][:2])
-        super().__init__(model, data, geom, static)
-
-    def record(self, r) -> None:
-        r.a, r.b = self.radius, self.half
+    __slots__ = ()
 
 
 class BoxShape(Shape):
