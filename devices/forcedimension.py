@@ -84,16 +84,13 @@ from softproxy.device import DeviceError, DeviceSample
 from . import device_config as config
 from .device_frame import frame_in_engine, is_rotation
 from .lifecycle import DeviceLifecycle, OpenDevices
+from .recovery import CLOSE_ZERO_ATTEMPTS, REOPEN_INTERVAL_S, FaultRecovery  # noqa: F401 (this adapter's constants too)
 from .vendor_binding import availability_row, missing_binding
 
 NAME = "Force Dimension"
 INSTALL_HINT = "pip install 'softproxy[forcedimension]'"
 SDK_HINT = ("install the Force Dimension SDK (libdrd, from forcedimension.com) and set FDSDK to its folder "
             "or copy libdrd.so* to /usr/local/lib")
-REOPEN_INTERVAL_S = 0.2
-"""While failed, the device is closed and opened again every this many seconds of its clock."""
-CLOSE_ZERO_ATTEMPTS = 3
-"""Zero-force writes `close()` tries before giving up on them."""
 STALL_MS = 50.0
 """Default of `stall_ms`: a non-zero command older than this (ms) is replaced by zero force."""
 MAX_GAP_M = 0.2
@@ -239,7 +236,7 @@ def quaternion_from_matrix(r) -> tuple[float, float, float, float] | None:
     return tuple(c / n for c in q)
 
 
-class ForceDimensionDevice(DeviceLifecycle):
+class ForceDimensionDevice(DeviceLifecycle, FaultRecovery):
     """One Force Dimension device: one finger, or two on a gripper (see the module docstring)."""
 
     STATS = ("sends", "nan_sends", "saturated", "invalid_samples", "failures", "errors", "reopens", "recoveries",
@@ -270,18 +267,14 @@ class ForceDimensionDevice(DeviceLifecycle):
         self.index, self.serial_wanted = index, serial
         self.workspace_scale, self.workspace_offset = scale, offset
         self._axis = _AXES[gripper_axis]
-        self._clock = clock
+        self._init_recovery(clock)
         self.closed = False
         # read/send/close from different threads (a loop closed from another thread): one at a
         # time, so no command can land between close()'s zero and the forces being disabled
         self._lock = threading.RLock()
         self.sends = self.nan_sends = self.saturated = 0
-        self.invalid_samples = self.failures = self.errors = self.reopens = self.recoveries = 0
-        self.last_reopen_error = ""
+        self.invalid_samples = self.errors = 0
         self.last_command: tuple | None = None  # (force, torque, gripper force) last written, device frame
-        self._fault: str | None = None
-        self._await_fresh = False
-        self._next_reopen = 0.0
 
         self._id = self._open_handle()
         try:
@@ -399,13 +392,8 @@ class ForceDimensionDevice(DeviceLifecycle):
     def _fail(self, what: str, why: str) -> DeviceError:
         """Enter (or stay in) the failed state; the DeviceError to raise."""
         self.errors += 1
-        if not self._await_fresh:
-            self._await_fresh = True
-            self.failures += 1
-            self._next_reopen = self._clock() + REOPEN_INTERVAL_S
-        plan = f"retrying, zero force first, reopening every {REOPEN_INTERVAL_S:g} s"
-        if self.last_reopen_error:
-            plan += f" (last reopen: {self.last_reopen_error})"
+        self._enter_failure()
+        plan = self._with_last_reopen(f"retrying, zero force first, reopening every {REOPEN_INTERVAL_S:g} s")
         self._fault = f"{self.label}: failed while {what} ({why}); rendering zero force; {plan}"
         return DeviceError(self._fault)
 
@@ -432,15 +420,11 @@ class ForceDimensionDevice(DeviceLifecycle):
         except DeviceError as exc:
             self.last_reopen_error = str(exc)
             return
-        self.last_reopen_error = ""
-        self.reopens += 1
+        self._reopened()
 
     def _recover(self) -> bool:
         """While failed: reopen when due, then get zero force through; True when it went."""
-        now = self._clock()
-        if now >= self._next_reopen:
-            self._next_reopen = now + REOPEN_INTERVAL_S
-            self._try_reopen()
+        self._reopen_when_due()
         try:
             self._write((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, "writing zero force")
         except DeviceError:
@@ -477,9 +461,8 @@ class ForceDimensionDevice(DeviceLifecycle):
         valid = self._fill(t, samples, buttons)
         if not valid:
             self.invalid_samples += 1
-        if self._await_fresh and valid:  # back: a clean sample ends the failure
-            self._await_fresh = False
-            self.recoveries += 1
+        if valid:  # back: a clean sample ends a failure
+            self._fresh_sample()
 
     def _fill(self, t: float, samples: list[DeviceSample], buttons) -> bool:
         """The samples from the readings in place; False (every sample invalid) when a reading is
@@ -624,14 +607,12 @@ class ForceDimensionDevice(DeviceLifecycle):
             return
         self.closed = True
         _OPEN.discard(self)
-        for attempt in range(CLOSE_ZERO_ATTEMPTS):
-            try:
-                if attempt == 1:
-                    self._try_reopen()
-                self._write((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, "writing zero force on close")
-                break
-            except Exception:
-                pass
+
+        def write_zero() -> bool:
+            self._write((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, "writing zero force on close")
+            return True
+
+        self._zero_on_close(write_zero)
         try:
             self._dhd.enableForce(False, self._id)
         except Exception:

@@ -87,6 +87,7 @@ from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
 from .lifecycle import DeviceLifecycle
+from .recovery import CLOSE_ZERO_ATTEMPTS, REOPEN_INTERVAL_S, FaultRecovery  # noqa: F401 (this adapter's constants too)
 from .hid_profile import (
     Profile,
     ProfileError,
@@ -102,14 +103,8 @@ _CONFIG_KEYS = {"type", "profile", "path", "mode", "workspace_scale", "workspace
                 "twist_limit_rad", "stale_ms", "max_force_N", "max_torque_Nm"}
 MAX_DT = 0.1
 """Longest step (s) integrated at once in rate mode: a stalled loop does not make the finger jump."""
-REOPEN_INTERVAL_S = 0.2
-"""While failed, a device that can reopen its path tries every this many seconds of its clock: often
-enough that a replugged device is back at once for a person, rarely enough that the enumeration and
-open (milliseconds) do not take every tick."""
 NO_REOPEN_NOTICE_ERRORS = 100
 """Failures in a row after which a device that cannot reopen (built on a given transport) says so."""
-CLOSE_ZERO_ATTEMPTS = 3
-"""Writes of the zero-force report `close()` tries before giving up on it."""
 _TRANSPORT_ERRORS = (Exception,)
 """What a transport call may raise and is a failure of the device: cython-hidapi raises OSError or
 ValueError, but whatever a driver raises, the device goes to zero force first when it comes back."""
@@ -201,7 +196,7 @@ class _NoTransport:
         pass
 
 
-class HidDevice(DeviceLifecycle):
+class HidDevice(DeviceLifecycle, FaultRecovery):
     """One finger read from (and, with an [output], rendered on) a HID device described by a profile."""
 
     fingers = 1
@@ -248,7 +243,7 @@ class HidDevice(DeviceLifecycle):
         self.max_torque = float(profile.max_torque if max_torque is None else max_torque)
         self.max_reports_per_read = max_reports_per_read
         self.label = label or profile.name
-        self._clock = clock
+        self._init_recovery(clock)  # a device given a transport (no `reopen`) does not reopen
         self._transport = transport
         self._read_size = profile.max_bytes + 1  # one more than allowed: an oversized report shows as such
 
@@ -271,9 +266,6 @@ class HidDevice(DeviceLifecycle):
         self._twist = 0.0                        # rate mode: integrated twist
         self._out_seq = 0
         self._reopen = reopen
-        self._fault: str | None = None  # while failed: the message read and send raise
-        self._await_fresh = False       # from a failure to the next valid sample: no force is written
-        self._next_reopen = 0.0         # clock time of the next reopen attempt
         self._errors_in_a_row = 0       # transport errors since the last read that went through
         self.closed = False
 
@@ -290,13 +282,9 @@ class HidDevice(DeviceLifecycle):
         self.stale_samples = 0
         self.sends = 0
         self.nan_sends = 0
-        self.failures = 0
         self.transport_errors = 0
-        self.reopens = 0
-        self.recoveries = 0
         self.status: int | None = None
         self.last_report_error = ""
-        self.last_reopen_error = ""
         self.last_output: bytes | None = None
 
         try:
@@ -431,19 +419,14 @@ class HidDevice(DeviceLifecycle):
         """Enter (or stay in) the failed state after a transport error; the DeviceError to raise."""
         self.transport_errors += 1
         self._errors_in_a_row += 1
-        if not self._await_fresh:  # working until now: forget the device's state, plan the reopens
-            self._await_fresh = True
-            self.failures += 1
-            self._next_reopen = self._clock() + REOPEN_INTERVAL_S
+        if self._enter_failure():  # working until now: forget the device's state
             self._forget_samples()
         if self.profile.output is not None:
             plan = "retrying, the zero-force report first"
         else:
             plan = "retrying"
         if self._reopen is not None:
-            plan += f", reopening the device every {REOPEN_INTERVAL_S:g} s"
-            if self.last_reopen_error:
-                plan += f" (last reopen: {self.last_reopen_error})"
+            plan = self._with_last_reopen(f"{plan}, reopening the device every {REOPEN_INTERVAL_S:g} s")
         elif self._errors_in_a_row >= NO_REOPEN_NOTICE_ERRORS:
             plan = (f"{self._errors_in_a_row} failures in a row; it will not be reopened (it was given a "
                     f"transport, not opened by path): still {plan} on the same transport")
@@ -483,8 +466,7 @@ class HidDevice(DeviceLifecycle):
             self._transport = _NoTransport(f"not open: the last reopen failed: {self.last_reopen_error}")
             return False
         self._transport = transport
-        self.last_reopen_error = ""
-        self.reopens += 1
+        self._reopened()
         return True
 
     def _write_zero(self, what: str) -> bool:
@@ -499,10 +481,7 @@ class HidDevice(DeviceLifecycle):
     def _recover(self) -> bool:
         """While failed: reopen when due, then get the zero-force report through; True when it did."""
         if self._reopen is not None:
-            now = self._clock()
-            if now >= self._next_reopen:
-                self._next_reopen = now + REOPEN_INTERVAL_S
-                self._try_reopen()
+            self._reopen_when_due()
         if self.profile.output is not None and not self._write_zero("writing the zero-force report"):
             return False
         self._fault = None  # the read goes on from a fresh start; samples count from here
@@ -629,11 +608,10 @@ class HidDevice(DeviceLifecycle):
             self.stale_samples += 1
         if not valid:
             self.invalid_samples += 1
-        if self._await_fresh:  # after a failure: the transport answered; a valid sample ends it
+        if self._await_fresh:  # after a failure: the transport answered
             self._errors_in_a_row = 0
-            if valid:
-                self._await_fresh = False
-                self.recoveries += 1
+        if valid:  # a valid sample ends a failure
+            self._fresh_sample()
 
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
         if finger != 0:
@@ -675,15 +653,8 @@ class HidDevice(DeviceLifecycle):
         if self.closed:
             return
         self.closed = True
-        try:
-            if self.profile.output is not None:
-                for attempt in range(CLOSE_ZERO_ATTEMPTS):
-                    if attempt == 1 and self._reopen is not None:
-                        self._try_reopen()  # the device may be back on a new handle
-                    if self._write_zero("sending zero force on close"):
-                        break
-        except Exception:  # a transport that raises anything else: still release it below
-            pass
+        if self.profile.output is not None:  # the device may be back on a new handle for the second try
+            self._zero_on_close(lambda: self._write_zero("sending zero force on close"), self._reopen is not None)
         try:
             self._transport.close()
         except Exception:  # closing a vanished device must not mask what the caller is doing

@@ -78,14 +78,13 @@ from softproxy.device import DeviceError, DeviceSample
 from . import device_config as config
 from .device_frame import frame_in_engine, is_rotation
 from .lifecycle import DeviceLifecycle, OpenDevices
+from .recovery import REOPEN_INTERVAL_S, FaultRecovery  # noqa: F401 (this adapter's constant too)
 from .vendor_binding import availability_row, missing_binding
 
 NAME = "OpenHaptics"
 INSTALL_HINT = "pip install 'softproxy[openhaptics]'"
 SDK_HINT = ("install the OpenHaptics SDK for your platform and the Touch device driver from 3D Systems "
             "(libHD.so must be on the library path, e.g. /usr/lib)")
-REOPEN_INTERVAL_S = 0.2
-"""While failed, the device is closed and opened again every this many seconds of its clock."""
 FAIL_AFTER_S = 0.1
 """No sample from the scheduler for this long (s) is a failure: its callback is no longer scheduled."""
 CLOSE_WAIT_S = 0.05
@@ -169,7 +168,7 @@ def _quaternion(r) -> tuple | None:
     return (w / n, x / n, y / n, z / n)
 
 
-class OpenHapticsDevice(DeviceLifecycle):
+class OpenHapticsDevice(DeviceLifecycle, FaultRecovery):
     """One OpenHaptics device (Touch, Touch X): one finger, 3-DOF force (see the module docstring)."""
 
     fingers = 1
@@ -197,14 +196,13 @@ class OpenHapticsDevice(DeviceLifecycle):
         self.stale_s = stale_ms / 1000.0
         self.yield_gil = bool(yield_gil)
         self.command_timeout_s = command_timeout_ms / 1000.0
-        self._clock, self._sleep = clock, sleep
+        self._init_recovery(clock)
+        self._sleep = sleep
         self.label = label or f"{NAME} {device_name!r}"
         self.closed = False
         self.sends = self.nan_sends = self.invalid_samples = self.stale_samples = 0
-        self.failures = self.reopens = self.recoveries = 0
         self.callback_ticks = 0      # callbacks run (scheduler thread)
         self.callback_zeroed = 0     # callbacks that rendered zero because the command was too old
-        self.last_reopen_error = ""
         self.last_force: tuple | None = None  # the last force the callback set (device frame, N)
         # the two slots (see the module docstring): replaced whole, never mutated
         self._latest: tuple | None = None     # (time, x, y, z mm, r00..r22, g0, g1, g2, buttons)
@@ -212,10 +210,7 @@ class OpenHapticsDevice(DeviceLifecycle):
         self._armed = False                   # the callback renders commands only while armed
         self._zero_after_close = False        # a frame begun after close() rendered zero
         self._callback_error: str | None = None
-        self._fault: str | None = None
-        self._failed = False                  # from a failure to the next valid sample
         self._ticks_at_fail = 0
-        self._next_reopen = 0.0
         # the callback as the scheduler calls it; this reference keeps the C function pointer alive
         self._callback = self._binding.hd_callback(self._servo_callback)
         self._device = self._open()
@@ -342,14 +337,9 @@ class OpenHapticsDevice(DeviceLifecycle):
         """Enter (or stay in) the failed state: disarmed, no command; the DeviceError to raise."""
         self._armed = False
         self._command = None
-        if not self._failed:  # working until now (or never a valid sample yet): a new failure
-            self._failed = True
-            self.failures += 1
-            self._next_reopen = self._clock() + REOPEN_INTERVAL_S
+        self._enter_failure()  # a new failure when it worked until now (or never had a valid sample)
         self._ticks_at_fail = self.callback_ticks
-        plan = f"rendering zero force; reopening every {REOPEN_INTERVAL_S:g} s"
-        if self.last_reopen_error:
-            plan += f" (last reopen: {self.last_reopen_error})"
+        plan = self._with_last_reopen(f"rendering zero force; reopening every {REOPEN_INTERVAL_S:g} s")
         self._fault = f"{self.label}: {why}; {plan}"
         return DeviceError(self._fault)
 
@@ -364,15 +354,11 @@ class OpenHapticsDevice(DeviceLifecycle):
             return
         self._ticks_at_fail = self.callback_ticks
         self._opened_at = self._clock()
-        self.last_reopen_error = ""
-        self.reopens += 1
+        self._reopened()
 
     def _recover(self) -> bool:
         """While failed: reopen when due; True once the callback has run again since (rendering zero)."""
-        now = self._clock()
-        if now >= self._next_reopen:
-            self._next_reopen = now + REOPEN_INTERVAL_S
-            self._try_reopen()
+        self._reopen_when_due()
         if self._callback_error is not None or self.callback_ticks <= self._ticks_at_fail:
             return False
         self._fault = None
@@ -407,9 +393,7 @@ class OpenHapticsDevice(DeviceLifecycle):
         if not ok:
             self.invalid_samples += 1
         elif not self._armed and not self.closed:  # a valid sample arms the device: the first, and after a failure
-            if self._failed:
-                self._failed = False
-                self.recoveries += 1
+            self._fresh_sample()
             self._armed = True
 
     def _fill(self, s: DeviceSample, latest: tuple) -> bool:
