@@ -19,6 +19,8 @@ input (README, "Safety"):
   clamped to the profile's max_force / max_torque and to each field's count limits.
 * `load_profile(name_or_path)` / `parse_profile(doc, source)` validate a profile; every
   error is a `ProfileError` (a ValueError) naming the file, the field and what was expected.
+  Each field's type and bounds are declared in `softproxy.schema.HidProfileFile` (whose JSON
+  Schema `softproxy schema` writes); what depends on other fields is checked here.
   Limits are bounded, not only finite: `max_force` <= MAX_FORCE_N (100 N), `max_torque` <=
   MAX_TORQUE_NM (10 N·m), an input `scale` / `rate_scale` <= MAX_INPUT_SCALE (1e3 SI per
   count), an output `scale` <= MAX_OUTPUT_SCALE (1e9 counts per N or N·m). A finger-sized
@@ -42,6 +44,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
+from softproxy import schema
+from softproxy.input_error import InputError, must_be
+from softproxy.schema import MAX_FORCE_N, MAX_INPUT_SCALE, MAX_OUTPUT_SCALE, MAX_TORQUE_NM  # noqa: F401 (bounds, declared there)
+
 PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
 """The shipped profiles."""
 
@@ -61,16 +67,7 @@ RAW_FIELDS = ("sequence", "status", "buttons")
 AXES = ("x", "y", "z", "twist")
 WRENCH = ("fx", "fy", "fz", "tx", "ty", "tz")
 OUTPUT_SOURCES = WRENCH + ("twist", "sequence", "enable")
-MODES = ("position", "rate")
-REPORTING = ("periodic", "on_change")
-MAX_FORCE_N = 100.0
-"""Largest `max_force` a profile may declare (N): several times a firm grip, far above a finger-sized device."""
-MAX_TORQUE_NM = 10.0
-"""Largest `max_torque` a profile may declare (N·m)."""
-MAX_INPUT_SCALE = 1e3
-"""Largest |scale| / |rate_scale| of an input field (m, rad, m/s or rad/s per count)."""
-MAX_OUTPUT_SCALE = 1e9
-"""Largest `scale` of an output field (counts per N or per N·m: 1e9 is a count per nN)."""
+MODES, REPORTING = schema.HID_MODES, schema.HID_REPORTING
 FLOAT32_MAX = 3.4028234663852886e38
 MAX_PROFILE_BYTES = 1 << 20
 """Largest profile file read (bytes): the shipped ones are under 4 KiB."""
@@ -205,40 +202,8 @@ class Profile:
 
 
 def _fail(source: str, field: str, expected: str, got) -> ProfileError:
-    return ProfileError(f"{source}: {field} must be {expected}, got {got!r}")
-
-
-def _one_of(options):
-    """A check that a value is one of `options`' names: a string first (a list or a table where a
-    name goes is a mistake to name, not a TypeError from a dict lookup)."""
-    return lambda v: isinstance(v, str) and v in options
-
-
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_num(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _check_keys(source: str, where: str, table: dict, allowed: set, required: set = frozenset()) -> None:
-    unknown = set(table) - allowed
-    if unknown:
-        raise ProfileError(f"{source}: {where or 'profile'} has unknown field(s) {sorted(unknown)}; "
-                           f"expected some of {sorted(allowed)}")
-    for key in sorted(required):
-        if key not in table:
-            raise ProfileError(f"{source}: {where}.{key} is required" if where else f"{source}: {key} is required")
-
-
-def _get(source, table, where, key, check, expected, default=None):
-    if key not in table:
-        return default
-    v = table[key]
-    if not check(v):
-        raise _fail(source, f"{where}.{key}" if where else key, expected, v)
-    return v
+    """The one-line error of softproxy.schema's format, as a ProfileError."""
+    return ProfileError(str(must_be(field, expected, got, source=source)))
 
 
 def _type_range(type_name: str) -> tuple[float, float]:
@@ -260,161 +225,99 @@ def _parse_signed_name(text: str) -> tuple[str, float]:
     return text, 1.0
 
 
-def _field_common(source: str, where: str, spec: dict, limit: int) -> tuple[int, str, str]:
-    offset = _get(source, spec, where, "offset", lambda v: _is_int(v) and v >= 0, "an integer >= 0")
-    if offset is None:
-        raise ProfileError(f"{source}: {where}.offset is required")
-    type_name = _get(source, spec, where, "type", _one_of(TYPES), f"one of {list(TYPES)}")
-    if type_name is None:
-        raise ProfileError(f"{source}: {where}.type is required")
-    endian = _get(source, spec, where, "endian", _one_of(ENDIAN), "\"little\" or \"big\"", "little")
-    if offset + TYPES[type_name][1] > limit:
-        raise _fail(source, f"{where}.offset", f"such that the {type_name} ends within the report's "
-                    f"{limit} payload bytes", offset)
-    return offset, type_name, endian
+def _ends_within(source: str, where: str, spec, limit: int) -> None:
+    """A field's bytes lie within the report's `limit` payload bytes."""
+    if spec.offset + TYPES[spec.type][1] > limit:
+        raise _fail(source, f"{where}.offset", f"such that the {spec.type} ends within the report's "
+                    f"{limit} payload bytes", spec.offset)
 
 
-def _parse_input_field(source: str, where: str, name: str, spec, size: int) -> InputField:
-    if not isinstance(spec, dict):
-        raise _fail(source, where, "a table {offset, type, ...}", spec)
+def _parse_input_field(source: str, where: str, name: str, spec: schema.HidInputField, given: set,
+                       size: int) -> InputField:
     if not name.isidentifier():
         raise _fail(source, where, "named by an identifier (letters, digits, _)", name)
-    raw = name in RAW_FIELDS
-    allowed = {"offset", "type", "endian"} | (set() if raw else {"scale", "rate_scale", "deadband"})
-    _check_keys(source, where, spec, allowed)
-    offset, type_name, endian = _field_common(source, where, spec, size)
-    if raw:
-        if TYPES[type_name][2] != "uint":
+    _ends_within(source, where, spec, size)
+    if name in RAW_FIELDS:
+        extra = sorted(given - {"offset", "type", "endian"})
+        if extra:
+            raise ProfileError(f"{source}: {where} has unknown field(s) {extra}; a raw `{name}` field takes "
+                               "offset, type and endian only")
+        if TYPES[spec.type][2] != "uint":
             raise _fail(source, f"{where}.type", f"an unsigned integer type (uint8/uint16/uint32) for `{name}`",
-                        type_name)
-        return InputField(name, offset, type_name, endian, 1.0, 1.0, 0.0)
-    scale_ok = lambda v: _is_num(v) and v != 0 and abs(v) <= MAX_INPUT_SCALE  # noqa: E731
-    scale = _get(source, spec, where, "scale", scale_ok,
-                 f"a finite non-zero number, |scale| <= {MAX_INPUT_SCALE:g} (SI units per count)", 1.0)
-    rate_scale = _get(source, spec, where, "rate_scale", scale_ok,
-                      f"a finite non-zero number, |rate_scale| <= {MAX_INPUT_SCALE:g} (SI units per second per count)")
-    deadband = _get(source, spec, where, "deadband", lambda v: _is_num(v) and v >= 0, "a finite number >= 0", 0.0)
-    return InputField(name, offset, type_name, endian, float(scale),
-                      None if rate_scale is None else float(rate_scale), float(deadband))
+                        spec.type)
+        return InputField(name, spec.offset, spec.type, spec.endian, 1.0, 1.0, 0.0)
+    return InputField(name, spec.offset, spec.type, spec.endian, spec.scale, spec.rate_scale, spec.deadband)
 
 
-def _parse_output_field(source: str, where: str, name: str, spec, size: int) -> OutputField:
-    if not isinstance(spec, dict):
-        raise _fail(source, where, "a table {offset, type, source, ...}", spec)
-    _check_keys(source, where, spec, {"offset", "type", "endian", "source", "scale", "min", "max"})
-    offset, type_name, endian = _field_common(source, where, spec, size)
-    src_text = spec.get("source", name)
-    if not isinstance(src_text, str):
-        raise _fail(source, f"{where}.source", f"one of {list(OUTPUT_SOURCES)} (optionally with a '-')", src_text)
+def _parse_output_field(source: str, where: str, name: str, spec: schema.HidOutputField, size: int) -> OutputField:
+    _ends_within(source, where, spec, size)
+    src_text = name if spec.source is None else spec.source
     src, sign = _parse_signed_name(src_text)
     if src not in OUTPUT_SOURCES or (sign < 0 and src in ("sequence", "enable")):
         raise _fail(source, f"{where}.source", f"one of {list(OUTPUT_SOURCES)} (a wrench source may carry a '-')",
                     src_text)
-    tlo, thi = _type_range(type_name)
-    kind = TYPES[type_name][2]
+    tlo, thi = _type_range(spec.type)
+    kind = TYPES[spec.type][2]
     if src in ("sequence", "enable"):
         if kind != "uint":
-            raise _fail(source, f"{where}.type", f"an unsigned integer type for a `{src}` field", type_name)
-        if "scale" in spec or "min" in spec or "max" in spec:
+            raise _fail(source, f"{where}.type", f"an unsigned integer type for a `{src}` field", spec.type)
+        if spec.scale is not None or spec.min is not None or spec.max is not None:
             raise ProfileError(f"{source}: {where}: a `{src}` field takes no scale, min or max")
-        return OutputField(name, offset, type_name, endian, src, 1.0, 1.0, tlo, thi)
-    scale = _get(source, spec, where, "scale", lambda v: _is_num(v) and 0 < v <= MAX_OUTPUT_SCALE,
-                 f"a finite number > 0 and <= {MAX_OUTPUT_SCALE:g} (counts per N, or per N·m for a torque)")
-    if scale is None:
+        return OutputField(name, spec.offset, spec.type, spec.endian, src, 1.0, 1.0, tlo, thi)
+    if spec.scale is None:
         raise ProfileError(f"{source}: {where}.scale is required (counts per N, or per N·m for a torque)")
     if kind == "int":  # symmetric by default: -32767..32767, so that -x is representable whenever x is
         tlo = -thi
-    in_type = lambda v: _is_num(v) and tlo <= v <= thi  # noqa: E731
-    lo = _get(source, spec, where, "min", in_type, f"a number within the {type_name} range [{tlo:g}, {thi:g}]", tlo)
-    hi = _get(source, spec, where, "max", in_type, f"a number within the {type_name} range [{tlo:g}, {thi:g}]", thi)
+    for key in ("min", "max"):
+        v = getattr(spec, key)
+        if v is not None and not tlo <= v <= thi:
+            raise _fail(source, f"{where}.{key}", f"a number within the {spec.type} range [{tlo:g}, {thi:g}]", v)
+    lo = tlo if spec.min is None else spec.min
+    hi = thi if spec.max is None else spec.max
     if not lo <= 0 <= hi:
         raise ProfileError(f"{source}: {where}: min must be <= 0 <= max (zero force must be representable), "
                            f"got min = {lo!r}, max = {hi!r}")
     if kind != "float":
         lo, hi = math.ceil(lo), math.floor(hi)
-    return OutputField(name, offset, type_name, endian, src, sign, float(scale), lo, hi)
+    return OutputField(name, spec.offset, spec.type, spec.endian, src, sign, spec.scale, lo, hi)
 
 
-def _axis_vector(source: str, field: str, text) -> tuple[float, float, float]:
-    if not isinstance(text, str):
-        raise _fail(source, field, "\"x\", \"y\" or \"z\", optionally with a '-'", text)
-    name, sign = _parse_signed_name(text)
-    if name not in ("x", "y", "z"):
-        raise _fail(source, field, "\"x\", \"y\" or \"z\", optionally with a '-'", text)
+def _axis_vector(text: str) -> tuple[float, float, float]:
+    name, sign = _parse_signed_name(text)  # "x", "y" or "z" (the schema checked it)
     return tuple(sign if a == name else 0.0 for a in ("x", "y", "z"))
 
 
-_TOP_KEYS = {"name", "description", "mode", "max_force", "max_torque", "finger_axis", "match", "input",
-             "axes", "status", "output"}
-
-
 def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
-    """Validate a profile given as a dict (a parsed TOML document); errors name source and field."""
+    """Validate a profile given as a dict (a parsed TOML document); errors name source and field.
+
+    Each field's type and bounds are declared in `softproxy.schema.HidProfileFile`; what depends
+    on other fields is checked here."""
     if not isinstance(doc, dict):
         raise _fail(source, "profile", "a table", doc)
-    _check_keys(source, "", doc, _TOP_KEYS, {"input", "axes"})
+    try:
+        p = schema.validate(schema.HidProfileFile, doc, source=source)
+    except InputError as exc:
+        raise ProfileError(str(exc)) from None
     stem = Path(source).stem if source.endswith(".toml") else "profile"
-    name = _get(source, doc, "", "name", lambda v: isinstance(v, str) and v.strip() != "", "a non-empty string", stem)
-    description = _get(source, doc, "", "description", lambda v: isinstance(v, str), "a string", "")
-    mode = _get(source, doc, "", "mode", _one_of(MODES), f"one of {list(MODES)}", "position")
-    nonneg = lambda v: _is_num(v) and v >= 0  # noqa: E731
-    max_force = float(_get(source, doc, "", "max_force", lambda v: nonneg(v) and v <= MAX_FORCE_N,
-                           f"a finite number >= 0 and <= {MAX_FORCE_N:g} (N; what the device renders safely)", 0.0))
-    max_torque = float(_get(source, doc, "", "max_torque", lambda v: nonneg(v) and v <= MAX_TORQUE_NM,
-                            f"a finite number >= 0 and <= {MAX_TORQUE_NM:g} (N·m; what the device renders safely)",
-                            0.0))
-    finger_axis = _axis_vector(source, "finger_axis", doc.get("finger_axis", "z"))
-
-    # [[match]]
-    raw_matches = doc.get("match", [])
-    if not isinstance(raw_matches, list) or not all(isinstance(m, dict) for m in raw_matches):
-        raise _fail(source, "match", "a list of [[match]] tables", raw_matches)
-    matches = []
-    u16 = lambda v: _is_int(v) and 0 <= v <= 0xFFFF  # noqa: E731
-    for i, m in enumerate(raw_matches):
-        where = f"match[{i}]"
-        _check_keys(source, where, m, {"vendor_id", "product_id", "model", "usage_page", "usage", "interface"},
-                    {"vendor_id", "product_id"})
-        matches.append(Match(
-            _get(source, m, where, "vendor_id", u16, "an integer 0..0xFFFF"),
-            _get(source, m, where, "product_id", u16, "an integer 0..0xFFFF"),
-            _get(source, m, where, "model", lambda v: isinstance(v, str), "a string", ""),
-            _get(source, m, where, "usage_page", u16, "an integer 0..0xFFFF"),
-            _get(source, m, where, "usage", u16, "an integer 0..0xFFFF"),
-            _get(source, m, where, "interface", lambda v: _is_int(v) and v >= -1, "an integer >= -1"),
-        ))
+    name = stem if p.name is None else p.name
+    matches = [Match(m.vendor_id, m.product_id, m.model, m.usage_page, m.usage, m.interface) for m in p.match]
 
     # [input]
-    inp = doc["input"]
-    if not isinstance(inp, dict):
-        raise _fail(source, "input", "a table", inp)
-    _check_keys(source, "input", inp, {"max_bytes", "reporting", "stale_ms", "report"}, {"report"})
-    max_bytes = _get(source, inp, "input", "max_bytes", lambda v: _is_int(v) and 1 <= v <= 4096,
-                     "an integer 1..4096 (bytes, report id included)", 64)
-    reporting = _get(source, inp, "input", "reporting", _one_of(REPORTING), f"one of {list(REPORTING)}",
-                     "periodic")
-    stale_ms = float(_get(source, inp, "input", "stale_ms", nonneg, "a finite number >= 0 (ms; 0 = never stale)",
-                          50.0 if reporting == "periodic" else 0.0))
-    raw_reports = inp["report"]
-    if not isinstance(raw_reports, list) or not raw_reports or not all(isinstance(r, dict) for r in raw_reports):
-        raise _fail(source, "input.report", "a non-empty list of [[input.report]] tables", raw_reports)
+    inp = p.input
+    max_bytes, reporting = inp.max_bytes, inp.reporting
+    stale_ms = (50.0 if reporting == "periodic" else 0.0) if inp.stale_ms is None else inp.stale_ms
     reports: dict[int, list[InputLayout]] = {}
     field_types: dict[str, str] = {}
-    for i, r in enumerate(raw_reports):
+    for i, r in enumerate(inp.report):
         where = f"input.report[{i}]"
-        _check_keys(source, where, r, {"id", "size", "fields"}, {"id", "size", "fields"})
-        rid = _get(source, r, where, "id", lambda v: _is_int(v) and 0 <= v <= 255,
-                   "an integer 0..255 (0: the device does not number its reports)")
-        size = _get(source, r, where, "size", lambda v: _is_int(v) and v >= 1, "an integer >= 1 (payload bytes)")
+        rid, size = r.id, r.size
         if size + (1 if rid else 0) > max_bytes:
             raise _fail(source, f"{where}.size", f"at most input.max_bytes = {max_bytes} bytes with the report id",
                         size)
-        fields = r["fields"]
-        if not isinstance(fields, dict) or not fields:
-            raise _fail(source, f"{where}.fields", "a non-empty table of name = {offset, type, ...}", fields)
         parsed = []
-        for fname, spec in fields.items():
-            f = _parse_input_field(source, f"{where}.fields.{fname}", fname, spec, size)
+        for fname, spec in r.fields.items():
+            given = set(doc["input"]["report"][i]["fields"][fname])
+            f = _parse_input_field(source, f"{where}.fields.{fname}", fname, spec, given, size)
             if fname == "sequence" and field_types.setdefault(fname, f.type) != f.type:
                 raise _fail(source, f"{where}.fields.{fname}.type", f"{field_types[fname]}, as in the other "
                             "reports (the counter's width decides where it wraps)", f.type)
@@ -431,10 +334,6 @@ def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
     reports_sorted = {rid: tuple(sorted(v, key=lambda layout: -layout.size)) for rid, v in reports.items()}
 
     # [axes]
-    axes_doc = doc["axes"]
-    if not isinstance(axes_doc, dict):
-        raise _fail(source, "axes", "a table x/y/z/twist = \"[-]field\"", axes_doc)
-    _check_keys(source, "axes", axes_doc, set(AXES), {"x", "y", "z"})
     axes = {}
     by_name = {}
     for layouts in reports_sorted.values():
@@ -442,16 +341,13 @@ def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
             for f in layout.fields:
                 by_name.setdefault(f.name, f)
     for axis in AXES:
-        if axis not in axes_doc:
+        text = getattr(p.axes, axis)
+        if text is None:
             continue
-        text = axes_doc[axis]
-        expected = "\"field\" or \"-field\" naming a scaled input field"
-        if not isinstance(text, str):
-            raise _fail(source, f"axes.{axis}", expected, text)
         fname, sign = _parse_signed_name(text)
         if fname not in by_name or by_name[fname].raw:
-            raise _fail(source, f"axes.{axis}", f"{expected} (have: {sorted(n for n in by_name if n not in RAW_FIELDS)})",
-                        text)
+            raise _fail(source, f"axes.{axis}", "\"field\" or \"-field\" naming a scaled input field (have: "
+                        f"{sorted(n for n in by_name if n not in RAW_FIELDS)})", text)
         axes[axis] = (fname, sign)
     modes = ["position"]
     rate_ok = True
@@ -463,56 +359,40 @@ def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
                         rate_ok = False
     if rate_ok:
         modes.append("rate")
-    if mode not in modes:
+    if p.mode not in modes:
         raise ProfileError(f"{source}: mode = \"rate\" needs a rate_scale on every field named in [axes]")
 
     # [status]
     has_status = "status" in by_name
-    status_doc = doc.get("status", {})
-    if not isinstance(status_doc, dict):
-        raise _fail(source, "status", "a table {require_set, require_clear}", status_doc)
-    _check_keys(source, "status", status_doc, {"require_set", "require_clear"})
-    if status_doc and not has_status:
+    if doc.get("status") and not has_status:
         raise ProfileError(f"{source}: [status] needs an input field named `status`")
-    mask_ok = lambda v: _is_int(v) and 0 <= v <= 0xFFFFFFFF  # noqa: E731
-    status_set = _get(source, status_doc, "status", "require_set", mask_ok, "a bit mask 0..0xFFFFFFFF", 0)
-    status_clear = _get(source, status_doc, "status", "require_clear", mask_ok, "a bit mask 0..0xFFFFFFFF", 0)
+    status_set, status_clear = p.status.require_set, p.status.require_clear
     if status_set & status_clear:
         raise _fail(source, "status.require_clear", "disjoint from require_set", status_clear)
     sequence_bits = 8 * TYPES[by_name["sequence"].type][1] if "sequence" in by_name else 0
 
     # [output]
     output = None
-    if "output" in doc:
-        out = doc["output"]
-        if not isinstance(out, dict):
-            raise _fail(source, "output", "a table", out)
-        _check_keys(source, "output", out, {"id", "size", "fields"}, {"id", "size", "fields"})
-        oid = _get(source, out, "output", "id", lambda v: _is_int(v) and 0 <= v <= 255,
-                   "an integer 0..255 (0: unnumbered)")
-        osize = _get(source, out, "output", "size", lambda v: _is_int(v) and 1 <= v <= 4095,
-                     "an integer 1..4095 (payload bytes)")
-        ofields = out["fields"]
-        if not isinstance(ofields, dict) or not ofields:
-            raise _fail(source, "output.fields", "a non-empty table of name = {offset, type, source, ...}", ofields)
-        parsed = tuple(_parse_output_field(source, f"output.fields.{n}", n, s, osize) for n, s in ofields.items())
+    if p.output is not None:
+        out = p.output
+        parsed = tuple(_parse_output_field(source, f"output.fields.{n}", n, s, out.size) for n, s in out.fields.items())
         spans = sorted((f.offset, f.offset + TYPES[f.type][1], f.name) for f in parsed)
         for (a0, a1, an), (b0, b1, bn) in zip(spans, spans[1:]):
             if b0 < a1:
                 raise ProfileError(f"{source}: output.fields.{bn} overlaps output.fields.{an}")
-        output = OutputLayout(oid, osize, parsed)
+        output = OutputLayout(out.id, out.size, parsed)
     sources = {f.source for f in output.fields} if output else set()
-    if max_force > 0 and not sources & {"fx", "fy", "fz"}:
-        raise _fail(source, "max_force", "0 for a profile whose [output] carries no force (fx/fy/fz)", max_force)
-    if max_torque > 0 and not sources & {"tx", "ty", "tz", "twist"}:
+    if p.max_force > 0 and not sources & {"fx", "fy", "fz"}:
+        raise _fail(source, "max_force", "0 for a profile whose [output] carries no force (fx/fy/fz)", p.max_force)
+    if p.max_torque > 0 and not sources & {"tx", "ty", "tz", "twist"}:
         raise _fail(source, "max_torque", "0 for a profile whose [output] carries no torque (tx/ty/tz/twist)",
-                    max_torque)
+                    p.max_torque)
 
-    return Profile(name=name.strip(), description=description, source=source, mode=mode, modes=tuple(modes),
-                   max_force=max_force, max_torque=max_torque, finger_axis=finger_axis, matches=tuple(matches),
-                   numbered=numbered, max_bytes=max_bytes, reporting=reporting, stale_ms=stale_ms,
-                   reports=reports_sorted, axes=axes, status_set=status_set, status_clear=status_clear,
-                   has_status=has_status, sequence_bits=sequence_bits, output=output)
+    return Profile(name=name.strip(), description=p.description, source=source, mode=p.mode, modes=tuple(modes),
+                   max_force=p.max_force, max_torque=p.max_torque, finger_axis=_axis_vector(p.finger_axis),
+                   matches=tuple(matches), numbered=numbered, max_bytes=max_bytes, reporting=reporting,
+                   stale_ms=stale_ms, reports=reports_sorted, axes=axes, status_set=status_set,
+                   status_clear=status_clear, has_status=has_status, sequence_bits=sequence_bits, output=output)
 
 
 def profile_dirs() -> list[Path]:

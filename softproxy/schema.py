@@ -86,19 +86,22 @@ def _bounds_text(low, high, unit: str, open_low: bool) -> str:
     return ""
 
 
-def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high: str):
-    """An after-validator: `low <= v <= high` (`low < v` when open_low); the error words the bound with its unit."""
+def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high: str, nonzero: bool = False):
+    """An after-validator: `low <= v <= high` (`low < v` when open_low; v != 0 when nonzero); the
+    error words the bound with its unit."""
     u = f" {unit}" if unit else ""
     both = low is not None and high is not None and low < 0.0  # a signed range: say both ends
 
     def check(v):
+        if nonzero and v == 0:
+            raise PydanticCustomError("bound", "non-zero")
         if low is not None and (v <= low if open_low else v < low):
             if both:
                 text = _bounds_text(low, high, unit, open_low)
             elif high is not None and low > 0.0:
                 text = f"between {low:g} and {high:g}{u}"
             else:
-                text = f"> {low:g}{u}" if open_low else f"at least {low:g}{u}"
+                text = f"> {low:g}{u}" if open_low else f">= {low:g}{u}"
             # a unit slip gives a positive number too small: a negative one is another mistake
             raise PydanticCustomError("bound", text, {"hint": hint_low if v > 0 else ""})
         if high is not None and v > high:
@@ -110,11 +113,13 @@ def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high:
 
 
 def quantity(unit: str, description: str, *, low: float | None = None, high: float | None = None,
-             open_low: bool = False, hint_low: str = "", hint_high: str = "", optional: bool = False):
+             open_low: bool = False, hint_low: str = "", hint_high: str = "", optional: bool = False,
+             nonzero: bool = False):
     """A finite number in `unit` (SI; "" for a ratio) within [low, high] ((low, high] when open_low).
 
     `hint_low` / `hint_high`: the likely mistake when the value is past that bound (a unit slip),
     appended to the error. `optional`: None is allowed too (a default chosen elsewhere).
+    `nonzero`: 0 is refused (a scale).
     """
     extra: dict[str, Any] = {"unit": unit} if unit else {}
     if low is not None:
@@ -122,21 +127,22 @@ def quantity(unit: str, description: str, *, low: float | None = None, high: flo
     if high is not None:
         extra["maximum"] = high
     number = Annotated[float, BeforeValidator(_number),
-                       AfterValidator(_bound_check(low, high, unit, open_low, hint_low, hint_high))]
+                       AfterValidator(_bound_check(low, high, unit, open_low, hint_low, hint_high, nonzero))]
     kind = Optional[number] if optional else number
     return Annotated[kind, Field(description=f"{description} ({unit})" if unit else description,
                                  json_schema_extra=extra)]
 
 
-def count(description: str, *, low: int | None = None, high: int | None = None, unit: str = ""):
-    """An integer within [low, high] (a count of cells, frames, a seed, a finger index)."""
+def count(description: str, *, low: int | None = None, high: int | None = None, unit: str = "", hint: str = ""):
+    """An integer within [low, high] (a count of cells, frames, a seed, a finger index, an id);
+    `hint` is appended to the error past either bound."""
     extra: dict[str, Any] = {}
     if low is not None:
         extra["minimum"] = low
     if high is not None:
         extra["maximum"] = high
     return Annotated[int, BeforeValidator(_integer),
-                     AfterValidator(_bound_check(low, high, unit, False, "", "")),
+                     AfterValidator(_bound_check(low, high, unit, False, hint, hint)),
                      Field(description=description, json_schema_extra=extra)]
 
 
@@ -186,7 +192,7 @@ def choice(options, description: str):
 Flag = Annotated[bool, Field(strict=True)]
 """true or false (never 1 or "yes")."""
 Text = Annotated[str, Field(strict=True)]
-Name = Annotated[str, Field(strict=True, min_length=1)]
+Name = Annotated[str, Field(strict=True, min_length=1, pattern=r"\S")]
 
 # ---------------------------------------------------------------------------------------------
 # The one error format: pydantic's ValidationError -> one InputError line.
@@ -195,7 +201,7 @@ _KIND = {
     "model_type": "a table", "model_attributes_type": "a table", "dict_type": "a table", "dataclass_type": "a table",
     "list_type": "a list", "tuple_type": "[x, y, z]", "bool_type": "true or false", "string_type": "a string",
     "int_type": "an integer", "float_type": "a number", "string_too_short": "a non-empty string",
-    "too_short": "non-empty",
+    "too_short": "a non-empty list", "string_pattern_mismatch": "a non-empty string",
 }
 
 
@@ -238,8 +244,8 @@ def one_line(exc: ValidationError, *, source: str = "", path: str = "") -> Input
     kind, ctx = e["type"], e.get("ctx") or {}
     if kind == "unknown_fields":
         lead = f"{source}: " if source else ""
-        if not where:  # the file's own keys are its tables
-            return InputError(f"{lead}unknown table(s) {ctx['unknown']}; expected some of {ctx['allowed']}")
+        if not where:  # the file's own keys
+            return InputError(f"{lead}unknown {ctx['what']} {ctx['unknown']}; expected some of {ctx['allowed']}")
         return InputError(f"{lead}{where} has unknown field(s) {ctx['unknown']}; expected some of {ctx['allowed']}")
     if kind == "missing" or (kind == "too_short" and where in _REQUIRED):
         lead = f"{source}: " if source else ""
@@ -278,6 +284,8 @@ class Table(BaseModel):
     """A TOML table: every key declared (a misspelt one is named, with the keys it may be)."""
 
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
+    keys_are: typing.ClassVar[str] = "field(s)"
+    """What the table's keys are called in an error: a scene file's are tables."""
 
     @model_validator(mode="before")
     @classmethod
@@ -287,7 +295,7 @@ class Table(BaseModel):
             unknown = sorted(str(k) for k in set(data) - allowed)
             if unknown:
                 raise PydanticCustomError("unknown_fields", "unknown field(s)",
-                                          {"unknown": unknown, "allowed": sorted(allowed)})
+                                          {"unknown": unknown, "allowed": sorted(allowed), "what": cls.keys_are})
         return data
 
 
@@ -576,9 +584,149 @@ class DeviceTableAny(BaseModel):
 class SceneFile(Table):
     """A scene TOML file: the MJCF beside it and what the haptic side needs (softproxy.scene)."""
 
+    keys_are: typing.ClassVar[str] = "table(s)"
+
     scene: SceneTable
     measure: Optional[MeasureTable] = None
     finger_defaults: FingerDefaults = Field(default_factory=FingerDefaults)
     finger: Annotated[list[FingerTable], Field(min_length=1, description="one [[finger]] table per finger")]
     device: DeviceTableAny = Field(default_factory=DeviceTableAny)
     haptics: HapticsTable = Field(default_factory=HapticsTable)
+
+
+# ---------------------------------------------------------------------------------------------
+# A HID profile (softproxy.devices.hid_profile; the format in devices/profiles/README.md).
+# Declared here: each field's type and bounds. Checked there: what depends on other fields
+# (a field ends within its report, the axes name scaled fields, output spans do not overlap).
+
+HID_FIELD_TYPES = ("int8", "uint8", "int16", "uint16", "int32", "uint32", "float32")
+"""Types a report field may have (softproxy.devices.hid_profile.TYPES packs them)."""
+HID_MODES = ("position", "rate")
+HID_REPORTING = ("periodic", "on_change")
+MAX_FORCE_N = 100.0
+"""Largest `max_force` a profile may declare (N): several times a firm grip, far above a finger-sized device."""
+MAX_TORQUE_NM = 10.0
+"""Largest `max_torque` a profile may declare (N·m)."""
+MAX_INPUT_SCALE = 1e3
+"""Largest |scale| / |rate_scale| of an input field (m, rad, m/s or rad/s per count)."""
+MAX_OUTPUT_SCALE = 1e9
+"""Largest `scale` of an output field (counts per N or per N·m: 1e9 is a count per nN)."""
+
+UsbId = count("a USB id", low=0, high=0xFFFF, hint="a USB id is 16 bits: 0..0xFFFF")
+ReportId = count("a report id; 0: the device does not number its reports", low=0, high=255,
+                 hint="a report id is 0..255")
+Mask = count("a bit mask of the status field", low=0, high=0xFFFFFFFF, hint="a mask of 32 bits: 0..0xFFFFFFFF")
+
+
+def _signed_axis(value):
+    """Before the str check: "x", "y" or "z", optionally with a '-' (or '+')."""
+    if not (isinstance(value, str) and value.strip().lstrip("+-").strip() in ("x", "y", "z")):
+        raise PydanticCustomError("input", "\"x\", \"y\" or \"z\", optionally with a '-'")
+    return value
+
+
+SignedAxis = Annotated[str, BeforeValidator(_signed_axis),
+                       Field(description="an axis of the sample frame, \"x\", \"y\" or \"z\", optionally with a '-'",
+                             json_schema_extra={"pattern": r"^\s*[+-]?\s*[xyz]\s*$"})]
+FieldName = Annotated[str, Field(strict=True, description="\"field\" or \"-field\": a field of the input reports")]
+
+
+class HidMatch(Table):
+    """[[match]]: the USB ids a profile claims; usage_page / usage / interface narrow a multi-interface device."""
+
+    vendor_id: UsbId
+    product_id: UsbId
+    model: Text = ""
+    usage_page: Optional[UsbId] = None
+    usage: Optional[UsbId] = None
+    interface: Optional[count("the USB interface number (-1: any)", low=-1)] = None
+
+
+class HidReportField(Table):
+    """Where a number sits in a report: payload byte offset, type, byte order."""
+
+    offset: count("payload byte offset (after the report id of a numbered report)", low=0, unit="bytes")
+    type: choice(HID_FIELD_TYPES, "the number's type")
+    endian: choice(("little", "big"), "byte order") = "little"
+
+
+class HidInputField(HidReportField):
+    """An input field: `sequence`, `status` and `buttons` are read raw; every other is scaled to SI."""
+
+    scale: quantity("", "SI units per count in position mode (m or rad per count)", low=-MAX_INPUT_SCALE,
+                    high=MAX_INPUT_SCALE, nonzero=True) = 1.0
+    rate_scale: quantity("", "SI units per second per count in rate mode (m/s or rad/s per count)",
+                         low=-MAX_INPUT_SCALE, high=MAX_INPUT_SCALE, nonzero=True, optional=True) = None
+    deadband: quantity("counts", "|counts| <= deadband read as 0", low=0.0) = 0.0
+
+
+class HidInputReport(Table):
+    """[[input.report]]: one input report layout (several may share an id with different sizes)."""
+
+    id: ReportId
+    size: count("payload bytes", low=1, unit="bytes")
+    fields: Annotated[dict[str, HidInputField], Field(min_length=1, description="name = {offset, type, ...}")]
+
+
+class HidInput(Table):
+    """[input]: how the device reports."""
+
+    max_bytes: count("longest input report accepted, report id included", low=1, high=4096, unit="bytes") = 64
+    reporting: choice(HID_REPORTING, "\"periodic\": a report every period; \"on_change\": only on motion") = "periodic"
+    stale_ms: quantity("ms", "periodic: the sample is stale after this long without a report (default 50; "
+                       "on_change: 0 = never stale)", low=0.0, optional=True) = None
+    report: Annotated[list[HidInputReport], Field(min_length=1)]
+
+
+class HidOutputField(HidReportField):
+    """An output field: a wrench component (fx fy fz tx ty tz twist, optionally '-'), or sequence / enable."""
+
+    source: Optional[Text] = Field(None, description="fx, fy, fz, tx, ty, tz, twist (a '-' flips it), sequence "
+                                   "or enable; default: the field's name")
+    scale: quantity("counts/N", "counts per N, or per N·m for a torque (required for a wrench source)",
+                    low=0.0, high=MAX_OUTPUT_SCALE, open_low=True, optional=True) = None
+    min: quantity("counts", "saturation in counts (default: the type's range, symmetric for a signed integer)",
+                  optional=True) = None
+    max: quantity("counts", "saturation in counts", optional=True) = None
+
+
+class HidOutput(Table):
+    """[output]: the report a force goes out in."""
+
+    id: ReportId
+    size: count("payload bytes", low=1, high=4095, unit="bytes")
+    fields: Annotated[dict[str, HidOutputField], Field(min_length=1, description="name = {offset, type, source, ...}")]
+
+
+class HidAxes(Table):
+    """[axes]: which input field is which axis of the finger ("-field" flips it)."""
+
+    x: FieldName
+    y: FieldName
+    z: FieldName
+    twist: Optional[FieldName] = None
+
+
+class HidStatus(Table):
+    """[status]: bits of the `status` field that must be set (e.g. calibrated) or clear (e.g. fault)."""
+
+    require_set: Mask = 0
+    require_clear: Mask = 0
+
+
+class HidProfileFile(Table):
+    """A HID device profile (devices/profiles/README.md)."""
+
+    name: Optional[Name] = Field(None, description="default: the file's name")
+    description: Text = ""
+    mode: choice(HID_MODES, "default motion mode") = "position"
+    max_force: quantity("N", "what the device renders safely; 0: renders no force", low=0.0, high=MAX_FORCE_N,
+                        hint_high="max_force is in N") = 0.0
+    max_torque: quantity("N·m", "what the device renders safely; 0: renders no torque", low=0.0,
+                         high=MAX_TORQUE_NM, hint_high="max_torque is in N·m: 100 N·mm is 0.1") = 0.0
+    finger_axis: SignedAxis = "z"
+    match: list[HidMatch] = []
+    input: HidInput
+    axes: HidAxes
+    status: HidStatus = Field(default_factory=HidStatus)
+    output: Optional[HidOutput] = None

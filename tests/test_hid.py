@@ -723,7 +723,7 @@ def test_profile_file_errors(tmp_path):
     text = (PROFILE_DIR / "spacemouse.toml").read_text().replace('deadband = 5 }', 'deadband = -5 }', 1)
     broken = tmp_path / "mouse.toml"
     broken.write_text(text)
-    with pytest.raises(ProfileError, match=r"mouse\.toml: input\.report\[0\]\.fields\.tx\.deadband must be a finite"):
+    with pytest.raises(ProfileError, match=r"mouse\.toml: input\.report\[0\]\.fields\.tx\.deadband must be >= 0 counts, got -5"):
         load_profile(str(broken))
     with pytest.raises(ProfileError, match="no HID profile named 'nope'; have: .*spacemouse"):
         load_profile("nope")
