@@ -5,11 +5,16 @@ naming the source file (or `--device` argument) and the field, `"{source}: devic
 ..., got ..."`; and the `--device TYPE:...` argument (`from_argument`), whose `key=value` items
 become such a table. The constructors' own checks of the workspace mapping live here too. What a
 field means is each adapter's (its `from_config` docstring); only how it is checked is shared.
+Each shipped type's table is declared, with its fields' bounds and units, in
+`softproxy.schema.DEVICE_TABLES` (the JSON Schema `softproxy schema` writes for editors); the
+errors are in that module's one-line format (`softproxy.input_error`).
 """
 
 from __future__ import annotations
 
 import math
+
+from softproxy.input_error import must_be
 
 
 def finite(v) -> bool:
@@ -34,8 +39,8 @@ def check_workspace(workspace_scale, workspace_offset) -> tuple[float, tuple[flo
 # --- a scene's [device] table ------------------------------------------------------------------
 
 def field_error(source: str, field: str, expected: str, got) -> ValueError:
-    """The one-line error of a field: `{source}: {field} must be {expected}, got {got!r}`."""
-    return ValueError(f"{source}: {field} must be {expected}, got {got!r}")
+    """The one-line error of a field: `{source}: {field} must be {expected}, got {got!r}` (an InputError)."""
+    return must_be(field, expected, got, source=source)
 
 
 def check_table(cfg, source: str) -> None:

@@ -537,6 +537,17 @@ def _device_types() -> list[str]:
     return device_types()
 
 
+def cmd_schema(args: argparse.Namespace) -> int:
+    """Write the JSON Schema of a scene TOML, a HID profile and a [device] table for editors."""
+    from softproxy.schema import write_json_schemas
+
+    if not _check_out_folder("schema", args.out):
+        return 2
+    for path in write_json_schemas(args.out):
+        print(path)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="softproxy", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -595,6 +606,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print JSON")
     p.add_argument("--out", default="bench-out", help="folder for the PNG (default bench-out)")
     p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("schema", help="write the JSON Schema of scene files, HID profiles and [device] tables "
+                                      "(for editors) into a folder")
+    p.add_argument("--out", default="schema", help="folder for the .schema.json files (default schema)")
+    p.set_defaults(func=cmd_schema)
 
     p = sub.add_parser("devices", help="list connected HID devices and their profiles, and the vendor SDK backends")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -27,12 +27,14 @@ servo loop's rate range is repeated here (`SERVO_RATE_HZ`; `softproxy.servo` imp
 """
 
 import dataclasses
+import json
 import math
 import operator
 import typing
+from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag,
+from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, TypeAdapter,
                       ValidationError, create_model, model_validator)
 from pydantic_core import PydanticCustomError
 
@@ -162,17 +164,17 @@ def _vector3(value):
 def vector3(description: str, unit: str = "", *, low: float | None = None, high: float | None = None,
             direction: bool = False, optional: bool = False):
     """[x, y, z]: 3 finite numbers (each within [low, high]); `direction`: non-zero, made a unit vector."""
-    item = Annotated[float, BeforeValidator(_number), AfterValidator(_bound_check(low, high, unit, False, "", ""))]
+    item_schema = {k: v for k, v in (("minimum", low), ("maximum", high)) if v is not None}
+    item = Annotated[float, BeforeValidator(_number), AfterValidator(_bound_check(low, high, unit, False, "", "")),
+                     Field(json_schema_extra=item_schema)]
     checks: list = [BeforeValidator(_vector3)]
     if direction:
         checks.append(AfterValidator(_unit_vector))
     kind = Annotated[tuple[item, item, item], *checks]
     kind = Optional[kind] if optional else kind
     extra: dict[str, Any] = {"unit": unit} if unit else {}
-    if low is not None:
-        extra["items_minimum"] = low
-    if high is not None:
-        extra["items_maximum"] = high
+    if low is not None and high is not None:
+        extra["x-component-range"] = [low, high]  # for `limits`; each item carries its own bounds
     return Annotated[kind, Field(description=f"{description} ({unit})" if unit else description,
                                  json_schema_extra=extra)]
 
@@ -218,7 +220,8 @@ def _path(prefix: str, loc) -> str:
     return text
 
 
-_UNION_TAGS = {"flag", "table"}
+_UNION_TAGS = {"flag", "table", "sim", "hid", "forcedimension", "openhaptics", "replay"}
+"""Tags pydantic puts in an error's location inside a union (a channel's, a [device] table's type)."""
 
 
 _REQUIRED = {
@@ -344,8 +347,8 @@ def limits(cls) -> dict[str, tuple[float, float, str]]:
         if "maximum" in schema:
             out[name] = (schema.get("minimum", schema.get("exclusiveMinimum", 0.0)), schema["maximum"],
                          schema.get("unit", ""))
-        elif "items_maximum" in schema:  # a vector: each component's range
-            out[name] = (schema["items_minimum"], schema["items_maximum"], schema.get("unit", ""))
+        elif "x-component-range" in schema:  # a vector: each component's range
+            out[name] = (*schema["x-component-range"], schema.get("unit", ""))
     return out
 
 
@@ -506,7 +509,7 @@ class SensingSpec(_ChannelSpec):
 
 def _channel_table(spec) -> type[Table]:
     return create_model(f"{spec.__name__}Table", __base__=Table, __doc__=f"The fields of {spec.__name__}.",
-                        **{name: (Optional[kind], None) for name, (kind, _) in fields_of(spec).items()})
+                        **fields_of(spec))
 
 
 def _flag_or_table(value) -> str | None:
@@ -526,8 +529,7 @@ SensingTable = _channel_table(SensingSpec)
 
 
 def _finger_table(name: str, doc: str) -> type[Table]:
-    fields = {n: (Optional[kind] if n not in ("torsion_mu_s", "torsion_mu_d") else kind, None)
-              for n, (kind, _) in fields_of(FingerParams).items()}
+    fields = fields_of(FingerParams)  # each optional: the defaults are FingerParams' (or [finger_defaults]')
     fields["tactile"] = (channel(TactileTable, "the tactile channel (softproxy.fingertip_sensors): true, or a "
                                 "table over [finger_defaults]'s; false turns it off"), None)
     fields["sensing"] = (channel(SensingTable, "the contact-sensing channel: true, or a table over "
@@ -730,3 +732,140 @@ class HidProfileFile(Table):
     axes: HidAxes
     status: HidStatus = Field(default_factory=HidStatus)
     output: Optional[HidOutput] = None
+
+
+# ---------------------------------------------------------------------------------------------
+# A scene's [device] table, per device type (each adapter's `from_config` in softproxy.devices
+# builds the device and checks what depends on the device: a limit within its profile's or its
+# SDK's). Declared here for editors (`softproxy schema`); a test keeps the fields equal to each
+# adapter's. A device type of a plugin has a table of its own, not declared here.
+
+SIM_FAULT_KINDS = ("nan", "drop", "spike", "stall")
+"""Faults the simulated device injects (softproxy.devices.simulated.FAULT_KINDS)."""
+
+Keyframe = Annotated[tuple[Annotated[float, BeforeValidator(_number)], Annotated[float, BeforeValidator(_number)],
+                           Annotated[float, BeforeValidator(_number)], Annotated[float, BeforeValidator(_number)],
+                           Annotated[float, BeforeValidator(_number)]],
+                     Field(description="[t (s), x, y, z (m, device frame), twist (rad)], t increasing")]
+Probability = quantity("", "a probability per read", low=0.0, high=1.0)
+WorkspaceScale = quantity("", "device position × scale + offset is the world position", low=0.0, open_low=True)
+WorkspaceOffset = vector3("added to the scaled device position", "m")
+
+
+class SimFinger(Table):
+    """[[device.finger]]: one scripted finger."""
+
+    keyframes: Annotated[list[Keyframe], Field(min_length=1)]
+
+
+class SimDeviceTable(Table):
+    """[device] of the simulated device (`type = "sim"`): scripted fingers, noise, latency, faults."""
+
+    type: Literal["sim"]
+    noise_m: quantity("m", "position noise, standard deviation", low=0.0) = 0.0
+    noise_rad: quantity("rad", "twist noise, standard deviation", low=0.0) = 0.0
+    latency_s: quantity("s", "a sample is this old when read", low=0.0) = 0.0
+    quantum_m: quantity("m", "encoder resolution of a position (0: none)", low=0.0) = 0.0
+    quantum_rad: quantity("rad", "encoder resolution of the twist (0: none)", low=0.0) = 0.0
+    max_force_N: quantity("N", "the motor saturates here", low=0.0, optional=True) = None
+    max_torque_Nm: quantity("N·m", "the motor saturates here", low=0.0, optional=True) = None
+    seed: count("seed of the noise and faults") = 0
+    finger: Annotated[list[SimFinger], Field(min_length=1)]
+    faults: dict[Literal[SIM_FAULT_KINDS], Probability] = {}
+
+
+class HidDeviceTable(Table):
+    """[device] of a HID device (`type = "hid"`), described by a profile."""
+
+    type: Literal["hid"]
+    profile: Annotated[Name, Field(description="a HID profile's name (e.g. \"spacemouse\") or path")]
+    path: Optional[Name] = Field(None, description="the HID device path (`softproxy devices`); default: the first "
+                                 "device the profile matches")
+    mode: Optional[choice(HID_MODES, "motion mode (default: the profile's)")] = None
+    workspace_scale: WorkspaceScale = 1.0
+    workspace_offset: WorkspaceOffset = (0.0, 0.0, 0.0)
+    workspace_half_m: vector3("rate mode: half the workspace box", "m", low=0.0) = (0.1, 0.1, 0.1)
+    twist_limit_rad: quantity("rad", "rate mode: the twist is kept within ±this", low=0.0, open_low=True) = math.pi
+    stale_ms: quantity("ms", "periodic devices: invalid after this long without a report (default: the profile's)",
+                       low=0.0, optional=True) = None
+    max_force_N: quantity("N", "lowers the profile's limit (never raises it)", low=0.0, optional=True) = None
+    max_torque_Nm: quantity("N·m", "lowers the profile's limit (never raises it)", low=0.0, optional=True) = None
+
+
+class ForceDimensionDeviceTable(Table):
+    """[device] of a Force Dimension device (`type = "forcedimension"`, the vendor's SDK)."""
+
+    type: Literal["forcedimension"]
+    index: Optional[count("which connected device (give index or serial)", low=0)] = None
+    serial: Optional[count("the device's serial number (give index or serial)", low=0)] = None
+    gripper: Union[Flag, Literal["auto", "on", "off"]] = Field("auto", description="the gripper as the twist")
+    gripper_axis: choice(("x", "y", "z"), "the finger axis the gripper turns about") = "z"
+    workspace_scale: WorkspaceScale = 1.0
+    workspace_offset: WorkspaceOffset = (0.0, 0.0, 0.0)
+    max_force_N: quantity("N", "lowers the device's limit (never raises it)", low=0.0, optional=True) = None
+    max_torque_Nm: quantity("N·m", "lowers the device's limit (never raises it)", low=0.0, optional=True) = None
+    max_gripper_force_N: quantity("N", "lowers the gripper's limit", low=0.0, optional=True) = None
+    stall_ms: quantity("ms", "a force not renewed for this long is replaced by zero (0: never)", low=0.0,
+                       high=1000.0) = 50.0
+
+
+class OpenHapticsDeviceTable(Table):
+    """[device] of a 3D Systems Touch (`type = "openhaptics"`, the OpenHaptics SDK)."""
+
+    type: Literal["openhaptics"]
+    device_name: Name = Field("Default Device", description="the device's name in Touch Setup")
+    workspace_scale: WorkspaceScale = 1.0
+    workspace_offset: WorkspaceOffset = (0.0, 0.0, 0.0)
+    max_force_N: quantity("N", "lowers the device's peak force (never raises it)", low=0.0, optional=True) = None
+    stale_ms: quantity("ms", "a sample older than this is invalid", low=0.0, high=1000.0, open_low=True,
+                       optional=True) = None
+    command_timeout_ms: quantity("ms", "a scheduler call not answered in this long is a fault", low=0.0,
+                                 high=1000.0, open_low=True, optional=True) = None
+
+
+class ReplayDeviceTable(Table):
+    """[device] that replays a recording (`type = "replay"`)."""
+
+    type: Literal["replay"]
+    path: Annotated[Name, Field(description="the recording file (softproxy run --record)")]
+
+
+DEVICE_TABLES = {"sim": SimDeviceTable, "hid": HidDeviceTable, "forcedimension": ForceDimensionDeviceTable,
+                 "openhaptics": OpenHapticsDeviceTable, "replay": ReplayDeviceTable}
+"""The declared [device] table of each shipped device type."""
+DeviceTable = Annotated[Union[tuple(DEVICE_TABLES.values())], Field(discriminator="type")]
+
+
+
+# ---------------------------------------------------------------------------------------------
+# JSON Schema for editors (`softproxy schema`)
+
+
+def json_schemas() -> dict[str, dict]:
+    """The JSON Schema (draft 2020-12) of each input file, by file name: a scene TOML, a HID
+    profile, a [device] table. A scene's [device] may also be a plugin device type's own table."""
+    device = TypeAdapter(DeviceTable).json_schema()
+    scene = SceneFile.model_json_schema()
+    scene.setdefault("$defs", {}).update(device.get("$defs", {}))
+    plugin = {"type": "object", "description": "the table of a device type installed as a plugin",
+              "properties": {"type": {"type": "string", "not": {"enum": list(DEVICE_TABLES)}}}, "required": ["type"]}
+    shipped = {k: v for k, v in device.items() if k != "$defs"}
+    scene["properties"]["device"] = {"description": DeviceTableAny.__doc__, "anyOf": [shipped, plugin]}
+    schemas = {"scene.schema.json": scene, "hid_profile.schema.json": HidProfileFile.model_json_schema(),
+               "device.schema.json": device}
+    for name, js in schemas.items():
+        js["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+        js.setdefault("title", name.split(".")[0])
+    return schemas
+
+
+def write_json_schemas(folder) -> list[Path]:
+    """Write `json_schemas()` into `folder` (made if missing); the files written."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, js in json_schemas().items():
+        path = folder / name
+        path.write_text(json.dumps(js, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+        written.append(path)
+    return written
