@@ -31,6 +31,7 @@ import math
 from dataclasses import dataclass
 
 from softproxy import units
+from softproxy.compiled.guard import P_MAX
 from softproxy.input_error import check_finite
 
 _check_finite = check_finite  # the name softproxy.torsion imports
@@ -65,9 +66,6 @@ VS_RADIUS = units.mm(7.0)
 eq 17 with the printed k', n best fits E1 (eq 22) over 0–2 N (tests/test_fingertip.py
 re-derives it)."""
 
-P_MAX = 1e6
-"""Largest normal force the per-tick functions take (N); larger values are clamped so that
-|P|^γ cannot overflow. A million newtons is far beyond any device or fingertip."""
 
 # Table 1: exponent γ (eqs 30, 34, 35, 37) and μ'_m in N·mm/N^γ.
 _TABLE_1 = {

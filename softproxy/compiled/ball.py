@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.certificate import ABOVE_TOL, LEAF, STACK, _gap2, _heights, _oriented_heights
+from softproxy.compiled.certificate import ABOVE_TOL, LEAF, STACK, box_gap2, box_heights, oriented_heights
 from softproxy.compiled.layout import FEW_SLOTS
 from softproxy.compiled.triangle import closest, segments_gap2
 
@@ -126,8 +126,8 @@ def _may_reach(lo, hi, top, flo, fhi, ulo, uhi, radius, spare):
     lies within reach of the lifted face, and within sqrt(2 radius z + spare) (m) of the face,
     z its height over the face's plane (top: the box's highest), since for q on the face
     |x - (q + radius s)|² = |x - q|² - 2 radius z + radius²; spare = reach² - radius²."""
-    return (top > ABOVE_TOL and _gap2(lo, hi, flo, fhi) <= 2.0 * radius * top + spare
-            and _gap2(lo, hi, ulo, uhi) <= radius * radius + spare)
+    return (top > ABOVE_TOL and box_gap2(lo, hi, flo, fhi) <= 2.0 * radius * top + spare
+            and box_gap2(lo, hi, ulo, uhi) <= radius * radius + spare)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -179,7 +179,7 @@ def ball_lists(faces, wanted, V, F, tri, plane, tlo, thi, sorder, slo, shi, ssiz
                     lo, hi = nlo[node], nhi[node]
                     if lo[0] > hi[0]:
                         continue
-                    top = min(_heights(lo, hi, sx, sy, sz, off)[0], _oriented_heights(axes, ext, node, sx, sy, sz, off)[0])
+                    top = min(box_heights(lo, hi, sx, sy, sz, off)[0], oriented_heights(axes, ext, node, sx, sy, sz, off)[0])
                     if not _may_reach(lo, hi, top, flo, fhi, ulo, uhi, radius, spare):
                         continue
                     if node < size:

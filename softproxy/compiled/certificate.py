@@ -135,7 +135,7 @@ def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_few(T, C, i, side, at, lists=T_CLEAR):
+def face_few(T, C, i, side, at, lists=T_CLEAR):
     """Row i's list on `side` (`lists`: T_CLEAR, the triangles rising above its plane; T_BALL,
     those a ball resting on it reaches), copied to C[C_FEW + at:]; the new count, or -1 when
     it has none (a concave patch)."""
@@ -210,7 +210,7 @@ def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
     dot0 = nx * T[hint, T_N] + ny * T[hint, T_N + 1] + nz * T[hint, T_N + 2]
     side0 = 1.0 if dot0 >= 0.0 else -1.0
     if feature == FACE:
-        return _face_few(T, C, hint, side0, 0)
+        return face_few(T, C, hint, side0, 0)
     if feature >= VERTEX_A:
         return _vertex_few(S, T, C, k, hint, feature, nx, ny, nz)
     other = int(T[hint, T_ADJ + feature - EDGE_AB])
@@ -219,10 +219,10 @@ def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
     side1 = _convex_edge(T, hint, other, nx, ny, nz, side0, dot0)
     if side1 == 0.0:
         return -1
-    m = _face_few(T, C, hint, side0, 0)
+    m = face_few(T, C, hint, side0, 0)
     if m < 0:
         return -1
-    return _face_few(T, C, other, side1, m)
+    return face_few(T, C, other, side1, m)
 
 
 # ---------------------------------------------------------------------------------------
@@ -506,7 +506,7 @@ def _fill_point_frames(order, size, V, N, axes, ext):
 
 
 @njit(cache=True, error_model="numpy")
-def _oriented_heights(axes, ext, node, nx, ny, nz, off):
+def oriented_heights(axes, ext, node, nx, ny, nz, off):
     """The highest and lowest points (m) over the plane n·x = off of a node's oriented box."""
     top = -off
     bottom = -off
@@ -519,7 +519,7 @@ def _oriented_heights(axes, ext, node, nx, ny, nz, off):
 
 
 @njit(cache=True, error_model="numpy")
-def _gap2(lo, hi, qlo, qhi):
+def box_gap2(lo, hi, qlo, qhi):
     """Squared distance (m²) between box lo..hi and box qlo..qhi (a point: qlo = qhi)."""
     g = 0.0
     for k in range(3):
@@ -529,7 +529,7 @@ def _gap2(lo, hi, qlo, qhi):
 
 
 @njit(cache=True, error_model="numpy")
-def _heights(lo, hi, nx, ny, nz, off):
+def box_heights(lo, hi, nx, ny, nz, off):
     """The highest and lowest points (m) of box lo..hi over the plane n·x = off."""
     top = -off
     bottom = -off
@@ -547,7 +547,7 @@ def _heights(lo, hi, nx, ny, nz, off):
 def _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
     """Whether triangle t may come within reach (m) of a face of box qlo..qhi and bounding
     ball (c, ri): both its box and its ball do."""
-    if _gap2(tlo[t], thi[t], qlo, qhi) > reach * reach:
+    if box_gap2(tlo[t], thi[t], qlo, qhi) > reach * reach:
         return False
     ex, ey, ez = centre[t, 0] - cx, centre[t, 1] - cy, centre[t, 2] - cz
     return math.sqrt(ex * ex + ey * ey + ez * ez) - rho[t] - ri <= reach
@@ -616,14 +616,14 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
                 sp -= 1
                 node = stack[sp]
                 lo, hi = nlo[node], nhi[node]
-                if lo[0] > hi[0] or _gap2(lo, hi, qlo, qhi) > limit2:
+                if lo[0] > hi[0] or box_gap2(lo, hi, qlo, qhi) > limit2:
                     continue
-                top, bottom = _heights(lo, hi, nx, ny, nz, off)
+                top, bottom = box_heights(lo, hi, nx, ny, nz, off)
                 if tree == 1:
-                    t2, b2 = _oriented_heights(laxes, lext, node, nx, ny, nz, off)
+                    t2, b2 = oriented_heights(laxes, lext, node, nx, ny, nz, off)
                     a = apex[node]
                     if a >= 0:  # the rest's boxes, and the apex
-                        t3, b3 = _heights(alo[node], ahi[node], nx, ny, nz, off)
+                        t3, b3 = box_heights(alo[node], ahi[node], nx, ny, nz, off)
                         h = nx * V[a, 0] + ny * V[a, 1] + nz * V[a, 2] - off
                         t2, b2 = max(min(t2, t3), h), min(max(b2, b3), h)
                     top, bottom = min(top, t2), max(bottom, b2)
@@ -631,7 +631,7 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
                     continue
                 if node < size:
                     a, b = 2 * node, 2 * node + 1
-                    if _gap2(nlo[a], nhi[a], qlo, qhi) < _gap2(nlo[b], nhi[b], qlo, qhi):
+                    if box_gap2(nlo[a], nhi[a], qlo, qhi) < box_gap2(nlo[b], nhi[b], qlo, qhi):
                         a, b = b, a
                     stack[sp] = a      # the nearer child last: walked first (a concave side ends sooner)
                     stack[sp + 1] = b
@@ -766,7 +766,7 @@ def _long_near(w, v, p, F, fan_start, fan, longest, long_edge, tlo, thi, centre,
         t = fan[f]
         if longest[t] <= long_edge or F[t, 0] == v or F[t, 1] == v or F[t, 2] == v:
             continue
-        if _gap2(tlo[t], thi[t], p, p) > reach * reach:
+        if box_gap2(tlo[t], thi[t], p, p) > reach * reach:
             continue
         ex, ey, ez = centre[t, 0] - p[0], centre[t, 1] - p[1], centre[t, 2] - p[2]
         if math.sqrt(ex * ex + ey * ey + ez * ez) - rho[t] <= reach:
@@ -825,22 +825,22 @@ def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho,
         leaves = 0
         # nearest node first (a heap of those waiting, by -gap²): the table fills with the
         # nearest vertices, whose sin β leaves out the rest soonest
-        w_count = heap_offer(gaps, waiting, 0, room, -_gap2(vlo[1], vhi[1], p, p), 1)
+        w_count = heap_offer(gaps, waiting, 0, room, -box_gap2(vlo[1], vhi[1], p, p), 1)
         while w_count > 0:
             if m == keep and hs[0] < DEAD_SINE:
                 leaves = BUDGET + 1  # already a table no query can pass: stop here
                 break
             _, node, w_count = heap_pop(gaps, waiting, w_count)
             lo, hi = vlo[node], vhi[node]
-            if lo[0] > hi[0] or _gap2(rlo[node], rhi[node], p, p) > reach2:
+            if lo[0] > hi[0] or box_gap2(rlo[node], rhi[node], p, p) > reach2:
                 continue
             if m == keep and _least_sine(lo, hi, px, py, pz, ax, ay, az, av,
-                                         _oriented_heights(vaxes, vext, node, ax, ay, az, av)[0]) >= hs[0]:
+                                         oriented_heights(vaxes, vext, node, ax, ay, az, av)[0]) >= hs[0]:
                 continue
             if node < vsize:
                 for child in range(2 * node, 2 * node + 2):
-                    if vlo[child, 0] <= vhi[child, 0] and _gap2(rlo[child], rhi[child], p, p) <= reach2:
-                        w_count = heap_offer(gaps, waiting, w_count, room, -_gap2(vlo[child], vhi[child], p, p), child)
+                    if vlo[child, 0] <= vhi[child, 0] and box_gap2(rlo[child], rhi[child], p, p) <= reach2:
+                        w_count = heap_offer(gaps, waiting, w_count, room, -box_gap2(vlo[child], vhi[child], p, p), child)
                 continue
             leaves += 1
             if leaves > BUDGET:
@@ -850,8 +850,8 @@ def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho,
                 w = vorder[item]
                 if mark[w] == stamp:
                     continue
-                near = _gap2(V[w], V[w], p, p) <= vreach2
-                if not near and _gap2(wlo[item], whi[item], p, p) > reach2:
+                near = box_gap2(V[w], V[w], p, p) <= vreach2
+                if not near and box_gap2(wlo[item], whi[item], p, p) > reach2:
                     continue
                 s = _sine(w, V, px, py, pz, ax, ay, az)
                 if m == keep and s >= hs[0]:

@@ -14,7 +14,7 @@ touched body gets -F at the contact point and -M·n. The device's twist α_s is 
 finger's own axis, from the fingertip back toward the hand: +n when it presses straight on.
 `tick` runs every finger of a servo tick in one call: each finger's update (or hold, without
 a usable sample), its wrench on the touched body (`push`; `write_wrenches` puts them in
-MuJoCo), and what each device finger is sent, through `softproxy.device_guard.guard_wrench`.
+MuJoCo), and what each device finger is sent, through `softproxy.compiled.guard.guard_wrench`.
 
 These kernels are the only implementation: `SoftFingerProxy` and `TorsionalFriction` are
 views of a finger record (`layout.FINGER`, `f` here) that call the `*_row` entries, `World`
@@ -27,12 +27,11 @@ import math
 
 from numba import njit
 
-from softproxy import device_guard
 from softproxy.compiled import coupling, godobject, passivity
 from softproxy.compiled.finite import finite
+from softproxy.compiled.guard import P_MAX, guard_wrench
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_SPIN, RESTICK_TRAVEL, restick_travel
 from softproxy.compiled.shapes import shape_distance, shape_to_world
-from softproxy.fingertip import P_MAX
 
 SPIKE_PATIENCE = 3
 """Consecutive ticks a position jump is held back as a spike before it is believed."""
@@ -432,14 +431,11 @@ def write_wrenches(xfrc, xipos, wrench, bodies, counts):
     counts[0] = 0
 
 
-guard_wrench = njit(error_model="numpy")(device_guard.guard_wrench)  # compiled into its callers, cached with them
-
-
 @njit(cache=True, error_model="numpy")
 def _clamp_for_device(f, safe, fmax, tmax):
     """What the device is sent for this finger, into its sent_ fields: zero on the watchdog's
     zero-force tick (`safe`) or when the sample was not used, otherwise the wrench through
-    `device_guard.guard_wrench` (finite, within the finger's and the device's clamps). False
+    `guard.guard_wrench` (finite, within the finger's and the device's clamps). False
     when the guard refused the wrench (not finite, or limits that are not numbers)."""
     good = True
     if safe or not f.valid:

@@ -76,7 +76,7 @@ from numba import njit
 
 from softproxy.compiled.ball import BALL_SLACK
 from softproxy.compiled.certificate import (
-    ABOVE_TOL, LEAF, _face_few, certificate_tables, heap_offer, heap_pop, node_frames, static_clear,
+    ABOVE_TOL, LEAF, face_few, certificate_tables, heap_offer, heap_pop, node_frames, static_clear,
 )
 from softproxy.compiled.finite import finite
 from softproxy.compiled.layout import (
@@ -956,7 +956,7 @@ def _ball_few(S, T, C, k, i, cx, cy, cz, rho):
     nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
     if nx * (cx - T[i, 0]) + ny * (cy - T[i, 1]) + nz * (cz - T[i, 2]) < 0.0:
         nx, ny, nz, side = -nx, -ny, -nz, -1.0
-    m = _face_few(T, C, i, side, 0, T_BALL)
+    m = face_few(T, C, i, side, 0, T_BALL)
     if m < 0 or not _ball_holds(T, i, nx, ny, nz, radius, cx, cy, cz, rho):
         return -1, nx, ny, nz
     return m, nx, ny, nz
