@@ -3,7 +3,9 @@ writes accepts every shipped scene, profile and [device] table and refuses malfo
 the declarations agree with the modules that use them; errors are one line with the fix."""
 
 import copy
+import functools
 import json
+import operator
 import tomllib
 
 import jsonschema
@@ -54,11 +56,9 @@ def test_the_written_schema_accepts_every_shipped_profile(written, path):
 
 
 def _mutated(doc, path, value):
+    """A deep copy of `doc` with the value at `path` (keys and indices) set."""
     out = copy.deepcopy(doc)
-    node = out
-    for key in path[:-1]:
-        node = node[key]
-    node[path[-1]] = value
+    functools.reduce(operator.getitem, path[:-1], out)[path[-1]] = value
     return out
 
 
@@ -114,27 +114,22 @@ def _dump(doc: dict) -> str:
             return "[" + ", ".join(value(x) for x in v) + "]"
         return repr(v)
 
-    lines = []
-    for name, table in doc.items():
-        if isinstance(table, list) and table and all(isinstance(t, dict) for t in table):
-            for t in table:
-                lines.append(f"[[{name}]]")
-                lines += [f"{k} = {value(x)}" for k, x in t.items() if not _is_tables(x)]
-                for k, x in t.items():
-                    if _is_tables(x):
-                        for sub in x:
-                            lines.append(f"[[{name}.{k}]]")
-                            lines += [f"{kk} = {value(xx)}" for kk, xx in sub.items()]
-        elif isinstance(table, dict):
-            lines.append(f"[{name}]")
-            lines += [f"{k} = {value(x)}" for k, x in table.items() if not _is_tables(x)]
-            for k, x in table.items():
-                if _is_tables(x):
-                    for sub in x:
-                        lines.append(f"[[{name}.{k}]]")
-                        lines += [f"{kk} = {value(xx)}" for kk, xx in sub.items()]
-        else:
-            lines.insert(0, f"{name} = {value(table)}")
+    def table(header: str, name: str, t: dict) -> list[str]:
+        """A table's header, its values, then its arrays of tables ([[name.key]])."""
+        lines = [header] + [f"{k} = {value(x)}" for k, x in t.items() if not _is_tables(x)]
+        for k, x in t.items():
+            if _is_tables(x):
+                for sub in x:
+                    lines += table(f"[[{name}.{k}]]", f"{name}.{k}", sub)
+        return lines
+
+    lines = [f"{name} = {value(t)}" for name, t in doc.items() if not isinstance(t, dict) and not _is_tables(t)]
+    for name, t in doc.items():
+        if _is_tables(t):
+            for one in t:
+                lines += table(f"[[{name}]]", name, one)
+        elif isinstance(t, dict):
+            lines += table(f"[{name}]", name, t)
     return "\n".join(lines) + "\n"
 
 
