@@ -29,8 +29,10 @@ import numpy as np
 from numba import njit, types
 
 from softproxy import device_kernel as dk
-from softproxy.device import DeviceError, DeviceSample
+from softproxy.device import DeviceError
 from softproxy.recording import dropped_error, load_recording, replay_error
+
+from .kernel_device import I_CLOSED, KernelDevice
 
 NAME = "replay device"
 EMPTY = dk.DEVICE_KINDS  # the recording holds no samples
@@ -38,7 +40,7 @@ DROPPED = dk.DEVICE_KINDS + 1  # argument: the read the recorder dropped
 FAILED = dk.DEVICE_KINDS + 2  # argument: the record of a read the recorded device failed on
 
 # ints (int64): the state of the replay
-I_CLOSED, I_READS, I_NEXT, I_RECORDS, I_RECORDED_READS, I_FINGERS = range(6)
+I_READS, I_NEXT, I_RECORDS, I_RECORDED_READS, I_FINGERS = range(1, 6)  # after I_CLOSED (0)
 
 
 @njit(cache=True)
@@ -118,8 +120,12 @@ def _cfuncs():
     return dk.build_cfuncs(_read_c, _send_c)
 
 
-class ReplayDevice:
+class ReplayDevice(KernelDevice):
     """A device playing back a softproxy recording (format in `softproxy.recording`)."""
+
+    _read_kernel = staticmethod(_read)
+    _cfuncs = staticmethod(_cfuncs)
+    compiled_io = KernelDevice.compiled_io  # declared beside send and the limits it belongs with (servo._compiled_io)
 
     max_force = 1e6  # a replay renders nothing: the largest limit a device may declare (N, N·m),
     max_torque = 1e6  # so nothing the engine computes is clamped
@@ -156,14 +162,6 @@ class ReplayDevice:
         """Reads made so far (each one plays the recorded read of that number)."""
         return int(self._ints[I_READS])
 
-    @property
-    def closed(self) -> bool:
-        return bool(self._ints[I_CLOSED])
-
-    @closed.setter
-    def closed(self, value: bool) -> None:
-        self._ints[I_CLOSED] = bool(value)
-
     @classmethod
     def from_argument(cls, argument: str, scene=None) -> "ReplayDevice":
         """`--device replay:FILE`: the recording's path."""
@@ -177,18 +175,12 @@ class ReplayDevice:
             raise ValueError(f"{source}: device.path must name the recording file, got {path!r}")
         return cls(path)
 
-    def read(self, t: float, samples: list[DeviceSample]) -> None:
-        code = _read(t, *self._arrays)
-        if code:
-            raise self._error_of(code)
-        self._buffer.copy_into(samples)
-
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
         if _send(self._ints, finger):
             raise IndexError(self.read_error(dk.FINGER))
 
-    def close(self) -> None:
-        self.closed = True
+    def _raise(self, code: int) -> None:
+        raise self._error_of(code)
 
     def _error_of(self, code: int) -> DeviceError:
         kind, argument = dk.split_code(code)
@@ -203,10 +195,3 @@ class ReplayDevice:
     def read_error(self, code: int) -> str:
         """The one-line message for an error code of read or send."""
         return str(self._error_of(code))
-
-    def compiled_io(self) -> dk.CompiledIO | None:
-        """read and send as cfuncs over this replay's state (softproxy.device_kernel); None
-        under NUMBA_DISABLE_JIT=1."""
-        if not dk.JIT:
-            return None
-        return dk.device_io(_cfuncs(), self._arrays, self.fingers, self.read_error)

@@ -33,7 +33,9 @@ import numpy as np
 from numba import njit, types
 
 from softproxy import device_kernel as dk
-from softproxy.device import DeviceError, DeviceSample
+from softproxy.device import DeviceError
+
+from .kernel_device import I_CLOSED, KernelDevice
 
 _CONFIG_KEYS = {"type", "noise_m", "noise_rad", "latency_s", "quantum_m", "quantum_rad",
                 "max_force_N", "max_torque_Nm", "seed", "finger", "faults"}
@@ -44,7 +46,7 @@ STALL = dk.DEVICE_KINDS  # the error kind, and code, of a stalled read
 NAME = "simulated device"
 
 # The state arrays. ints (int64): flags, counters, and per finger its keyframe rows in `track`.
-I_CLOSED, I_SENDS, I_NAN_SENDS = 0, 1, 2
+I_SENDS, I_NAN_SENDS = 1, 2  # after I_CLOSED (0)
 I_INJECTED = 3  # one counter per fault kind, in FAULT_KINDS order
 I_FINGERS = 7
 I_TRACKS = 8  # per finger: first row in track, number of keyframes, segment the last read was in
@@ -269,8 +271,13 @@ def _setting_property(index: int, doc: str) -> property:
     return property(lambda self: float(self._floats[index]), doc=doc)
 
 
-class SimulatedDevice:
-    """A scripted multi-finger device implementing the `softproxy.device.Device` protocol."""
+class SimulatedDevice(KernelDevice):
+    """A scripted multi-finger device implementing the `softproxy.device.Device` protocol: `read`
+    fills samples[i] with finger i's pose as scripted at t - latency_s, plus sensor effects."""
+
+    _read_kernel = staticmethod(_read)
+    _cfuncs = staticmethod(_cfuncs)
+    compiled_io = KernelDevice.compiled_io  # declared beside send and the limits it belongs with (servo._compiled_io)
 
     def __init__(self, keyframes, *, noise_m: float = 0.0, noise_rad: float = 0.0, latency_s: float = 0.0,
                  quantum_m: float = 0.0, quantum_rad: float = 0.0, max_force: float = 20.0,
@@ -372,14 +379,6 @@ class SimulatedDevice:
         return [tuple(m) for m in w[:, 3:].tolist()]
 
     @property
-    def closed(self) -> bool:
-        return bool(self._ints[I_CLOSED])
-
-    @closed.setter
-    def closed(self, value: bool) -> None:
-        self._ints[I_CLOSED] = bool(value)
-
-    @property
     def duration(self) -> float:
         """Time of the last keyframe over all fingers (s)."""
         return self._duration
@@ -392,20 +391,10 @@ class SimulatedDevice:
             raise ValueError(f"{NAME}: read time must be a number, got {t!r}")
         return _pose(self._ints, self._track, finger, t)
 
-    def read(self, t: float, samples: list[DeviceSample]) -> None:
-        """Fill samples[i] with finger i's pose as scripted at t - latency_s, plus sensor effects."""
-        code = _read(t, *self._arrays)
-        if code:
-            self._raise(code)
-        self._buffer.copy_into(samples)
-
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
         """Render a force (N) and torque (N·m); the motor saturates at max_force / max_torque."""
         if _send(self._ints, self._floats, finger, fx, fy, fz, tx, ty, tz):
             raise IndexError(self.read_error(dk.FINGER))
-
-    def close(self) -> None:
-        self.closed = True
 
     def read_error(self, code: int) -> str:
         """The one-line message for an error code of read or send."""
@@ -421,14 +410,10 @@ class SimulatedDevice:
             raise ValueError(self.read_error(code))
         raise DeviceError(self.read_error(code))
 
-    def compiled_io(self) -> dk.CompiledIO | None:
-        """read and send as cfuncs over this device's state (softproxy.device_kernel); None
-        under NUMBA_DISABLE_JIT=1."""
-        if not dk.JIT:
-            return None
-        # the motor limits as the state the send kernel saturates at, read by the loop every tick
-        return dk.device_io(_cfuncs(), self._arrays, self.fingers, self.read_error, STALL, STALL_S,
-                            self._floats[F_MAX_FORCE:F_MAX_TORQUE + 1])
+    def _compiled_io_extras(self) -> tuple:
+        # a stall waits STALL_S; the motor limits are the state the send kernel saturates at,
+        # read by the loop every tick
+        return STALL, STALL_S, self._floats[F_MAX_FORCE:F_MAX_TORQUE + 1]
 
     @classmethod
     def from_config(cls, cfg: dict, *, source: str = "<config>") -> "SimulatedDevice":
