@@ -10,7 +10,6 @@ fake `hid` module (`PortModule`), so that `HidDevice.open` can reopen it by its 
 import io
 import json
 import math
-import struct
 from collections import deque
 
 import mujoco
@@ -30,7 +29,6 @@ from softproxy.devices.hid_profile import (
     load_profile,
     load_profiles,
     parse_output,
-    zero_output,
 )
 from softproxy.device import DeviceError, DeviceSample
 

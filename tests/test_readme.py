@@ -16,7 +16,8 @@ def test_embedding_example_runs(tmp_path):
     section = text.split("## Embedding", 1)[1]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     script = tmp_path / "example.py"
-    script.write_text(code + 'print(f"proxy z {float(finger.god.z)!r}; puck z {float(world.data.body(\'puck\').xpos[2])!r}")\n')
+    shown = 'print(f"proxy z {float(finger.god.z)!r}; puck z {float(world.data.body(\'puck\').xpos[2])!r}")\n'
+    script.write_text(code + shown)
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     force = float(re.search(r"pressing with ([0-9.]+) N", out.stdout).group(1))
