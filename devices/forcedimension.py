@@ -505,19 +505,9 @@ class ForceDimensionDevice(DeviceLifecycle, FaultRecovery):
             self._send(finger, fx, fy, fz, tx, ty, tz)
 
     def _send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
-        if isinstance(finger, bool) or not isinstance(finger, int) or not 0 <= finger < self.fingers:
-            raise DeviceError(f"{self.label} drives {self.fingers} finger(s), not finger {finger!r}")
-        if self.closed:
-            raise DeviceError(f"{self.label}: device is closed")
-        self.sends += 1
         w = (fx, fy, fz, tx, ty, tz)
-        try:
-            finite = all(math.isfinite(v) for v in w)
-        except TypeError:
-            finite = False
-        if not finite:
-            self.nan_sends += 1  # the engine promises never to send this; the motors get zero
-            w = (0.0,) * 6
+        if not self._count_send(finger, w):
+            w = (0.0,) * 6  # the motors get zero
         self._wrench[finger] = [float(v) for v in w]
         if self._await_fresh:  # failed, or back without a clean sample yet: no force
             if self._fault is not None:

@@ -614,17 +614,7 @@ class HidDevice(DeviceLifecycle, FaultRecovery):
             self._fresh_sample()
 
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
-        if finger != 0:
-            raise DeviceError(f"{self.label} drives one finger (0), not finger {finger!r}")
-        if self.closed:
-            raise DeviceError(f"{self.label}: device is closed")
-        self.sends += 1
-        try:
-            finite = all(math.isfinite(v) for v in (fx, fy, fz, tx, ty, tz))
-        except TypeError:
-            finite = False
-        if not finite:
-            self.nan_sends += 1  # the engine promises never to send this; the motors get zero
+        self._count_send(finger, (fx, fy, fz, tx, ty, tz))  # a NaN is never written: see build_output
         if self.profile.output is None:
             return  # input-only device: renders nothing
         if self._await_fresh:  # failed, or back but without a fresh sample yet: no force

@@ -1,8 +1,9 @@
 """What every device adapter does around its life: closed by `with`, closed at interpreter exit,
-and its counters as a dict.
+its counters as a dict, and the checks and counts every send starts with.
 
-`DeviceLifecycle` is a mixin for an adapter with `close()` (which never raises) and counter
-attributes named in its `STATS`. `OpenDevices` holds the adapters opened and not closed yet
+`DeviceLifecycle` is a mixin for an adapter with `close()` (which never raises), `label`,
+`fingers`, `closed`, and counter attributes named in its `STATS` (`sends` and `nan_sends`
+among them). `OpenDevices` holds the adapters opened and not closed yet
 (weakly: it keeps none open) and closes them at interpreter exit, when nothing else would
 write zero force to a device left open.
 """
@@ -10,7 +11,10 @@ write zero force to a device left open.
 from __future__ import annotations
 
 import atexit
+import math
 import weakref
+
+from softproxy.device import DeviceError
 
 
 class DeviceLifecycle:
@@ -28,6 +32,23 @@ class DeviceLifecycle:
     def stats(self) -> dict:
         """Counters of what the device did."""
         return {name: getattr(self, name) for name in self.STATS}
+
+    def _count_send(self, finger, components) -> bool:
+        """The start of every send: DeviceError for a finger the device does not drive or once
+        it is closed; counted in `sends`; False (counted in `nan_sends`) when a component is no
+        finite number, which the engine promises never to send: the motors get zero then."""
+        if isinstance(finger, bool) or not isinstance(finger, int) or not 0 <= finger < self.fingers:
+            raise DeviceError(f"{self.label} drives {self.fingers} finger(s) from 0, not finger {finger!r}")
+        if self.closed:
+            raise DeviceError(f"{self.label}: device is closed")
+        self.sends += 1
+        try:
+            finite = all(math.isfinite(v) for v in components)
+        except TypeError:
+            finite = False
+        if not finite:
+            self.nan_sends += 1
+        return finite
 
 
 class OpenDevices(weakref.WeakSet):

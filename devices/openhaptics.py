@@ -419,18 +419,8 @@ class OpenHapticsDevice(DeviceLifecycle, FaultRecovery):
         return True
 
     def send(self, finger: int, fx: float, fy: float, fz: float, tx: float, ty: float, tz: float) -> None:
-        if finger != 0:
-            raise DeviceError(f"{self.label} drives one finger (0), not finger {finger!r}")
-        if self.closed:
-            raise DeviceError(f"{self.label}: device is closed")
-        self.sends += 1
-        try:
-            finite = all(math.isfinite(v) for v in (fx, fy, fz))
-        except TypeError:
-            finite = False
-        if not finite:
-            self.nan_sends += 1  # the engine promises never to send this; the motors get zero
-            fx = fy = fz = 0.0
+        if not self._count_send(finger, (fx, fy, fz)):
+            fx = fy = fz = 0.0  # the motors get zero
         if self._fault is not None:
             raise DeviceError(self._fault)
         m = DEVICE_TO_ENGINE  # engine -> device: the transpose
