@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+from softproxy import schema
 from softproxy.input_error import must_be
 
 
@@ -50,10 +51,15 @@ def check_table(cfg, source: str) -> None:
 
 
 def check_type(cfg: dict, source: str, type_name: str, what: str = "") -> None:
-    """device.type, when given, must be `type_name` (`what`: words after it in the message)."""
+    """device.type, when given, must be `type_name` (`what`: words after it in the message); then
+    every field as `softproxy.schema.DEVICE_TABLES[type_name]` declares it (what depends on the
+    device, a limit within its own, is the adapter's to check)."""
     if cfg.get("type", type_name) != type_name:
         raise field_error(source, "device.type",
                           f"\"{type_name}\"{what} (this scene's [device] is for another device type)", cfg.get("type"))
+    table = schema.DEVICE_TABLES.get(type_name)
+    if table is not None:
+        schema.validate(table, {**cfg, "type": type_name}, source=source, path="device")
 
 
 def check_keys(cfg: dict, source: str, keys) -> None:

@@ -151,21 +151,23 @@ def count(description: str, *, low: int | None = None, high: int | None = None, 
 def _vector3(value):
     """Before the tuple check: a list or tuple of exactly 3 items."""
     if isinstance(value, (str, bytes, dict)):
-        raise PydanticCustomError("input", "[x, y, z]")
+        raise PydanticCustomError("input", "3 finite numbers [x, y, z]")
     try:
         items = tuple(value)
     except TypeError:
-        raise PydanticCustomError("input", "[x, y, z]") from None
+        raise PydanticCustomError("input", "3 finite numbers [x, y, z]") from None
     if len(items) != 3:
-        raise PydanticCustomError("input", "[x, y, z] (3 numbers)")
+        raise PydanticCustomError("input", "3 finite numbers [x, y, z]")
     return items
 
 
 def vector3(description: str, unit: str = "", *, low: float | None = None, high: float | None = None,
-            direction: bool = False, optional: bool = False):
-    """[x, y, z]: 3 finite numbers (each within [low, high]); `direction`: non-zero, made a unit vector."""
-    item_schema = {k: v for k, v in (("minimum", low), ("maximum", high)) if v is not None}
-    item = Annotated[float, BeforeValidator(_number), AfterValidator(_bound_check(low, high, unit, False, "", "")),
+            open_low: bool = False, direction: bool = False, optional: bool = False):
+    """[x, y, z]: 3 finite numbers (each within [low, high], (low, high] when open_low); `direction`:
+    non-zero, made a unit vector."""
+    item_schema = {k: v for k, v in (("exclusiveMinimum" if open_low else "minimum", low), ("maximum", high))
+                   if v is not None}
+    item = Annotated[float, BeforeValidator(_number), AfterValidator(_bound_check(low, high, unit, open_low, "", "")),
                      Field(json_schema_extra=item_schema)]
     checks: list = [BeforeValidator(_vector3)]
     if direction:
@@ -189,6 +191,17 @@ def _unit_vector(v):
 def choice(options, description: str):
     """One of `options` (strings)."""
     return Annotated[Literal[tuple(options)], Field(description=description)]
+
+
+def text(requirement: str, *, description: str = ""):
+    """A non-empty string; the error says `requirement` (what the string names)."""
+    def check(value):
+        if not (isinstance(value, str) and value.strip()):
+            raise PydanticCustomError("input", requirement)
+        return value
+
+    return Annotated[str, BeforeValidator(check), Field(description=description or requirement,
+                                                        json_schema_extra={"pattern": r"\S"})]
 
 
 Flag = Annotated[bool, Field(strict=True)]
@@ -220,7 +233,7 @@ def _path(prefix: str, loc) -> str:
     return text
 
 
-_UNION_TAGS = {"flag", "table", "sim", "hid", "forcedimension", "openhaptics", "replay"}
+_UNION_TAGS = {"flag", "table", "choice", "sim", "hid", "forcedimension", "openhaptics", "replay"}
 """Tags pydantic puts in an error's location inside a union (a channel's, a [device] table's type)."""
 
 
@@ -250,9 +263,13 @@ def one_line(exc: ValidationError, *, source: str = "", path: str = "") -> Input
         if not where:  # the file's own keys
             return InputError(f"{lead}unknown {ctx['what']} {ctx['unknown']}; expected some of {ctx['allowed']}")
         return InputError(f"{lead}{where} has unknown field(s) {ctx['unknown']}; expected some of {ctx['allowed']}")
+    if kind == "missing_field":
+        where = f"{where}.{ctx['field']}" if where else ctx["field"]
+        kind, ctx = "missing", {"hint": ctx.get("hint") or ""}
     if kind == "missing" or (kind == "too_short" and where in _REQUIRED):
         lead = f"{source}: " if source else ""
-        return InputError(f"{lead}{_REQUIRED.get(where, f'{where} is required')}")
+        hint = f": {ctx['hint']}" if ctx.get("hint") else ""
+        return InputError(f"{lead}{_REQUIRED.get(where, f'{where} is required{hint}')}")
     if kind == "cross_field":
         return must_be(where or ctx["field"], e["msg"], ctx["value"], source=source, hint=ctx.get("hint", ""))
     if kind in ("input", "bound"):
@@ -299,6 +316,9 @@ class Table(BaseModel):
             if unknown:
                 raise PydanticCustomError("unknown_fields", "unknown field(s)",
                                           {"unknown": unknown, "allowed": sorted(allowed), "what": cls.keys_are})
+            for name, f in cls.model_fields.items():
+                if f.is_required() and name not in data:  # named with what it is
+                    raise PydanticCustomError("missing_field", "required", {"field": name, "hint": f.description})
         return data
 
 
@@ -778,13 +798,13 @@ class HidDeviceTable(Table):
     """[device] of a HID device (`type = "hid"`), described by a profile."""
 
     type: Literal["hid"]
-    profile: Annotated[Name, Field(description="a HID profile's name (e.g. \"spacemouse\") or path")]
-    path: Optional[Name] = Field(None, description="the HID device path (`softproxy devices`); default: the first "
-                                 "device the profile matches")
+    profile: text("the name of a HID profile (e.g. \"spacemouse\") or a path to one")
+    path: Optional[text("a HID device path (a string, see `softproxy devices`)", description=(
+        "the HID device path (`softproxy devices`); default: the first device the profile matches"))] = None
     mode: Optional[choice(HID_MODES, "motion mode (default: the profile's)")] = None
     workspace_scale: WorkspaceScale = 1.0
     workspace_offset: WorkspaceOffset = (0.0, 0.0, 0.0)
-    workspace_half_m: vector3("rate mode: half the workspace box", "m", low=0.0) = (0.1, 0.1, 0.1)
+    workspace_half_m: vector3("rate mode: half the workspace box", "m", low=0.0, open_low=True) = (0.1, 0.1, 0.1)
     twist_limit_rad: quantity("rad", "rate mode: the twist is kept within ±this", low=0.0, open_low=True) = math.pi
     stale_ms: quantity("ms", "periodic devices: invalid after this long without a report (default: the profile's)",
                        low=0.0, optional=True) = None
@@ -798,7 +818,11 @@ class ForceDimensionDeviceTable(Table):
     type: Literal["forcedimension"]
     index: Optional[count("which connected device (give index or serial)", low=0)] = None
     serial: Optional[count("the device's serial number (give index or serial)", low=0)] = None
-    gripper: Union[Flag, Literal["auto", "on", "off"]] = Field("auto", description="the gripper as the twist")
+    gripper: Annotated[Union[Annotated[bool, Tag("flag")], Annotated[Literal["auto", "on", "off"], Tag("choice")]],
+                       Discriminator(lambda v: "flag" if isinstance(v, bool) else "choice" if v in ("auto", "on", "off")
+                                     else None, custom_error_type="input",
+                                     custom_error_message="true, false, \"auto\", \"on\" or \"off\"")] = Field(
+        "auto", description="the gripper turns the finger (true: \"on\", false: \"off\")")
     gripper_axis: choice(("x", "y", "z"), "the finger axis the gripper turns about") = "z"
     workspace_scale: WorkspaceScale = 1.0
     workspace_offset: WorkspaceOffset = (0.0, 0.0, 0.0)
@@ -813,7 +837,7 @@ class OpenHapticsDeviceTable(Table):
     """[device] of a 3D Systems Touch (`type = "openhaptics"`, the OpenHaptics SDK)."""
 
     type: Literal["openhaptics"]
-    device_name: Name = Field("Default Device", description="the device's name in Touch Setup")
+    device_name: text("the device's name in Touch Setup (e.g. \"Default Device\")") = "Default Device"
     workspace_scale: WorkspaceScale = 1.0
     workspace_offset: WorkspaceOffset = (0.0, 0.0, 0.0)
     max_force_N: quantity("N", "lowers the device's peak force (never raises it)", low=0.0, optional=True) = None
@@ -827,7 +851,7 @@ class ReplayDeviceTable(Table):
     """[device] that replays a recording (`type = "replay"`)."""
 
     type: Literal["replay"]
-    path: Annotated[Name, Field(description="the recording file (softproxy run --record)")]
+    path: text("the recording file's path (softproxy run --record)")
 
 
 DEVICE_TABLES = {"sim": SimDeviceTable, "hid": HidDeviceTable, "forcedimension": ForceDimensionDeviceTable,

@@ -853,15 +853,16 @@ def test_from_config(tmp_path):
 
 @pytest.mark.parametrize("cfg,message", [
     ({"type": "sim", "profile": "spacemouse"}, "s.toml: device.type must be \"hid\""),
-    ({"type": "hid"}, "s.toml: device.profile must be the name of a HID profile"),
+    ({"type": "hid"}, "s.toml: device.profile is required: the name of a HID profile"),
     ({"profile": "nope"}, "s.toml: device.profile: no HID profile named 'nope'"),
     ({"profile": "open_haptic", "mode": "rate"}, "s.toml: device.mode must be one of ['position']"),
     ({"profile": "spacemouse", "workspace_offset": [0, 0]}, "s.toml: device.workspace_offset must be 3 finite"),
-    ({"profile": "spacemouse", "workspace_half_m": [0.1, 0, 0.1]}, "s.toml: device.workspace_half_m must be 3"),
-    ({"profile": "spacemouse", "workspace_scale": math.inf}, "s.toml: device.workspace_scale must be a finite"),
+    ({"profile": "spacemouse", "workspace_half_m": [0.1, 0, 0.1]},
+     "s.toml: device.workspace_half_m[1] must be > 0 m, got 0"),
+    ({"profile": "spacemouse", "workspace_scale": math.inf}, "s.toml: device.workspace_scale must be finite, got inf"),
     ({"profile": "open_haptic", "max_force_N": 50.0}, "s.toml: device.max_force_N must be a finite number in [0, 5]"),
     ({"profile": "spacemouse", "max_torque_Nm": 0.1}, "s.toml: device.max_torque_Nm must be a finite number in [0, 0]"),
-    ({"profile": "spacemouse", "stale_ms": -1}, "s.toml: device.stale_ms must be a finite number >= 0"),
+    ({"profile": "spacemouse", "stale_ms": -1}, "s.toml: device.stale_ms must be >= 0 ms, got -1"),
     ({"profile": "spacemouse", "path": 3}, "s.toml: device.path must be a HID device path"),
     ({"profile": "spacemouse", "keyframes": []}, "s.toml: device has unknown field(s) ['keyframes']"),
     ("spacemouse", "s.toml: device must be a table"),
@@ -892,7 +893,7 @@ def test_from_argument_for_any_scene():
         HidDevice.from_argument("spacemouse,stale_ms=soon", None, transport=FakeHid())
     with pytest.raises(ValueError, match="device.workspace_offset must be 3 finite"):
         HidDevice.from_argument("spacemouse,workspace_offset=0:1", None, transport=FakeHid())
-    with pytest.raises(ValueError, match="device.profile must be the name"):
+    with pytest.raises(ValueError, match="device.profile is required: the name of a HID profile"):
         HidDevice.from_argument("", None, transport=FakeHid())
 
 

@@ -71,7 +71,7 @@ MALFORMED_SCENES = [
     (("finger", 0, "tactile"), {"cells": 100000}, ["finger[0].tactile.cells must be at most 64, got 100000"]),
     (("scene", "rate_hz"), 1, ["scene.rate_hz must be between 10 and 100000 Hz", "1 kHz is 1000"]),
     (("haptics",), {"mesh_surface": "smooth"}, ["haptics.mesh_surface must be one of 'true', 'hull'"]),
-    (("measure",), {"object": "box", "axis": [0, 0]}, ["measure.axis must be [x, y, z] (3 numbers), got [0, 0]"]),
+    (("measure",), {"object": "box", "axis": [0, 0]}, ["measure.axis must be 3 finite numbers [x, y, z], got [0, 0]"]),
     (("finger",), [], ["at least one [[finger]] table is required"]),
 ]
 
