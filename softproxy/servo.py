@@ -40,6 +40,7 @@ from softproxy import termination
 from softproxy.compiled import coupling, native
 from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
+from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, ShapeTables, StatRings
 from softproxy.device import Device, check_device, DeviceSample
 from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
@@ -285,34 +286,32 @@ class ServoLoop:
         self.state[0].audit = bool(on)
 
     # -- the compiled pieces ---------------------------------------------------------------
-    def _world_args(self) -> tuple:
-        s = self.world.shapes
-        return (s.S, s.T, s.C, s.xpos, s.xmat, s.cvel, self.rows.F, self.rows.near, self.rows.scratch,
-                self.world.wrench, self.world.bodies, self.world.counts, self.world.data.qvel, self.world.data.qacc,
-                self._coupling)
-
     def _compile(self) -> None:
         """Resolve (compile, or load from numba's cache) the tick's kernels now, not inside the
-        first tick, and keep their entry points (`softproxy.compiled.dispatch`)."""
-        world = self.world
-        m, d = (np.uintp(a) for a in native.addresses(world.model, world.data))
+        first tick, and keep their entry points (`softproxy.compiled.dispatch`) and the bundles
+        of arrays they take (`softproxy.compiled.layout`: built once, the same arrays every tick)."""
+        world, shapes, data = self.world, self.world.shapes, self.world.data
+        m, d = (np.uintp(a) for a in native.addresses(world.model, data))
+        self._mj = MjViews(m, d, shapes.xpos, shapes.xmat, shapes.cvel, data.qvel, data.qacc, data.xfrc_applied,
+                           data.xipos)
+        self._shapes = ShapeTables(shapes.S, shapes.T, shapes.C)
+        self._fingers = FingerTables(self.rows.F, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
+                                     world.bodies, world.counts, self._coupling)
         stats = self.stats
-        samples = self._sample_rows.array.view(np.recarray)  # fields by attribute, interpreted too
-        self._begin_args = (self.state, m, d, samples, True, self._device_of) + self._world_args()
-        self._end_args = (self.state, m, d, world.data.xfrc_applied, world.data.xipos, world.wrench, world.bodies,
-                          world.counts, stats.duration, stats.period, stats.counters)
+        self._stats = StatRings(stats.duration, stats.period, stats.counters)
+        self._samples = self._sample_rows.array.view(np.recarray)  # fields by attribute, interpreted too
         with_names = "the servo tick"
-        self._begin = entry(kernel.begin_tick, self._begin_args, with_names)
-        self._end = entry(kernel.end_tick, self._end_args + (0,), with_names)
+        self._begin = entry(kernel.begin_tick, (self.state, self._samples, True, self._mj, self._shapes,
+                                                self._fingers), with_names)
+        self._end = entry(kernel.end_tick, (self.state, self._mj, self._fingers, self._stats, 0), with_names)
         self._pace = entry(kernel.pace, (self.state,), with_names)
         self._paced_done = entry(kernel.paced_done, (self.state, stats.counters), with_names)
         if self.io is not None:
             io = self.io
             limits = io.limits if io.limits is not None else self._limit_array
-            self._block_args = ((self.state, m, d, io.read, io.send, io.address, samples,
-                                 np.uintp(samples.ctypes.data), limits, self._device_of) + self._world_args()
-                                + self._end_args[3:5] + self._end_args[8:])
-            self._block = entry(kernel.run_ticks, self._block_args + (1, False), with_names)
+            self._device_io = DeviceIO(io.address, self._samples, np.uintp(self._samples.ctypes.data), limits)
+            self._block = entry(kernel.run_ticks, (self.state, io.read, io.send, self._device_io, self._mj,
+                                                   self._shapes, self._fingers, self._stats, 1, False), with_names)
 
     @property
     def compiled_block(self) -> bool:
@@ -397,8 +396,8 @@ class ServoLoop:
     def _run_block(self, n: int, paced: bool) -> int:
         """Up to n compiled ticks in one call (GIL released); then the device's error messages
         and its last samples as DeviceSamples. Returns the ticks run."""
-        args = self._block_args
-        done = self._block(*args, n, paced)
+        done = self._block(self.state, self.io.read, self.io.send, self._device_io, self._mj, self._shapes,
+                           self._fingers, self._stats, n, paced)
         self._after_block()
         return done
 
@@ -426,12 +425,11 @@ class ServoLoop:
             ok = False
         if ok:
             self._take_samples()
-        args = self._begin_args
-        self._begin(args[0], args[1], args[2], args[3], ok, *args[5:])
+        self._begin(self.state, self._samples, ok, self._mj, self._shapes, self._fingers)
         self._sends()
         for ch in self.sensors:
             ch.tick(self)
-        self._end(*self._end_args, start)
+        self._end(self.state, self._mj, self._fingers, self._stats, start)
 
     def _take_samples(self) -> None:
         """The device's DeviceSamples into the SAMPLE rows the tick reads; a sample that is not

@@ -448,14 +448,14 @@ def _clamp_for_device(f, safe, fmax, tmax):
 
 
 @njit(cache=True, error_model="numpy")
-def tick(m, d, qvel, qacc, S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, fmax, tmax, scratch, wrench, bodies,
-         counts, ws, control):
-    """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2.
+def tick(mj, shapes, fingers, dt, safe, check, fmax, tmax, control):
+    """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2 (`mj`,
+    `shapes`, `fingers`: MjViews, ShapeTables, FingerTables of `softproxy.compiled.layout`).
 
     Each finger record holds this tick's device sample in its in_ fields; a sample not valid
     (or from a failed read) or not finite holds the finger. The fingers' wrenches on moving
     bodies are then solved implicitly with the bodies' answer (`coupling.implicit`, over the
-    mjModel/mjData at `m`/`d`, their qvel and qacc; `ws` its workspace), and each finger's
+    mjModel/mjData, their qvel and qacc; `ws` its workspace), and each finger's
     energy observed, and with `control` the excess dissipated (`passivity`). Adds the fingers'
     wrenches to `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each
     device finger is sent into its sent_ fields. `bodies`: rows FIXED (welded to the world),
@@ -465,6 +465,10 @@ def tick(m, d, qvel, qacc, S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, 
     not finite (zeroed before they reached a body or the device). The touched body gets the
     reaction of exactly the wrench the device is sent, after every clamp (the finger's, the
     device's, the soft start's), so both sides of the coupling exchange the same energy."""
+    S, T, C = shapes.S, shapes.T, shapes.C
+    xpos, xmat, cvel = mj.xpos, mj.xmat, mj.cvel
+    F, near, scratch, wrench, bodies, counts = (fingers.F, fingers.near, fingers.scratch, fingers.wrench,
+                                                fingers.bodies, fingers.counts)
     refused = 0
     unsafe = 0
     for i in range(F.shape[0]):
@@ -487,7 +491,7 @@ def tick(m, d, qvel, qacc, S, T, C, xpos, xmat, cvel, F, near, dt, safe, check, 
             audit(S, T, C, xpos, xmat, f)
         passivity.observe(f)  # last tick's sends times this tick's motion
     if not safe:
-        coupling.implicit(m, d, qvel, qacc, F, bodies[FIXED], dt, ws)
+        coupling.implicit(mj.m, mj.d, mj.qvel, mj.qacc, F, bodies[FIXED], dt, fingers.ws)
     for i in range(F.shape[0]):
         f = F[i]
         if control and not safe:

@@ -8,7 +8,26 @@ MuJoCo's `geom_xpos` (ngeom × 3) and `geom_xmat` (ngeom × 9, row-major: r00 r0
 A mesh's triangles and grid are flat float tables (T, C) with named column offsets.
 """
 
+from collections import namedtuple
+
 import numpy as np
+
+# -- what a tick's kernels take: four bundles of arrays, built once per loop ------------------
+MjViews = namedtuple("MjViews", "m d xpos xmat cvel qvel qacc xfrc xipos")
+"""MuJoCo as the tick reads and writes it: the mjModel and mjData addresses (for mj_step1/2
+and the body response) and views of mjData: geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9),
+cvel (nbody × 6), qvel, qacc, xfrc_applied (nbody × 6, N and N·m), xipos (nbody × 3, m)."""
+ShapeTables = namedtuple("ShapeTables", "S T C")
+"""The shapes: their SHAPE records, the mesh triangle table T and the mesh grids C."""
+FingerTables = namedtuple("FingerTables", "F near device_of scratch wrench bodies counts ws")
+"""The fingers: their FINGER records, each one's near shapes, the device sample row each
+reads, the god-object's scratch, the body wrenches with their body lists and counts, and the
+implicit coupling's workspace (`softproxy.compiled.coupling`)."""
+DeviceIO = namedtuple("DeviceIO", "io samples samples_at limits")
+"""A compiled device: the address of its state, its SAMPLE rows (and their address), its
+[max_force (N), max_torque (N·m)], read every tick."""
+StatRings = namedtuple("StatRings", "durations periods counters")
+"""The tick statistics' ring buffers (s) and counters [count, misses] (`softproxy.servo.TickStats`)."""
 
 GEOM_PLANE = 0
 GEOM_SPHERE = 2

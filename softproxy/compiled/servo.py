@@ -89,14 +89,15 @@ def paced_done(loop, counters):
 
 
 @njit(cache=True, error_model="numpy")
-def begin_tick(loop, m, d, samples, ok, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch, wrench, bodies,
-               counts, qvel, qacc, ws):
+def begin_tick(loop, samples, ok, mj, shapes, fingers):
     """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
-    failed) into the finger records, mj_step1 on the mjModel/mjData at `m`/`d`, then every
-    finger (`finger.tick`). A sample the device marked not valid is an invalid_sample fault."""
+    failed) into the finger records, mj_step1, then every finger (`finger.tick`). A sample
+    the device marked not valid is an invalid_sample fault. `mj`, `shapes`, `fingers`: the
+    bundles of `softproxy.compiled.layout` (MjViews, ShapeTables, FingerTables)."""
     L = loop[0]
     safe = L.safe_next
     L.safe_next = False
+    F, device_of = fingers.F, fingers.device_of
     for i in range(F.shape[0]):
         f = F[i]
         if not ok:
@@ -110,23 +111,22 @@ def begin_tick(loop, m, d, samples, ok, device_of, S, T, C, xpos, xmat, cvel, F,
         f.in_x, f.in_y, f.in_z, f.in_twist = s.x, s.y, s.z, s.twist
         f.in_qw, f.in_qx, f.in_qy, f.in_qz = s.qw, s.qx, s.qy, s.qz
         f.in_valid = True
-    mj_step1(m, d)
+    mj_step1(mj.m, mj.d)
     _stage(L, STEP1_STAGE)
-    refused, unsafe = finger.tick(m, d, qvel, qacc, S, T, C, xpos, xmat, cvel, F, near, L.period, safe, L.audit,
-                                  L.fmax, L.tmax, scratch, wrench, bodies, counts, ws, L.passivity)
+    refused, unsafe = finger.tick(mj, shapes, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity)
     L.invalid_sample += refused
     L.unsafe_output += unsafe
     _stage(L, FINGERS_STAGE)
 
 
 @njit(cache=True, error_model="numpy")
-def end_tick(loop, m, d, xfrc, xipos, wrench, bodies, counts, durations, periods, counters, start_ns):
+def end_tick(loop, mj, fingers, stats, start_ns):
     """The tick after the sends: the wrenches into xfrc_applied, mj_step2, loop time, and the
     tick's duration since `start_ns` into the statistics; an overrun (while watching) makes
     the next tick render zero."""
     L = loop[0]
-    finger.write_wrenches(xfrc, xipos, wrench, bodies, counts)
-    mj_step2(m, d)
+    finger.write_wrenches(mj.xfrc, mj.xipos, fingers.wrench, fingers.bodies, fingers.counts)
+    mj_step2(mj.m, mj.d)
     _stage(L, STEP2_STAGE)
     L.t += L.period
     L.ticks += 1
@@ -134,21 +134,22 @@ def end_tick(loop, m, d, xfrc, xipos, wrench, bodies, counts, durations, periods
     if L.watching and elapsed > L.overrun_ns:
         L.overrun += 1
         L.safe_next = True
-    k = counters[COUNT] % durations.shape[0]
-    durations[k] = elapsed * 1e-9
-    periods[k] = L.period
+    counters = stats.counters
+    k = counters[COUNT] % stats.durations.shape[0]
+    stats.durations[k] = elapsed * 1e-9
+    stats.periods[k] = L.period
     counters[COUNT] += 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_ticks(loop, m, d, read, send, io, samples, samples_at, limits, device_of, S, T, C, xpos, xmat, cvel, F, near,
-              scratch, wrench, bodies, counts, qvel, qacc, ws, xfrc, xipos, durations, periods, counters, n, paced):
+def run_ticks(loop, read, send, device, mj, shapes, fingers, stats, n, paced):
     """Up to n ticks (fewer if `L.stop` is set), paced in real time or not; returns how many
-    ran. `read`/`send`: the device's cfuncs over its state at `io`; `samples` its SAMPLE rows
-    (at address `samples_at`); `limits` its [max_force (N), max_torque (N·m)], read every
-    tick. A read that fails renders no finger (each holds) and counts a device_error; one
-    that stalled waits the device's stall time first."""
+    ran. `read`/`send`: the device's cfuncs over its `device` (DeviceIO: its state, SAMPLE
+    rows and limits, read every tick). A read that fails renders no finger (each holds) and
+    counts a device_error; one that stalled waits the device's stall time first."""
     L = loop[0]
+    samples, limits, io = device.samples, device.limits, device.io
+    F, device_of = fingers.F, fingers.device_of
     rows = samples.shape[0]
     done = 0
     while done < n and not L.stop and not L.halt:
@@ -156,7 +157,7 @@ def run_ticks(loop, m, d, read, send, io, samples, samples_at, limits, device_of
             pace(loop)
         start = monotonic_ns()
         L.mark = start
-        code = read(io, L.t, samples_at, rows)
+        code = read(io, L.t, device.samples_at, rows)
         L.fmax = limits[0]  # a device that derates mid-run is obeyed from this tick on
         L.tmax = limits[1]
         _stage(L, READ_STAGE)
@@ -165,8 +166,7 @@ def run_ticks(loop, m, d, read, send, io, samples, samples_at, limits, device_of
             L.read_code = code
             if code == L.stall_code:
                 sleep_until_ns(start + L.stall_ns)
-        begin_tick(loop, m, d, samples, code == 0, device_of, S, T, C, xpos, xmat, cvel, F, near, scratch, wrench,
-                   bodies, counts, qvel, qacc, ws)
+        begin_tick(loop, samples, code == 0, mj, shapes, fingers)
         for i in range(F.shape[0]):
             f = F[i]
             if L.halt:  # closing from another thread: this block may send nothing but zero
@@ -177,8 +177,8 @@ def run_ticks(loop, m, d, read, send, io, samples, samples_at, limits, device_of
                 L.send_error += 1
                 L.send_code = code
         _stage(L, SENDS_STAGE)
-        end_tick(loop, m, d, xfrc, xipos, wrench, bodies, counts, durations, periods, counters, start)
+        end_tick(loop, mj, fingers, stats, start)
         if paced:
-            paced_done(loop, counters)
+            paced_done(loop, stats.counters)
         done += 1
     return done
