@@ -73,6 +73,28 @@ def triangles_near(o, samples: np.ndarray, i: int, radius: float) -> np.ndarray:
         point_triangle(samples[i][None], o.a[maybe][:, None], o.b[maybe][:, None], o.c[maybe][:, None])[0].min(axis=1))
     return maybe[gap <= radius]
 
+
+def assert_vertex_table(o, v, f, vertex: int, radius: float, normal, table: list, table_ids: list, read: int,
+                        id_of=lambda w: w) -> None:
+    """A vertex's table (sin β ascending, `table_ids` its vertices by `id_of`) against brute
+    force: every vertex of a triangle within `radius` (m, exact point-triangle distance) of
+    `vertex` but its ring is listed no later than its sin β (β: below the plane square to
+    `normal`, the vertex normal), where the table reaches that far (all of it when it holds no
+    more than `read` entries)."""
+    fan = (f == vertex).any(axis=1)
+    ring = set(f[fan].reshape(-1).tolist())
+    near = (point_triangle(v[vertex][None], o.a, o.b, o.c)[0] <= radius) & ~fan
+    others = sorted(set(f[near].reshape(-1).tolist()) - ring)
+    u = v[others] - v[vertex]
+    beta = -(u @ normal) / np.linalg.norm(u, axis=1)
+    assert table == sorted(table)
+    cut = table[-1] if len(table) > read else math.inf
+    kept = dict(zip(table_ids, table))
+    for w, sine in zip(others, beta):
+        if sine < cut:
+            assert kept[id_of(w)] <= sine + 1e-12, (vertex, w)
+
+
 class Oracle:
     """A mesh's triangles (world frame, m) and brute-force answers about them."""
 

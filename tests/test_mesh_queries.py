@@ -18,8 +18,8 @@ import trimesh
 from hypothesis import example, given, settings, strategies as st
 
 from mesh_oracle import (
-    EXACT, MESHES, Oracle, bowl, geodesic_sphere, mesh_model, mesh_of, oracle, peak_in_a_wall, point_triangle, prism,
-    sheet, small_tetra, sphere10k, tilted_ball, triangles_near, uv_sphere,
+    EXACT, MESHES, Oracle, assert_vertex_table, bowl, geodesic_sphere, mesh_model, mesh_of, oracle, peak_in_a_wall,
+    point_triangle, prism, sheet, small_tetra, sphere10k, tilted_ball, triangles_near, uv_sphere,
 )
 from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
 from softproxy.compiled.layout import (
@@ -632,20 +632,10 @@ def test_kept_tables_built_at_load_match_brute_force():
     reach, start, sines, table_ids = s._vtable
     assert reach == radius
     for vertex in np.unique(f):
-        fan = (f == vertex).any(axis=1)
-        ring = set(f[fan].reshape(-1).tolist())
-        near = (point_triangle(v[vertex][None], o.a, o.b, o.c)[0] <= radius) & ~fan
-        others = sorted(set(f[near].reshape(-1).tolist()) - ring)
-        u = v[others] - v[vertex]
-        beta = -(u @ normal[vertex]) / np.linalg.norm(u, axis=1)
         at = ids[tuple(v[vertex].tolist())]
-        table = sines[start[at]:start[at + 1]].tolist()
-        assert table == sorted(table)
-        cut = table[-1] if len(table) > VERTEX_READ else math.inf
-        kept = dict(zip(table_ids[start[at]:start[at + 1]].tolist(), table))
-        for w, sine in zip(others, beta):
-            if sine < cut:
-                assert kept[ids[tuple(v[w].tolist())]] <= sine + 1e-12, (vertex, w)
+        assert_vertex_table(o, v, f, vertex, radius, normal[vertex], sines[start[at]:start[at + 1]].tolist(),
+                            table_ids[start[at]:start[at + 1]].tolist(), VERTEX_READ,
+                            lambda w: ids[tuple(v[w].tolist())])
 
 
 def patches(shape) -> list[tuple[float, int, tuple]]:

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from mesh_oracle import EXACT, Oracle, l_prism, mesh_model, mesh_of, point_triangle, triangles_near
+from mesh_oracle import (
+    EXACT, Oracle, assert_vertex_table, l_prism, mesh_model, mesh_of, point_triangle, triangles_near,
+)
 from softproxy.compiled.mesh import SLOT_NEAR
 from softproxy.geometry import ShapeSet
 from softproxy.mesh import MeshShape
@@ -169,19 +171,8 @@ def assert_tables_hold(t, faces, vertices) -> tuple[int, int]:
     _, start, sines, ids = t.vtable
     normal = t.vcone[:, :3]
     for vertex in vertices:
-        fan = (f == vertex).any(axis=1)
-        ring = set(f[fan].reshape(-1).tolist())
-        near = (point_triangle(v[vertex][None], o.a, o.b, o.c)[0] <= radius) & ~fan
-        others = sorted(set(f[near].reshape(-1).tolist()) - ring)
-        u = v[others] - v[vertex]
-        beta = -(u @ normal[vertex]) / np.linalg.norm(u, axis=1)
-        table = sines[start[vertex]:start[vertex + 1]].tolist()
-        assert table == sorted(table)
-        cut = table[-1] if len(table) > VERTEX_READ else math.inf
-        kept = dict(zip(ids[start[vertex]:start[vertex + 1]].tolist(), table))
-        for w, sine in zip(others, beta):
-            if sine < cut:
-                assert kept[w] <= sine + 1e-12, (vertex, w)
+        assert_vertex_table(o, v, f, vertex, radius, normal[vertex], sines[start[vertex]:start[vertex + 1]].tolist(),
+                            ids[start[vertex]:start[vertex + 1]].tolist(), VERTEX_READ)
     return certified, concave
 
 

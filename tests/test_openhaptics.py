@@ -40,6 +40,16 @@ def tick(dev, fake, clock, s, t=0.0, frames=1):
     dev.read(t, s)
 
 
+def rendering(**kwargs):
+    """A device that has had one tick and renders 0.5 N up (engine z): (dev, fake, clock, samples)."""
+    dev, fake, clock = make(**kwargs)
+    s = [DeviceSample()]
+    tick(dev, fake, clock, s)
+    dev.send(0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
+    fake.step(1)
+    return dev, fake, clock, s
+
+
 def assert_finite_and_clamped(forces, limit):
     for f in forces:
         assert all(math.isfinite(v) for v in f) and np.linalg.norm(f) <= limit * (1 + 1e-12)
@@ -152,11 +162,7 @@ def test_a_device_that_fails_mid_run_renders_zero_and_is_reopened(how):
     """An HD error after a frame (the binding then stops scheduling the callback) or a binding
     call raising inside the callback: zero force at once, DeviceError naming the device, a
     reopen every REOPEN_INTERVAL_S; back, it renders zero until a valid sample, then forces."""
-    dev, fake, clock = make()
-    s = [DeviceSample()]
-    tick(dev, fake, clock, s)
-    dev.send(0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
-    fake.step(1)
+    dev, fake, clock, s = rendering()
     assert fake.forces[-1] != (0.0, 0.0, 0.0)
     if how == "hd_error":
         fake.error_frames = 1
@@ -200,11 +206,7 @@ def test_close_renders_zero_then_stops_and_never_raises():
     """close(): the callback's last force is zero, then the scheduler stops and the device is
     disabled; twice is harmless; a binding that raises on close does not escape; a closed
     device refuses reads and sends."""
-    dev, fake, clock = make()
-    s = [DeviceSample()]
-    tick(dev, fake, clock, s)
-    dev.send(0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
-    fake.step(1)
+    dev, fake, clock, s = rendering()
     dev.close()
     assert fake.forces[-1] == (0.0, 0.0, 0.0) and not fake.running and fake.disabled == [1]
     dev.close()
@@ -444,11 +446,7 @@ def test_close_waits_for_a_frame_begun_after_it():
 def test_a_device_left_open_is_zeroed_and_stopped_at_exit():
     """The exit hook closes every device still open (its scheduler thread must not call into an
     interpreter being torn down): zero force last, scheduler stopped; closed devices are left out."""
-    dev, fake, clock = make()
-    s = [DeviceSample()]
-    tick(dev, fake, clock, s)
-    dev.send(0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
-    fake.step(1)
+    dev, fake, clock, s = rendering()
     assert fake.forces[-1] != (0.0, 0.0, 0.0)
     other, other_fake, _ = make()
     other.close()

@@ -290,12 +290,25 @@ class _Script(ScriptedDevice):
         self.closed = True
 
 
-class _StalledFile:
+class _FileWrapper:
+    """A recording's file with its writes changed by a subclass; flush and close pass through."""
+
+    def __init__(self, file):
+        self.file = file
+
+    def flush(self):
+        self.file.flush()
+
+    def close(self):
+        self.file.close()
+
+
+class _StalledFile(_FileWrapper):
     """A file whose first write hangs (a slow disk) until the test releases it, to make the
     writer fall behind for as long as the test needs, however loaded the machine is."""
 
     def __init__(self, file):
-        self.file = file
+        super().__init__(file)
         self.entered, self.release = threading.Event(), threading.Event()
         self.returned = False  # the stalled write has returned
 
@@ -305,12 +318,6 @@ class _StalledFile:
             self.release.wait(60.0)  # a read that waited for the writer would wait out this
             self.returned = True
         return self.file.write(data)
-
-    def flush(self):
-        self.file.flush()
-
-    def close(self):
-        self.file.close()
 
 
 def test_a_writer_that_falls_behind_drops_reads_without_blocking_and_says_so(tmp_path):
@@ -348,23 +355,18 @@ def test_a_writer_that_falls_behind_drops_reads_without_blocking_and_says_so(tmp
     assert failed == [i for i in range(2000) if i not in kept]
 
 
-class _FullAfterHeader:
+class _FullAfterHeader(_FileWrapper):
     """A file that takes the header line, then fails every write as a full disk does."""
 
     def __init__(self, file):
-        self.file, self.header_written = file, False
+        super().__init__(file)
+        self.header_written = False
 
     def write(self, data):
         if self.header_written:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         self.header_written = True
         return self.file.write(data)
-
-    def flush(self):
-        self.file.flush()
-
-    def close(self):
-        self.file.close()
 
 
 def test_a_full_disk_stops_the_recording_not_the_run(tmp_path, monkeypatch):
