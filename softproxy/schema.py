@@ -8,8 +8,8 @@ one-line errors and the JSON Schema an editor reads (`softproxy schema`) all com
 
 Errors: every mistake is one `InputError` line (a ValueError), in the one format of
 `softproxy.input_error`: `[FILE: ]PATH must be REQUIREMENT, got VALUE[ (HINT)]`, e.g.
-`scene.toml: finger[0].stiffness must be at least 10 N/m, got 2.0 (stiffness is in N/m: 2 N/mm
-is 2000 N/m)`. `validate(model, data, source=..., path=...)` turns pydantic's ValidationError
+`scene.toml: finger[0].stiffness must be between 10 and 1e+08 N/m, got 2.0 (stiffness is in
+N/m: 2 N/mm is 2000 N/m)`. `validate(model, data, source=..., path=...)` turns pydantic's ValidationError
 (several lines) into that line, naming the first mistake.
 
 Decision: `FingerParams`, `TactileSpec` and `SensingSpec` stay stdlib dataclasses (their
@@ -41,7 +41,7 @@ from pydantic_core import PydanticCustomError
 from softproxy.compiled.godobject import RESTICK_TIME, WORKSPACE_LIMIT
 from softproxy.fingertip import MODELS
 from softproxy.geometry import GEOM_GROUPS, MESH_SURFACES
-from softproxy.input_error import InputError, check_finite, must_be  # noqa: F401 (the format, re-exported)
+from softproxy.input_error import InputError, must_be
 from softproxy.tactile import PAPER_CELLS, PAPER_YOUNGS_MODULUS
 
 SERVO_RATE_HZ = (10.0, 100_000.0)
@@ -79,27 +79,19 @@ def _integer(value):
         raise PydanticCustomError("input", "an integer") from None
 
 
-def _bounds_text(low, high, unit: str, open_low: bool) -> str:
-    u = f" {unit}" if unit else ""
-    if low is not None and high is not None and low < 0.0:
-        return f"at least {low:g}{u} and at most {high:g}{u}"
-    if open_low and low == 0.0 and high is None:
-        return "> 0"
-    return ""
-
-
 def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high: str, nonzero: bool = False):
     """An after-validator: `low <= v <= high` (`low < v` when open_low; v != 0 when nonzero); the
     error words the bound with its unit."""
     u = f" {unit}" if unit else ""
-    both = low is not None and high is not None and low < 0.0  # a signed range: say both ends
+    # a signed range (an offset): say both ends
+    both = f"at least {low:g}{u} and at most {high:g}{u}" if low is not None and high is not None and low < 0.0 else ""
 
     def check(v):
         if nonzero and v == 0:
             raise PydanticCustomError("bound", "non-zero")
         if low is not None and (v <= low if open_low else v < low):
             if both:
-                text = _bounds_text(low, high, unit, open_low)
+                text = both
             elif high is not None and low > 0.0:
                 text = f"between {low:g} and {high:g}{u}"
             else:
@@ -107,7 +99,7 @@ def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high:
             # a unit slip gives a positive number too small: a negative one is another mistake
             raise PydanticCustomError("bound", text, {"hint": hint_low if v > 0 else ""})
         if high is not None and v > high:
-            text = _bounds_text(low, high, unit, open_low) if both else f"at most {high:g}{u}"
+            text = both or f"at most {high:g}{u}"
             raise PydanticCustomError("bound", text, {"hint": hint_high})
         return v
 
@@ -128,6 +120,8 @@ def quantity(unit: str, description: str, *, low: float | None = None, high: flo
         extra["exclusiveMinimum" if open_low else "minimum"] = low
     if high is not None:
         extra["maximum"] = high
+    if nonzero:
+        extra["not"] = {"const": 0}
     number = Annotated[float, BeforeValidator(_number),
                        AfterValidator(_bound_check(low, high, unit, open_low, hint_low, hint_high, nonzero))]
     kind = Optional[number] if optional else number
@@ -214,7 +208,7 @@ Name = Annotated[str, Field(strict=True, min_length=1, pattern=r"\S")]
 
 _KIND = {
     "model_type": "a table", "model_attributes_type": "a table", "dict_type": "a table", "dataclass_type": "a table",
-    "list_type": "a list", "tuple_type": "[x, y, z]", "bool_type": "true or false", "string_type": "a string",
+    "list_type": "a list", "tuple_type": "3 finite numbers [x, y, z]", "bool_type": "true or false", "string_type": "a string",
     "int_type": "an integer", "float_type": "a number", "string_too_short": "a non-empty string",
     "too_short": "a non-empty list", "string_pattern_mismatch": "a non-empty string",
 }
@@ -270,8 +264,6 @@ def one_line(exc: ValidationError, *, source: str = "", path: str = "") -> Input
         lead = f"{source}: " if source else ""
         hint = f": {ctx['hint']}" if ctx.get("hint") else ""
         return InputError(f"{lead}{_REQUIRED.get(where, f'{where} is required{hint}')}")
-    if kind == "cross_field":
-        return must_be(where or ctx["field"], e["msg"], ctx["value"], source=source, hint=ctx.get("hint", ""))
     if kind in ("input", "bound"):
         requirement = e["msg"]
     elif kind == "literal_error":
@@ -320,10 +312,6 @@ class Table(BaseModel):
                 if f.is_required() and name not in data:  # named with what it is
                     raise PydanticCustomError("missing_field", "required", {"field": name, "hint": f.description})
         return data
-
-
-def _cross_field(field: str, requirement: str, value, hint: str = "") -> PydanticCustomError:
-    return PydanticCustomError("cross_field", requirement, {"field": field, "value": value, "hint": hint})
 
 
 # ---------------------------------------------------------------------------------------------
