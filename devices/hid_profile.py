@@ -189,9 +189,6 @@ class Profile:
     def renders_force(self) -> bool:
         return self.output is not None
 
-    def field_names(self) -> set[str]:
-        return {f.name for layouts in self.reports.values() for layout in layouts for f in layout.fields}
-
     def ids(self) -> list[str]:
         """The USB ids this profile matches, as 'vvvv:pppp'."""
         return [f"{m.vendor_id:04x}:{m.product_id:04x}" for m in self.matches]

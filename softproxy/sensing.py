@@ -243,16 +243,6 @@ class Fingertip:
         s = math.sqrt(s2)
         return (bx / s, by / s, bz / s)
 
-    def normal_at(self, point, deformation: float = 0.0) -> tuple:
-        """Outward unit normal ∇S/‖∇S‖ (eq 7) of the deformed ellipsoid at `point`."""
-        x, y, z = _check_vector("point", point)
-        dd = check_finite("deformation", deformation, non_negative=True)
-        gx, gy, gz = x / (self.a - dd) ** 2, y / (self.b - dd) ** 2, z / (self.c - dd) ** 2
-        g = math.sqrt(gx * gx + gy * gy + gz * gz)
-        if not g > 0.0:
-            raise ValueError("point must not be the centre")
-        return (gx / g, gy / g, gz / g)
-
 
 @dataclass(frozen=True)
 class SensorMount:
