@@ -16,6 +16,7 @@ declares every input's fields, words its errors with it.
 from __future__ import annotations
 
 import math
+import operator
 
 
 class InputError(ValueError):
@@ -45,4 +46,15 @@ def check_finite(name: str, value, *, positive: bool = False, non_negative: bool
         raise must_be(name, "> 0", value)
     if non_negative and number < 0.0:
         raise must_be(name, ">= 0", value)
+    return number
+
+
+def check_count(name: str, value, minimum: int = 1) -> int:
+    """`value` as an int >= minimum (an int or numpy integer, never a bool or 2.0); InputError otherwise."""
+    try:
+        number = None if isinstance(value, bool) else operator.index(value)
+    except TypeError:
+        number = None
+    if number is None or number < minimum:
+        raise must_be(name, f"an integer >= {minimum}", value)
     return number

@@ -108,7 +108,7 @@ import math
 from dataclasses import dataclass
 
 from softproxy import units
-from softproxy.input_error import check_finite
+from softproxy.input_error import check_count, check_finite
 
 # ---------------------------------------------------------------------------
 # Seed 003 constants, in the paper's units, converted to SI once.
@@ -396,9 +396,7 @@ class ContactSensor:
         self.tol = check_finite("tol", tol, positive=True)
         self.lambda0 = check_finite("lambda0", lambda0, non_negative=True)
         self.eps1 = check_finite("eps1", eps1, non_negative=True)
-        if not isinstance(max_iter, int) or max_iter < 1:
-            raise ValueError(f"max_iter must be an int >= 1, got {max_iter!r}")
-        self.max_iter = max_iter
+        self.max_iter = check_count("max_iter", max_iter)
         self.warm_start = bool(warm_start)
         self._last_normal = None
         t = self.tip

@@ -128,7 +128,7 @@ from pathlib import Path
 import numpy as np
 
 from softproxy import units
-from softproxy.input_error import check_finite
+from softproxy.input_error import check_count, check_finite
 
 # ---------------------------------------------------------------------------
 # Seed 000 §III / §IV constants, in the paper's units, converted to SI once.
@@ -161,13 +161,6 @@ FRAME = (
 )
 
 
-def _check_int(name: str, value, minimum: int) -> int:
-    """Return `value` as int >= minimum or raise ValueError naming the parameter."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
 class SensorGrid:
     """A square tactile sensor of `cells` × `cells` cells on a side `side` (m), centred on the
     fingertip axis, sampled on `supersample` × `supersample` points per cell.
@@ -179,9 +172,9 @@ class SensorGrid:
 
     def __init__(self, cells: int = PAPER_CELLS, side: float = PAPER_SIDE, supersample: int = 4,
                  margin: float = 0.0) -> None:
-        self.cells = _check_int("cells", cells, 1)
+        self.cells = check_count("cells", cells)
         self.side = check_finite("side", side, positive=True)
-        self.supersample = _check_int("supersample", supersample, 1)
+        self.supersample = check_count("supersample", supersample)
         margin = check_finite("margin", margin, non_negative=True)
         self.pitch = self.side / self.cells
         self.spacing = self.pitch / self.supersample
@@ -386,7 +379,7 @@ class TactileSensor:
         grid = SensorGrid(cells, side, supersample)
         self.model = VirtualSpringFingertip(grid, joint_distance, radius, youngs_modulus, project_history,
                                             max_step_rad, max_step_m)
-        self.max_substeps = _check_int("max_substeps", max_substeps, 1)
+        self.max_substeps = check_count("max_substeps", max_substeps)
         self.max_tilt_rad = check_finite("max_tilt_rad", max_tilt_rad, positive=True)
         if self.max_tilt_rad >= math.pi / 2.0:
             raise ValueError(f"max_tilt_rad must be < π/2, got {max_tilt_rad!r}")
