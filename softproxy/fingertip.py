@@ -34,8 +34,6 @@ from softproxy import units
 from softproxy.compiled.guard import P_MAX
 from softproxy.input_error import check_finite
 
-_check_finite = check_finite  # the name softproxy.torsion imports
-
 # ---------------------------------------------------------------------------
 # Seed 002 constants, in the paper's units, converted to SI once.
 # ---------------------------------------------------------------------------

@@ -28,7 +28,8 @@ from __future__ import annotations
 
 from softproxy.compiled import finger as kernel
 from softproxy.compiled.godobject import RESTICK_TIME
-from softproxy.fingertip import FingertipModel, _check_finite
+from softproxy.fingertip import FingertipModel
+from softproxy.input_error import check_finite
 from softproxy.finger_rows import Field, FingerRows, RecordView
 
 
@@ -65,10 +66,10 @@ class TorsionalFriction(RecordView):
                  saturate: bool = False, rows: FingerRows | None = None, i: int = 0,
                  restick_time: float = RESTICK_TIME) -> None:
         """`rows`, `i`: the finger record to live in (a table of its own by default)."""
-        k_tau = _check_finite("k_tau", k_tau, positive=True)
-        restick_time = _check_finite("restick_time", restick_time, non_negative=True)
-        mu_s = model.mu_prime if mu_s is None else _check_finite("mu_s", mu_s, non_negative=True)
-        mu_d = 0.8 * mu_s if mu_d is None else _check_finite("mu_d", mu_d, non_negative=True)
+        k_tau = check_finite("k_tau", k_tau, positive=True)
+        restick_time = check_finite("restick_time", restick_time, non_negative=True)
+        mu_s = model.mu_prime if mu_s is None else check_finite("mu_s", mu_s, non_negative=True)
+        mu_d = 0.8 * mu_s if mu_d is None else check_finite("mu_d", mu_d, non_negative=True)
         if mu_d > mu_s:
             raise ValueError(f"mu_d ({mu_d}) must be <= mu_s ({mu_s})")
         self._bind(rows if rows is not None else FingerRows(None, 1), i)
