@@ -54,19 +54,34 @@ taken for a mistake (a run's recording and video grow with its length)."""
 # Declaring a field once: a number with its unit and bounds, an integer count, a 3-vector.
 
 
-def _number(value):
-    """Before the float check: a real number (not a bool or a string), finite, as a float."""
-    if isinstance(value, (bool, str, bytes)):
-        raise PydanticCustomError("input", "a number")
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise PydanticCustomError("input", "a number") from None
-    except OverflowError:  # a TOML integer past a float's range
-        raise PydanticCustomError("input", "finite") from None
-    if not math.isfinite(number):
-        raise PydanticCustomError("input", "finite")
+def _range_text(low, high, unit: str, open_low: bool) -> str:
+    """' in [0, 0.1] m', ' >= 0 N', ' > 0' or ' (m)': what a number field admits, for its errors."""
+    u = f" {unit}" if unit else ""
+    if low is not None and high is not None:
+        return f" in {'(' if open_low else '['}{low:g}, {high:g}]{u}"
+    if low is not None:
+        return f" {'>' if open_low else '>='} {low:g}{u}"
+    if high is not None:
+        return f" <= {high:g}{u}"
+    return f" ({unit})" if unit else ""
+
+
+def _number_check(requirement: str):
+    """A before-validator: a real number (not a bool or a string), finite, as a float; the error
+    says `requirement` ("a finite number in [0, 0.1] m")."""
+    def number(value):
+        if isinstance(value, (bool, str, bytes)):
+            raise PydanticCustomError("input", requirement)
+        try:
+            number = float(value)
+        except (TypeError, ValueError, OverflowError):  # OverflowError: a TOML integer past a float's range
+            raise PydanticCustomError("input", requirement) from None
+        if not math.isfinite(number):
+            raise PydanticCustomError("input", requirement)
+        return number
+
     return number
+
 
 
 def _integer(value):
@@ -79,14 +94,17 @@ def _integer(value):
         raise PydanticCustomError("input", "an integer") from None
 
 
-def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high: str, nonzero: bool = False):
+def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high: str, nonzero: bool = False,
+                 says: str = ""):
     """An after-validator: `low <= v <= high` (`low < v` when open_low; v != 0 when nonzero); the
-    error words the bound with its unit."""
+    error words the bound with its unit (or says `says`)."""
     u = f" {unit}" if unit else ""
     # a signed range (an offset): say both ends
     both = f"at least {low:g}{u} and at most {high:g}{u}" if low is not None and high is not None and low < 0.0 else ""
 
     def check(v):
+        if says and not ((low is None or (v > low if open_low else v >= low)) and (high is None or v <= high)):
+            raise PydanticCustomError("bound", says)
         if nonzero and v == 0:
             raise PydanticCustomError("bound", "non-zero")
         if low is not None and (v <= low if open_low else v < low):
@@ -95,7 +113,7 @@ def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high:
             elif high is not None and low > 0.0:
                 text = f"between {low:g} and {high:g}{u}"
             else:
-                text = f"> {low:g}{u}" if open_low else f">= {low:g}{u}"
+                text = f"a finite number {'>' if open_low else '>='} {low:g}{u}"
             # a unit slip gives a positive number too small: a negative one is another mistake
             raise PydanticCustomError("bound", text, {"hint": hint_low if v > 0 else ""})
         if high is not None and v > high:
@@ -108,12 +126,13 @@ def _bound_check(low, high, unit: str, open_low: bool, hint_low: str, hint_high:
 
 def quantity(unit: str, description: str, *, low: float | None = None, high: float | None = None,
              open_low: bool = False, hint_low: str = "", hint_high: str = "", optional: bool = False,
-             nonzero: bool = False):
+             nonzero: bool = False, says: str = ""):
     """A finite number in `unit` (SI; "" for a ratio) within [low, high] ((low, high] when open_low).
 
     `hint_low` / `hint_high`: the likely mistake when the value is past that bound (a unit slip),
     appended to the error. `optional`: None is allowed too (a default chosen elsewhere).
-    `nonzero`: 0 is refused (a scale).
+    `nonzero`: 0 is refused (a scale). `says`: what every error of the field says it must be
+    (e.g. "a probability per read in [0, 1]"), in place of the type and bound.
     """
     extra: dict[str, Any] = {"unit": unit} if unit else {}
     if low is not None:
@@ -122,8 +141,9 @@ def quantity(unit: str, description: str, *, low: float | None = None, high: flo
         extra["maximum"] = high
     if nonzero:
         extra["not"] = {"const": 0}
-    number = Annotated[float, BeforeValidator(_number),
-                       AfterValidator(_bound_check(low, high, unit, open_low, hint_low, hint_high, nonzero))]
+    requirement = says or f"a finite number{_range_text(low, high, unit, open_low)}"
+    bound = _bound_check(low, high, unit, open_low, hint_low, hint_high, nonzero, says)
+    number = Annotated[float, BeforeValidator(_number_check(requirement)), AfterValidator(bound)]
     kind = Optional[number] if optional else number
     return Annotated[kind, Field(description=f"{description} ({unit})" if unit else description,
                                  json_schema_extra=extra)]
@@ -161,7 +181,8 @@ def vector3(description: str, unit: str = "", *, low: float | None = None, high:
     non-zero, made a unit vector."""
     item_schema = {k: v for k, v in (("exclusiveMinimum" if open_low else "minimum", low), ("maximum", high))
                    if v is not None}
-    item = Annotated[float, BeforeValidator(_number), AfterValidator(_bound_check(low, high, unit, open_low, "", "")),
+    item = Annotated[float, BeforeValidator(_number_check(f"a finite number{_range_text(low, high, unit, open_low)}")),
+                     AfterValidator(_bound_check(low, high, unit, open_low, "", "")),
                      Field(json_schema_extra=item_schema)]
     checks: list = [BeforeValidator(_vector3)]
     if direction:
@@ -220,7 +241,8 @@ def _path(prefix: str, loc) -> str:
     for part in loc:
         if isinstance(part, int):
             text += f"[{part}]"
-        elif isinstance(part, str) and (part.startswith(("function-", "tagged-union[")) or part in _UNION_TAGS):
+        elif isinstance(part, str) and (part.startswith(("function-", "tagged-union[")) or part in _UNION_TAGS
+                                        or part == "[key]"):  # a table's key (its error names the key itself)
             continue
         else:
             text += f".{part}" if text else str(part)
@@ -235,8 +257,9 @@ _REQUIRED = {
     "finger": "at least one [[finger]] table is required",
     "scene": "a [scene] table is required, with mjcf: the MJCF file name, relative to the scene file",
     "scene.mjcf": "scene.mjcf is required: the MJCF file name, relative to the scene file",
+    "device.finger": "device.finger is required: a list of [[device.finger]] tables with keyframes",
 }
-"""What a missing key of a scene file means, by path (others: `PATH is required`)."""
+"""What a missing (or empty) key means, by path (others: `PATH is required: its description`)."""
 
 
 def _rank(error: dict) -> int:
@@ -751,11 +774,18 @@ class HidProfileFile(Table):
 SIM_FAULT_KINDS = ("nan", "drop", "spike", "stall")
 """Faults the simulated device injects (softproxy.devices.simulated.FAULT_KINDS)."""
 
-Keyframe = Annotated[tuple[Annotated[float, BeforeValidator(_number)], Annotated[float, BeforeValidator(_number)],
-                           Annotated[float, BeforeValidator(_number)], Annotated[float, BeforeValidator(_number)],
-                           Annotated[float, BeforeValidator(_number)]],
+def _keyframe(value):
+    """Before the tuple check: 5 finite numbers."""
+    items = value if isinstance(value, (list, tuple)) else ()
+    if len(items) != 5 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                                  for v in items):
+        raise PydanticCustomError("input", "5 finite numbers [t, x, y, z, twist]")
+    return tuple(float(v) for v in items)
+
+
+Keyframe = Annotated[tuple[float, float, float, float, float], BeforeValidator(_keyframe),
                      Field(description="[t (s), x, y, z (m, device frame), twist (rad)], t increasing")]
-Probability = quantity("", "a probability per read", low=0.0, high=1.0)
+Probability = quantity("", "a probability per read", low=0.0, high=1.0, says="a probability per read in [0, 1]")
 WorkspaceScale = quantity("", "device position × scale + offset is the world position", low=0.0, open_low=True)
 WorkspaceOffset = vector3("added to the scaled device position", "m")
 

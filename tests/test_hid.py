@@ -723,7 +723,7 @@ def test_profile_file_errors(tmp_path):
     text = (PROFILE_DIR / "spacemouse.toml").read_text().replace('deadband = 5 }', 'deadband = -5 }', 1)
     broken = tmp_path / "mouse.toml"
     broken.write_text(text)
-    with pytest.raises(ProfileError, match=r"mouse\.toml: input\.report\[0\]\.fields\.tx\.deadband must be >= 0 counts, got -5"):
+    with pytest.raises(ProfileError, match=r"mouse\.toml: input\.report\[0\]\.fields\.tx\.deadband must be a finite"):
         load_profile(str(broken))
     with pytest.raises(ProfileError, match="no HID profile named 'nope'; have: .*spacemouse"):
         load_profile("nope")
@@ -858,11 +858,11 @@ def test_from_config(tmp_path):
     ({"profile": "open_haptic", "mode": "rate"}, "s.toml: device.mode must be one of ['position']"),
     ({"profile": "spacemouse", "workspace_offset": [0, 0]}, "s.toml: device.workspace_offset must be 3 finite"),
     ({"profile": "spacemouse", "workspace_half_m": [0.1, 0, 0.1]},
-     "s.toml: device.workspace_half_m[1] must be > 0 m, got 0"),
-    ({"profile": "spacemouse", "workspace_scale": math.inf}, "s.toml: device.workspace_scale must be finite, got inf"),
+     "s.toml: device.workspace_half_m[1] must be a finite number > 0 m, got 0"),
+    ({"profile": "spacemouse", "workspace_scale": math.inf}, "s.toml: device.workspace_scale must be a finite"),
     ({"profile": "open_haptic", "max_force_N": 50.0}, "s.toml: device.max_force_N must be a finite number in [0, 5]"),
     ({"profile": "spacemouse", "max_torque_Nm": 0.1}, "s.toml: device.max_torque_Nm must be a finite number in [0, 0]"),
-    ({"profile": "spacemouse", "stale_ms": -1}, "s.toml: device.stale_ms must be >= 0 ms, got -1"),
+    ({"profile": "spacemouse", "stale_ms": -1}, "s.toml: device.stale_ms must be a finite number >= 0"),
     ({"profile": "spacemouse", "path": 3}, "s.toml: device.path must be a HID device path"),
     ({"profile": "spacemouse", "keyframes": []}, "s.toml: device has unknown field(s) ['keyframes']"),
     ("spacemouse", "s.toml: device must be a table"),
