@@ -50,16 +50,15 @@ def check_table(cfg, source: str) -> None:
         raise field_error(source, "device", "a table", cfg)
 
 
-def check_type(cfg: dict, source: str, type_name: str, what: str = "") -> None:
+def check_type(cfg: dict, source: str, type_name: str, what: str = ""):
     """device.type, when given, must be `type_name` (`what`: words after it in the message); then
     every field as `softproxy.schema.DEVICE_TABLES[type_name]` declares it (what depends on the
-    device, a limit within its own, is the adapter's to check)."""
+    device, a limit within its own, is the adapter's to check). The checked table (a pydantic
+    model: fields absent from `cfg` at their declared defaults)."""
     if cfg.get("type", type_name) != type_name:
         raise field_error(source, "device.type",
                           f"\"{type_name}\"{what} (this scene's [device] is for another device type)", cfg.get("type"))
-    table = schema.DEVICE_TABLES.get(type_name)
-    if table is not None:
-        schema.validate(table, {**cfg, "type": type_name}, source=source, path="device")
+    return schema.validate(schema.DEVICE_TABLES[type_name], {**cfg, "type": type_name}, source=source, path="device")
 
 
 def check_keys(cfg: dict, source: str, keys) -> None:

@@ -35,10 +35,9 @@ from numba import njit, types
 from softproxy import device_kernel as dk
 from softproxy.device import DeviceError
 
+from . import device_config as config
 from .kernel_device import I_CLOSED, KernelDevice
 
-_CONFIG_KEYS = {"type", "noise_m", "noise_rad", "latency_s", "quantum_m", "quantum_rad",
-                "max_force_N", "max_torque_Nm", "seed", "finger", "faults"}
 FAULT_KINDS = ("nan", "drop", "spike", "stall")
 SPIKE_M = 0.5
 STALL_S = 0.005
@@ -417,49 +416,21 @@ class SimulatedDevice(KernelDevice):
 
     @classmethod
     def from_config(cls, cfg: dict, *, source: str = "<config>") -> "SimulatedDevice":
-        """Build from a scene's [device] table (see scenes/*.toml); errors name the field."""
+        """Build from a scene's [device] table (see scenes/*.toml; its fields are declared in
+        `softproxy.schema.SimDeviceTable`); errors name the field."""
         if not isinstance(cfg, dict):
             raise _fail(source, "device", "a table", cfg)
-        unknown = set(cfg) - _CONFIG_KEYS
-        if unknown:
-            raise ValueError(f"{source}: device has unknown field(s) {sorted(unknown)}; expected some of {sorted(_CONFIG_KEYS)}")
-        kwargs = {}
-        for key, arg in (("noise_m", "noise_m"), ("noise_rad", "noise_rad"), ("latency_s", "latency_s"),
-                         ("quantum_m", "quantum_m"), ("quantum_rad", "quantum_rad"),
-                         ("max_force_N", "max_force"), ("max_torque_Nm", "max_torque")):
-            if key in cfg:
-                v = cfg[key]
-                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                    raise _fail(source, f"device.{key}", "a finite number >= 0", v)
-                kwargs[arg] = float(v)
-        if "faults" in cfg:
-            faults = cfg["faults"]
-            if not isinstance(faults, dict):
-                raise _fail(source, "device.faults", "a table of fault = probability per read", faults)
-            for kind, rate in faults.items():
-                if kind not in FAULT_KINDS:
-                    raise _fail(source, f"device.faults.{kind}", f"one of {', '.join(FAULT_KINDS)}", kind)
-                if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0.0 <= rate <= 1.0:
-                    raise _fail(source, f"device.faults.{kind}", "a probability per read in [0, 1]", rate)
-            kwargs["faults"] = dict(faults)
-        if "seed" in cfg:
-            if isinstance(cfg["seed"], bool) or not isinstance(cfg["seed"], int):
-                raise _fail(source, "device.seed", "an integer", cfg["seed"])
-            kwargs["seed"] = cfg["seed"]
-        fingers = cfg.get("finger")
-        if not isinstance(fingers, list) or not fingers:
-            raise _fail(source, "device.finger", "a list of [[device.finger]] tables with keyframes", fingers)
+        table = config.check_type(cfg, source, "sim")
+        kwargs = {arg: getattr(table, key) for key, arg in (
+            ("noise_m", "noise_m"), ("noise_rad", "noise_rad"), ("latency_s", "latency_s"), ("quantum_m", "quantum_m"),
+            ("quantum_rad", "quantum_rad"), ("max_force_N", "max_force"), ("max_torque_Nm", "max_torque"),
+            ("seed", "seed"), ("faults", "faults")) if key in cfg}
         keyframes = []
-        for i, f in enumerate(fingers):
-            if not isinstance(f, dict) or set(f) != {"keyframes"}:
-                raise _fail(source, f"device.finger[{i}]", "a table with only `keyframes`", f)
-            frames = f["keyframes"]
-            if not isinstance(frames, (list, tuple)) or not frames:
-                raise _fail(source, f"device.finger[{i}].keyframes", "a non-empty list of [t, x, y, z, twist]", frames)
-            for j, key in enumerate(frames):
-                if not _is_keyframe(key):
-                    raise _fail(source, f"device.finger[{i}].keyframes[{j}]", "5 finite numbers [t, x, y, z, twist]", key)
-                if j and key[0] <= frames[j - 1][0]:
-                    raise _fail(source, f"device.finger[{i}].keyframes[{j}]", f"later than t = {frames[j - 1][0]} s", key[0])
+        for i, f in enumerate(table.finger):
+            frames = [list(key) for key in f.keyframes]
+            for j in range(1, len(frames)):
+                if frames[j][0] <= frames[j - 1][0]:
+                    raise _fail(source, f"device.finger[{i}].keyframes[{j}]", f"later than t = {frames[j - 1][0]} s",
+                                frames[j][0])
             keyframes.append(frames)
         return cls(keyframes, **kwargs)

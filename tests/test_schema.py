@@ -164,10 +164,10 @@ def test_a_plugin_device_type_keeps_a_table_of_its_own(written):
     assert errors(written["scene.schema.json"], {**doc, "device": {"type": "sim"}})  # a sim table scripts fingers
 
 
-@pytest.mark.parametrize("adapter", [simulated, hid, forcedimension, openhaptics], ids=lambda m: m.__name__)
+@pytest.mark.parametrize("adapter", [hid, forcedimension, openhaptics], ids=lambda m: m.__name__)
 def test_each_declared_device_table_has_the_adapters_fields(adapter):
     """The declared [device] tables list exactly the fields each adapter's from_config takes."""
-    name = {simulated: "sim", hid: "hid", forcedimension: "forcedimension", openhaptics: "openhaptics"}[adapter]
+    name = {hid: "hid", forcedimension: "forcedimension", openhaptics: "openhaptics"}[adapter]
     assert set(schema.DEVICE_TABLES[name].model_fields) == adapter._CONFIG_KEYS
 
 

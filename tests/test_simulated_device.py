@@ -330,7 +330,7 @@ def add_keyframe(value):
     (set_key("seed", 1.5), "device.seed", "integer"),
     (set_key("finger", []), "device.finger", "[[device.finger]]"),
     (lambda cfg: cfg.pop("finger"), "device.finger", "[[device.finger]]"),
-    (lambda cfg: cfg["finger"][1].update(colour="red"), "device.finger[1]", "only `keyframes`"),
+    (lambda cfg: cfg["finger"][1].update(colour="red"), "device.finger[1]", "unknown field(s) ['colour']"),
     (lambda cfg: cfg["finger"][0].update(keyframes=[]), "device.finger[0].keyframes", "non-empty list"),
     (add_keyframe([3.0, 0.0, 0.0, 0.1]), "device.finger[1].keyframes[3]", "5 finite numbers"),
     (add_keyframe([3.0, 0.0, 0.0, 0.1, 0.0, 0.0]), "device.finger[1].keyframes[3]", "5 finite numbers"),

@@ -80,7 +80,7 @@ RUN = ["run", "two_finger_grasp", "--headless"]
 RUN_FLAG_MISTAKES = [
     *[(["--duration", v], ["--duration", "86400"]) for v in ("nan", "inf", "-1", "0", "-1.5e-05", "1e9")],
     *[(["--rate", v], ["--rate", "10", "100000"]) for v in ("0", "nan", "-5", "9.99", "1e9")],
-    (["--faults", "bogus=0.1"], ["--faults", "bogus", "nan, drop"]),
+    (["--faults", "bogus=0.1"], ["--faults", "bogus", "'nan', 'drop'"]),
     (["--faults", "nan=2"], ["--faults", "nan=2", "[0, 1]"]),
     (["--faults", "nan"], ["--faults", "'nan'", "NAME=PROBABILITY"]),
     (["--faults", "nan=0.1", "--device", "replay:x.rec"], ["--faults", "--device sim"]),
