@@ -23,9 +23,9 @@ from mesh_oracle import (
 )
 from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
 from softproxy.compiled.layout import (
-    EDGE_WIDTH, HINT_SLOTS, P_COUNT, P_FULL, P_RADIUS, PATCH_RECORDS, PATCH_WIDTH, T_COLUMNS, T_EDGES,
+    EDGE_BC, EDGE_WIDTH, HINT_SLOTS, P_COUNT, P_FULL, P_RADIUS, PATCH_RECORDS, PATCH_WIDTH, T_COLUMNS, T_EDGES,
 )
-from softproxy.compiled.mesh import _sweep_triangle
+from softproxy.compiled.mesh import Sweep, _sweep_triangle
 from softproxy.compiled.tolerances import GRAZE
 from softproxy.proxy import GodObject
 
@@ -385,7 +385,7 @@ def test_sliding_on_one_of_two_nearly_parallel_edges_is_not_pressing_the_other()
 
 
 def test_a_sweep_names_the_edge_it_touched():
-    """A sphere sliding parallel to edge AB into edge BC touches BC (feature 2), whatever the
+    """A sphere sliding parallel to edge AB into edge BC touches BC (EDGE_BC), whatever the
     edges before it in the loop did (a sweep parallel to AB skips AB's cylinder): the feature
     decides which neighbour a sweep asks next."""
     a, b, c = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -397,8 +397,8 @@ def test_a_sweep_names_the_edge_it_touched():
         length = float(np.linalg.norm(s1 - s0))
         row[0, T_EDGES + EDGE_WIDTH * k:T_EDGES + EDGE_WIDTH * (k + 1)] = [*s0, *((s1 - s0) / length), length]
     start, move, r = (0.8, 0.8, 0.05), (-0.6, 0.0, 0.0), 0.1
-    lam, _, _, _, feature = _sweep_triangle(row, 0, *start, *move, r, 0.36, (r + 0.6 + 1e-9) ** 2, GRAZE * 0.6)
-    assert lam >= 0.0 and feature == 2
+    lam, _, _, _, feature = _sweep_triangle(row, 0, Sweep(*start, *move, r, 0.36, GRAZE * 0.6), (r + 0.6 + 1e-9) ** 2)
+    assert lam >= 0.0 and feature == EDGE_BC
     x = start[0] + lam * move[0]  # the centre is r from the line x + y = 1 (in 3-d)
     assert math.hypot((x + start[1] - 1.0) / math.sqrt(2.0), start[2]) == pytest.approx(r, abs=1e-12)
 

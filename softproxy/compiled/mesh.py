@@ -70,6 +70,7 @@ frictionless proxy on from last tick's (`_free_from_last`), every motion still s
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -248,6 +249,11 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # One triangle: its features FACE, EDGE_AB/BC/CA, VERTEX_A/B/C (softproxy.compiled.layout)
 # ---------------------------------------------------------------------------------------
 
+Sweep = namedtuple("Sweep", "ax ay az ux uy uz r dd graze")
+"""A sphere's sweep in a mesh's geom frame: from a (m) by u (m, the whole move), radius r (m),
+dd = |u|² (m²) and graze = GRAZE·|u| (m): a touch whose motion into the surface is slower
+than that is a graze, not a hit."""
+
 MISS = (-1.0, 0.0, 0.0, 0.0, FACE)
 """A sweep's answer when the sphere does not touch the triangle: lam -1 (no feature)."""
 
@@ -267,11 +273,12 @@ def _pressed(dist, into, r, graze):
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_triangle(T, i, ax, ay, az, dx, dy, dz, r, dd, far2, graze):
+def _sweep_triangle(T, i, sweep, far2):
     """First touch of a sphere (radius r) from a moving by d into triangle row i, geom frame:
     (lam, nx, ny, nz, feature), lam in [0, 1), n the unit normal of the inflated triangle at
     the touch (out of it, against the motion); lam -1.0 when none. dd = |d|², far2: the
     squared distance from a beyond which the triangle is out of reach, graze = GRAZE |d|."""
+    ax, ay, az, dx, dy, dz, r, dd, graze = sweep
     t = T[i]
     nx, ny, nz = t[T_N], t[T_N + 1], t[T_N + 2]
     h0 = nx * (ax - t[T_A]) + ny * (ay - t[T_A + 1]) + nz * (az - t[T_A + 2])
@@ -599,13 +606,13 @@ def _from_hint(S, T, C, k, hint0, x, y, z):
     Every distance query and sweep begins here."""
     hint = hint0
     d2, qx, qy, qz, f = closest(T, hint, x, y, z)
-    if 1 <= f <= 3:
-        other = int(T[hint, T_ADJ + f - 1])
+    if EDGE_AB <= f < VERTEX_A:
+        other = int(T[hint, T_ADJ + f - EDGE_AB])
         if other >= 0:
             c2, rx, ry, rz, g = closest(T, other, x, y, z)
             if c2 < d2:
                 d2, qx, qy, qz, f, hint = c2, rx, ry, rz, g, other
-    if (f != 0 and hint != hint0) or f >= 4:
+    if (f != FACE and hint != hint0) or f >= VERTEX_A:
         return _walk(S, T, C, k, hint, d2, qx, qy, qz, f, x, y, z)
     return d2, qx, qy, qz, f, hint
 
@@ -1240,13 +1247,14 @@ def _node_top(C, at, nx, ny, nz):
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
+def _sweep_run(T, C, j0, j1, stamp, sweep, slab, reach, length,
                best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff):
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
     returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far².
     Only the part of the segment before the earliest hit so far (lam < best_lam) is tested;
     when `cull`, not the triangles whose rectangle lies wholly behind the plane p·x = poff
     (a tangent plane the sphere stays r above all the way)."""
+    ax, ay, az, ux, uy, uz, r, _, _ = sweep
     bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz  # where that part ends
     for j in range(j0, j1, RECORD_WIDTH):
         # a segment that stays more than r off the plane, on one side, never reaches it
@@ -1271,7 +1279,7 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
         if C[C_STAMPS + i] == stamp:
             continue
         C[C_STAMPS + i] = stamp
-        lam, mx, my, mz, _ = _sweep_triangle(T, i, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+        lam, mx, my, mz, _ = _sweep_triangle(T, i, sweep, far2)
         if lam >= 0.0 and lam < best_lam:
             best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, i
             far = reach + best_lam * length  # only the segment before this hit matters now
@@ -1281,10 +1289,11 @@ def _sweep_run(T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, 
 
 
 @njit(cache=True, error_model="numpy")
-def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze):
+def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, sweep):
     """The touch of row `tri` at fraction lam: its normal (geom frame) shaded when asked (while
     the shaded one still opposes the motion) and turned into the world frame; the triangle
     becomes the hint and the answer's feature."""
+    ax, ay, az, ux, uy, uz, r, _, graze = sweep
     S[k].hint = S[k].feature = tri
     if S[k].shading:
         qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
@@ -1296,10 +1305,11 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graz
 
 
 @njit(cache=True, error_model="numpy")
-def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2, graze, lam, mx, my, mz):
+def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
     """The earliest touch (lam, normal, row; row -1 for none) among the m triangles in
     C[C_FEW:] and the hint's own (lam < 0: none); when sd2 >= 0, also the start's nearest
     point among them and the hint's (sd2, q, feature sf): (…, sd2, q, sf, its row)."""
+    ax, ay, az, ux, uy, uz, r, _, _ = sweep
     best_lam, bi = (lam, hint) if lam >= 0.0 else (1.0, -1)
     si = hint
     slab = r + CONTACT_TOL + 1e-12
@@ -1316,59 +1326,58 @@ def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, d
         h1 = h0 + nx * ux + ny * uy + nz * uz
         if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
             continue
-        hit, hx, hy, hz, _ = _sweep_triangle(T, i, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+        hit, hx, hy, hz, _ = _sweep_triangle(T, i, sweep, far2)
         if hit >= 0.0 and hit < best_lam:
             best_lam, mx, my, mz, bi = hit, hx, hy, hz, i
     return best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si
 
 
 @njit(cache=True, error_model="numpy")
-def _few_answer(S, T, k, xmat, sl, g, best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si, ax, ay, az, ux, uy, uz,
-                r, graze):
+def _few_answer(S, T, k, xmat, sl, g, best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si, sweep):
     """`mesh_sweep`'s answer from `_few_run`'s: the touch (`_hit`), and the start's nearest
     point kept for `mesh_distance` when it was asked for (sd2 >= 0)."""
+    ax, ay, az = sweep.ax, sweep.ay, sweep.az
     if sd2 >= 0.0:
         d, nx, ny, nz = _answer(S, T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
         _keep(S, k, sl, ax, ay, az, d, nx, ny, nz, si)
         S[k].hint = si
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
-    return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, ax, ay, az, ux, uy, uz, r, graze)
+    return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, sweep)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2,
-               graze, lam, mx, my, mz):
+def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
     """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
     besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When
     sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature sf) or one of theirs,
     and its answer is kept for `mesh_distance`."""
-    out = _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, ax, ay, az, ux, uy, uz, r, dd, far2, graze, lam, mx, my, mz)
-    return _few_answer(S, T, k, xmat, sl, g, *out, ax, ay, az, ux, uy, uz, r, graze)
+    out = _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz)
+    return _few_answer(S, T, k, xmat, sl, g, *out, sweep)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz, r, dd, far2, graze):
+def _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2):
     """`mesh_sweep` by the ball certificate of the start's nearest row `hint` (at d2, q,
     `feature`), for a sweep not moving into it: the earliest touch among its ball list, when
     the sphere (and the start's ball of radius its distance) lies inside a ball resting on
     the hint's face at the start and at that touch (or the end), and so all the way (the
     test is convex along the segment). (True, answer) or (False, …) when it does not hold."""
+    ax, ay, az, ux, uy, uz, r, _, _ = sweep
     reach = r + CONTACT_TOL
     m, sx, sy, sz = _ball_few(S, T, C, k, hint, ax, ay, az, max(reach, math.sqrt(d2)))
     if m < 0:
         return False, (-1.0, 0.0, 0.0, 0.0)
-    out = _few_run(T, C, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz, r, dd, far2, graze,
+    out = _few_run(T, C, m, hint, d2, qx, qy, qz, feature, sweep, far2,
                    -1.0, 0.0, 0.0, 0.0)
     lam = out[0] if out[4] >= 0 else 1.0
     if not _ball_holds(T, hint, sx, sy, sz, S[k].ball, ax + lam * ux, ay + lam * uy, az + lam * uz, reach):
         return False, (-1.0, 0.0, 0.0, 0.0)
-    return True, _few_answer(S, T, k, xmat, sl, g, *out, ax, ay, az, ux, uy, uz, r, graze)
+    return True, _few_answer(S, T, k, xmat, sl, g, *out, sweep)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz, span, ax, ay, az, ux, uy, uz,
-                     r, dd, far2, graze):
+def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz, span, sweep, far2):
     """`mesh_sweep` of a sphere staying r above the tangent plane (normal n) at the start's
     nearest point q on row `hint` (at d2, `feature`), by the kept certificates: the triangles
     rising above that plane within `span` (m), or where too many do, a ball resting on the
@@ -1376,10 +1385,8 @@ def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx,
     the neighbours rising into that ball). (True, answer) or (False, …) when neither holds."""
     m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, span)
     if m >= 0:
-        return True, _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
-                                r, dd, far2, graze, -1.0, 0.0, 0.0, 0.0)
-    return _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, ax, ay, az, ux, uy, uz,
-                       r, dd, far2, graze)
+        return True, _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, sweep, far2, -1.0, 0.0, 0.0, 0.0)
+    return _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1424,6 +1431,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     far2 = far * far
     g = int(S[k].geom)
     ux, uy, uz = _to_geom(xmat, g, dx, dy, dz)
+    sweep = Sweep(ax, ay, az, ux, uy, uz, r, dd, graze)
     best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
     cull, pnx, pny, pnz, poff = False, 0.0, 0.0, 0.0, 0.0
     hint0 = int(S[k].hint)
@@ -1434,13 +1442,13 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
             nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
             into = nx * ux + ny * uy + nz * uz
             if _pressed(dist, into, r, graze):  # pressed into the one it touches: nothing comes earlier
-                return _hit(S, T, k, xmat, g, hint, 0.0, nx, ny, nz, ax, ay, az, ux, uy, uz, r, graze)
+                return _hit(S, T, k, xmat, g, hint, 0.0, nx, ny, nz, sweep)
             if dist >= r - CONTACT_TOL and dist + into >= r - CONTACT_TOL:
                 # moving along or away, r above the hint's tangent plane from start to end (a
                 # sphere that dips below it may overlap a triangle behind it): only the
                 # triangles reaching above it can be touched
                 held, out = _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
-                                             2.0 * reach + length, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                                             2.0 * reach + length, sweep, far2)
                 if held:
                     return out
                 # too many reach above it to list (a neighbour's wall): the walk below still
@@ -1448,33 +1456,32 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 cull = True
                 pnx, pny, pnz, poff = nx, ny, nz, nx * qx + ny * qy + nz * qz + ABOVE_TOL
         else:
-            lam, mx, my, mz, f = _sweep_triangle(T, hint, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
-            if lam >= 0.0 and 1 <= f <= 3:
+            lam, mx, my, mz, f = _sweep_triangle(T, hint, sweep, far2)
+            if lam >= 0.0 and EDGE_AB <= f < VERTEX_A:
                 # touched on an edge: the neighbour across it may be touched first
-                other = int(T[hint, T_ADJ + f - 1])
+                other = int(T[hint, T_ADJ + f - EDGE_AB])
                 if other >= 0:
-                    lam2, nx, ny, nz, f2 = _sweep_triangle(T, other, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                    lam2, nx, ny, nz, f2 = _sweep_triangle(T, other, sweep, far2)
                     if lam2 >= 0.0 and lam2 < lam:
                         lam, mx, my, mz, f, hint = lam2, nx, ny, nz, f2, other
-            elif lam > 0.0 and f >= 4:
+            elif lam > 0.0 and f >= VERTEX_A:
                 # touched on a vertex: a fan triangle on an edge rising above the tangent
                 # plane there holds a nearer point, so it was touched first
                 sx, sy, sz = ax + lam * ux, ay + lam * uy, az + lam * uz
                 c2, cx, cy, cz, cf = closest(T, hint, sx, sy, sz)
-                if cf >= 4:
+                if cf >= VERTEX_A:
                     walked = _walk(S, T, C, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
                     if walked != hint:
-                        lam2, nx, ny, nz, f2 = _sweep_triangle(T, walked, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                        lam2, nx, ny, nz, f2 = _sweep_triangle(T, walked, sweep, far2)
                         if lam2 >= 0.0 and lam2 < lam:
                             lam, mx, my, mz, f, hint = lam2, nx, ny, nz, f2, walked
             if lam >= 0.0:
                 if lam == 0.0:
-                    return _hit(S, T, k, xmat, g, hint, 0.0, mx, my, mz, ax, ay, az, ux, uy, uz, r, graze)
+                    return _hit(S, T, k, xmat, g, hint, 0.0, mx, my, mz, sweep)
                 # up to the touch the sphere stays r above the tangent plane there
                 m = static_clear(S, T, C, k, hint, f, mx, my, mz, 2.0 * reach + lam * length)
                 if m >= 0:
-                    return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, -1.0, 0.0, 0.0, 0.0, 0, ax, ay, az, ux, uy, uz,
-                                      r, dd, far2, graze, lam, mx, my, mz)
+                    return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, -1.0, 0.0, 0.0, 0.0, 0, sweep, far2, lam, mx, my, mz)
                 best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, hint
                 far = reach + lam * length  # only the segment before this touch matters now
                 far2 = far * far
@@ -1485,7 +1492,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
                 if dist + nx * ux + ny * uy + nz * uz >= r - CONTACT_TOL:
                     held, out = _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
-                                                 dist + reach + length, ax, ay, az, ux, uy, uz, r, dd, far2, graze)
+                                                 dist + reach + length, sweep, far2)
                     if held:
                         return out
     slab = reach + 1e-12
@@ -1500,11 +1507,11 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     if at >= 0:
         j0 = at + P_RECORDS
         best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
-            T, C, j0, j0 + m * RECORD_WIDTH, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab,
+            T, C, j0, j0 + m * RECORD_WIDTH, stamp, sweep, slab,
             reach, length, best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff)
         if bi < 0:
             return (-1.0, 0.0, 0.0, 0.0)
-        return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, ax, ay, az, ux, uy, uz, r, graze)
+        return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, sweep)
     # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
     # a node entered after the earliest touch found holds no earlier one
     slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
@@ -1540,7 +1547,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
         if node >= size:
             j0, j1 = _leaf_records(C, tree, node, size, n)
             best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
-                T, C, j0, j1, stamp, ax, ay, az, ux, uy, uz, r, dd, graze, slab, reach, length,
+                T, C, j0, j1, stamp, sweep, slab, reach, length,
                 best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff)
             continue
         at = base + NODE_WIDTH * 2 * node
@@ -1562,4 +1569,4 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 top += 1
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
-    return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, ax, ay, az, ux, uy, uz, r, graze)
+    return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, sweep)
