@@ -46,7 +46,7 @@ from typing import NamedTuple
 
 from softproxy import schema
 from softproxy.input_error import InputError, must_be
-from softproxy.schema import MAX_FORCE_N, MAX_INPUT_SCALE, MAX_OUTPUT_SCALE, MAX_TORQUE_NM  # noqa: F401 (bounds, declared there)
+from softproxy.schema import MAX_FORCE_N, MAX_INPUT_SCALE, MAX_OUTPUT_SCALE, MAX_TORQUE_NM  # noqa: F401
 
 PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
 """The shipped profiles."""

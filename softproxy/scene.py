@@ -28,10 +28,11 @@ A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked
 Scenes are found by name in the folders registered under the `softproxy.scene_dirs` entry
 point (the shipped `scenes/` folder), or given as a path. The tables, their fields, bounds
 and units are declared in `softproxy.schema` (`SceneFile`; `softproxy schema` writes its JSON
-Schema for editors); every error is one line naming the file, the field and what was expected. `Scene.load_model` also checks the MJCF against what the servo
-loop can run: no RK4 integrator (the loop steps MuJoCo in two halves), no touchable geom of a
-type the fingers cannot touch (SDFs) unless [haptics] excludes it, [haptics] names that are
-geoms or flexes of the model, a `[measure]` object that is a body.
+Schema for editors); every error is one line naming the file, the field and what was
+expected. `Scene.load_model` also checks the MJCF against what the servo loop can run: no
+RK4 integrator (the loop steps MuJoCo in two halves), no touchable geom of a type the fingers
+cannot touch (SDFs) unless [haptics] excludes it, [haptics] names that are geoms or flexes
+of the model, a `[measure]` object that is a body.
 """
 
 from __future__ import annotations

@@ -229,7 +229,8 @@ Name = Annotated[str, Field(strict=True, min_length=1, pattern=r"\S")]
 
 _KIND = {
     "model_type": "a table", "model_attributes_type": "a table", "dict_type": "a table", "dataclass_type": "a table",
-    "list_type": "a list", "tuple_type": "3 finite numbers [x, y, z]", "bool_type": "true or false", "string_type": "a string",
+    "list_type": "a list", "tuple_type": "3 finite numbers [x, y, z]", "bool_type": "true or false",
+    "string_type": "a string",
     "int_type": "an integer", "float_type": "a number", "string_too_short": "a non-empty string",
     "too_short": "a non-empty list", "string_pattern_mismatch": "a non-empty string",
 }
@@ -422,8 +423,8 @@ class FingerParams:
                            "at most)", low=0.0, high=1.0, optional=True) = None
     torsion_mu_d: quantity("N·m/N^γ", "dynamic torsional coefficient (default: 0.8 × static), <= torsion_mu_s",
                            low=0.0, high=1.0, optional=True) = None
-    saturate: Annotated[Flag, Field(description="torsion limit follows eq 26 (linear above P*), the default: "
-                                    "closer to the measured fingertip (docs/peer.md); false: μ'|P|^γ at every P")] = True
+    saturate: Annotated[Flag, Field(description="torsion limit follows eq 26 (linear above P*), the default: closer "
+                                    "to the measured fingertip (docs/peer.md); false: μ'|P|^γ at every P")] = True
     restick_time: quantity("s", "a slipping contact (cone, torsion) stopped this long re-sticks; 0: static limits "
                            "re-tested every tick (seed 002 eq 39 as printed); a minute is already never",
                            low=0.0, high=60.0) = RESTICK_TIME
@@ -510,7 +511,8 @@ class TactileSpec(_ChannelSpec):
     """A finger's tactile channel (SI): frame rate (Hz), fingertip and sensor, pad frame."""
 
     radius: quantity("m", "Inoue-Hirai fingertip radius r (default: the proxy radius)", low=0.0,
-                     high=MAX_FINGERTIP_M, open_low=True, optional=True, hint_high="radius is in m: 8 mm is 0.008") = None
+                     high=MAX_FINGERTIP_M, open_low=True, optional=True,
+                     hint_high="radius is in m: 8 mm is 0.008") = None
     side: quantity("m", "sensor side (default: 2 r)", low=0.0, high=MAX_FINGERTIP_M, open_low=True, optional=True,
                    hint_high="side is in m: 12 mm is 0.012") = None
     cells: count("tactile cells per side", low=1, high=MAX_CELLS) = PAPER_CELLS

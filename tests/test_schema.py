@@ -76,7 +76,8 @@ MALFORMED_SCENES = [
 ]
 
 
-@pytest.mark.parametrize("where, value, words", MALFORMED_SCENES, ids=[".".join(map(str, m[0])) for m in MALFORMED_SCENES])
+@pytest.mark.parametrize("where, value, words", MALFORMED_SCENES,
+                         ids=[".".join(map(str, m[0])) for m in MALFORMED_SCENES])
 def test_a_malformed_scene_is_refused_by_the_schema_and_the_loader_alike(written, tmp_path, where, value, words):
     """The written schema (what an editor flags) and `load_scene` (one line naming the file, the
     field and the fix) refuse the same mistakes."""
@@ -190,7 +191,8 @@ def test_a_unit_slip_is_named_with_its_fix():
     with pytest.raises(ValueError, match=r"^stiffness must be between 10 and 1e\+08 N/m, got 2\.0 "
                                          r"\(stiffness is in N/m: 2 N/mm is 2000 N/m\)$"):
         FingerParams(stiffness=2.0)
-    with pytest.raises(ValueError, match=r"^radius must be at most 0\.1 m, got 8\.0 \(radius is in m: 8 mm is 0\.008\)$"):
+    with pytest.raises(ValueError, match=r"^radius must be at most 0\.1 m, got 8\.0 "
+                                         r"\(radius is in m: 8 mm is 0\.008\)$"):
         FingerParams(radius=8.0)
     with pytest.raises(ValueError) as exc:
         FingerParams(stiffness=-5.0)
