@@ -19,12 +19,11 @@ Transitions are changes of the stick/slip state, both ways, per second of the ru
 
 from __future__ import annotations
 
-import json
 
 import mujoco
 import numpy as np
 
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_TIME, RESTICK_TRAVEL
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
@@ -131,7 +130,7 @@ def measure(twist_seconds: float = 5.0, progress=None) -> dict:
             rows.append(row)
     return {"constants": {"restick_time_s": RESTICK_TIME, "restick_fraction": RESTICK_FRACTION,
                           "restick_travel": RESTICK_TRAVEL},
-            "twist_setup": {"model": "CH", "P_N": 1.0, "k_tau_Nm_per_rad": K_TAU, "dt_s": DT},
+            "twist_setup": {"model": "CH", "P_N": 1.0, "k_tau_Nm_per_rad": K_TAU, "dt_s": DT, "seconds": twist_seconds},
             "slide_setup": {"radius_m": RADIUS, "depth_m": DEPTH, "mu_s": CONE_S, "mu_d": CONE_D,
                             "ticks": SLIDE_TICKS, "dt_s": DT},
             "chai3d_slide": CHAI3D_SLIDE, "rows": rows}
@@ -174,10 +173,12 @@ def main(args) -> int:
     fig = chart(result)
     for r in result["rows"]:
         del r["_trace"]
-    json_path, png_path = save(args.out, "friction", result, fig)
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
+    publish(args, "friction", result, fig, print_report)
+    return 0
+
+
+def print_report(result: dict) -> None:
+    """What `softproxy bench friction` prints: the result as a table."""
     c = result["constants"]
     print(f"friction under steady motion: slip state (re-stick when stopped {c['restick_time_s']:g} s or turned back "
           f"to {c['restick_fraction']:g} of the dynamic limit) vs per tick (restick_time 0)")
@@ -186,10 +187,8 @@ def main(args) -> int:
         unit = "N·m" if r["law"] == "torsion" else "mm"
         print(f"  {r['motion']:22s}{r['option']:18s}{r['mean']:10.5f}{r['ripple']:10.5f}{r['ripple_fraction']:11.1%} "
               f"{r['transitions_per_s']:10.2f}{r['transitions']:8d}  {unit}")
-    chai = result["chai3d_slide"]
+    chai, seconds = result["chai3d_slide"], result["twist_setup"]["seconds"]
     print(f"  twist: CH at P = 1 N, k_τ = {K_TAU:g}, {seconds:g} s; slide: {RADIUS * 1e3:g} mm proxy {DEPTH * 1e3:g} mm "
           f"deep, μ {CONE_S}/{CONE_D}, {SLIDE_TICKS} ticks (CHAI3D's finger proxy there: {chai['switches']} switches, "
           f"{chai['lag_mm']:.2f} mm steady lag)")
-    print(f"  wrote {json_path} and {png_path}")
-    return 0
 

@@ -16,14 +16,13 @@ serves every finger, so the tick pays the kernel alone.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 
 import mujoco
 import numpy as np
 
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 from softproxy.proxy import GodObject
 from softproxy.scene import load_scene
 from softproxy.world import World
@@ -198,10 +197,12 @@ def main(args) -> int:
     fig = chart(result)
     for r in result["rows"]:
         del r["_us"]
-    json_path, png_path = save(args.out, "godobject", result, fig)
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
+    publish(args, "godobject", result, fig, print_report)
+    return 0
+
+
+def print_report(result: dict) -> None:
+    """What `softproxy bench godobject` prints: the result as a table."""
     print(f"god-object update, {result['radius_m'] * 1e3:g} mm proxy, {result['updates']} updates each "
           f"(a Python call costs {result['python_call_us']} µs here); µs")
     print(f"  {'situation':40s}{'p50':>8s}{'p99':>8s}{'target':>8s}{'CHAI3D':>8s}  inside max (m)")
@@ -210,5 +211,3 @@ def main(args) -> int:
         flag = "  (over target)" if r["p50_us"] > r["target_us"] else ""
         print(f"  {r['situation']:40s}{r['p50_us']:8.2f}{r['p99_us']:8.2f}{r['target_us']:8.1f}{chai}  "
               f"{r['penetration_max_m']:.1e}{flag}")
-    print(f"  wrote {json_path} and {png_path}")
-    return 0

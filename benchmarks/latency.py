@@ -15,14 +15,13 @@ nothing. Prints a table, writes latency.json and latency.png.
 
 from __future__ import annotations
 
-import json
 import os
 
 import mujoco
 import numpy as np
 from numba import njit
 
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 from softproxy.compiled import native
 from softproxy.compiled.servo import LOOP, STAGES, pace, paced_done
 from softproxy.run import build, open_device
@@ -170,10 +169,12 @@ def main(args) -> int:
     progress.done()
     fig = chart(result)
     del result["_samples"]
-    json_path, png_path = save(args.out, "latency", result, fig)
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
+    publish(args, "latency", result, fig, print_report)
+    return 0
+
+
+def print_report(result: dict) -> None:
+    """What `softproxy bench latency` prints: the result as a table."""
     t, s = result["tick_us"], result["mj_step_us"]
     print(f"latency on {result['scene']} ({result['fingers']} fingers, {result['ticks_timed']} ticks timed)")
     print(f"  {'':22s}{'p50':>9s}{'p99':>9s}{'max':>9s}{'/ mj_step':>11s}   (µs)")
@@ -187,5 +188,3 @@ def main(args) -> int:
               f"{paced['ticks']} ({paced['miss_rate']:.2e}), tick p99 {paced['tick_us']['p99']} µs; "
               f"the pacer alone: {paced['pacer_alone_misses']} ({paced['pacer_alone_miss_rate']:.2e})")
     print("  stages (µs, median): " + ", ".join(f"{k} {v}" for k, v in result["stages_us_p50"].items()))
-    print(f"  wrote {json_path} and {png_path}")
-    return 0

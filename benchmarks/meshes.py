@@ -18,7 +18,6 @@ mesh.
 from __future__ import annotations
 
 import gc
-import json
 import math
 import sys
 import time
@@ -29,7 +28,7 @@ import mujoco
 import numpy as np
 import trimesh
 
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 
 RADIUS = 0.005
 """Proxy radius (m)."""
@@ -407,10 +406,12 @@ def main(args) -> int:
     result = measure(SIZES, updates=5000 if getattr(args, "full", False) else 2000, progress=progress)
     progress.done()
     fig = chart(result)
-    json_path, png_path = save(args.out, "meshes", result, fig)
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
+    publish(args, "meshes", result, fig, print_report)
+    return 0
+
+
+def print_report(result: dict) -> None:
+    """What `softproxy bench meshes` prints: the result as a table."""
     print(f"meshes: load and god-object update ({result['radius_m'] * 1e3:g} mm proxy, {result['updates']} updates "
           "per finger); µs per finger update, p50/p99")
     print("  (with several fingers: p99 in company / p99 of the same spots each alone; in reach: the")
@@ -437,5 +438,3 @@ def main(args) -> int:
             reach = f"{r['pressed_in_reach_p50']:5.0f}/{r['sliding_in_reach_p50']:<4.0f}" if count == 1 else " " * 10
             print(f"{head}  {count:7d}{r[f'pressed_{count}f_p50_us']:8.1f}/{r[f'pressed_{count}f_p99_us']:<7.1f}"
                   f"{r[f'sliding_{count}f_p50_us']:8.1f}/{r[f'sliding_{count}f_p99_us']:<7.1f}{reach}{ratio:>14s}")
-    print(f"  wrote {json_path} and {png_path}")
-    return 0

@@ -20,14 +20,13 @@ Writes passivity.json and passivity.png.
 
 from __future__ import annotations
 
-import json
 import math
 
 import mujoco
 import numpy as np
 
 from .device_models import PROFILES, Hand, HandHeldHandle
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
 from softproxy.run import build, open_device
@@ -160,10 +159,12 @@ def main(args) -> int:
     progress = Progress("passivity")
     result = measure(progress)
     progress.done()
-    json_path, png_path = save(args.out, "passivity", result, chart(result))
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
+    publish(args, "passivity", result, chart(result), print_report)
+    return 0
+
+
+def print_report(result: dict) -> None:
+    """What `softproxy bench passivity` prints: the result as a table."""
     print("the passivity controller's transparency cost: what the device is sent, controller on vs off")
     print(f"  {'case':48s}{'RMS F':>9s}{'RMS dF':>10s}{'max dF':>9s}{'RMS dM':>10s}{'ticks on':>9s}"
           f"{'hand J on':>11s}{'hand J off':>11s}")
@@ -175,5 +176,3 @@ def main(args) -> int:
               f"{r['torque_rms_error_Nm']:10.2e}{on['controller_ticks']:9d}{hand_on:11.4f}{hand_off:11.4f}")
     print("  (N and N·m; 'hand J': the work the wall's force did on the hand-held handle, > 0: energy the hand never "
           "put in)")
-    print(f"  wrote {json_path} and {png_path}")
-    return 0

@@ -23,7 +23,6 @@ peer.png.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass, replace
@@ -31,7 +30,7 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 from softproxy import fingertip
 from softproxy.device import DeviceSample
 from softproxy.finger import FingerParams
@@ -732,10 +731,6 @@ def main(args) -> int:
     progress = Progress("peer")
     result = measure(duration, progress=progress)
     progress.done()
-    json_path, png_path = save(args.out, "peer", result, chart(result))
-    if args.json:
-        print(json.dumps({k: v for k, v in result.items() if k != "traces"}, indent=2))
-        return 0
-    print_report(result)
-    print(f"  wrote {json_path} and {png_path}")
+    shown = {k: v for k, v in result.items() if k != "traces"}  # the JSON printed leaves the traces out
+    publish(args, "peer", result, chart(result), print_report, shown)
     return 0

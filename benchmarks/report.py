@@ -45,3 +45,15 @@ def save(out_dir: str | Path, name: str, result: dict, fig) -> tuple[Path, Path]
     plt.close(fig)
     (out / f"{name}.json").write_text(json.dumps(result, indent=1))
     return out / f"{name}.json", out / f"{name}.png"
+
+
+def publish(args, name: str, result: dict, fig, print_report, shown: dict | None = None) -> None:
+    """Write NAME.json and NAME.png into `args.out` (`save`), then show the result: as JSON with
+    `--json` (`shown`, or the whole result), else as `print_report(result)` prints it, followed
+    by where the two files went."""
+    json_path, png_path = save(args.out, name, result, fig)
+    if args.json:
+        print(json.dumps(result if shown is None else shown, indent=2))
+        return
+    print_report(result)
+    print(f"  wrote {json_path} and {png_path}")

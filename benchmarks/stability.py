@@ -42,7 +42,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
-import json
 import math
 import textwrap
 
@@ -50,7 +49,7 @@ import mujoco
 import numpy as np
 
 from .device_models import PROFILES, Hand, HandHeldHandle
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 from .sampled_wall import colgate_boundary, small_period_boundary, stability_boundary
 from softproxy.cells import Backend, run_cells
 from softproxy.finger import FingerParams, SoftFingerProxy
@@ -452,10 +451,12 @@ def main(args) -> int:
     progress = Progress("stability")
     result = measure(getattr(args, "full", False), progress, getattr(args, "backend", None) or Backend())
     progress.done()
-    json_path, png_path = save(args.out, "stability", result, chart(result))
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
+    publish(args, "stability", result, chart(result), print_report)
+    return 0 if args.json or (all(c["ok"] for c in result["extremes"]) and not result["failed"]) else 1
+
+
+def print_report(result: dict) -> None:
+    """What `softproxy bench stability` prints: the result as a table."""
     print(f"stability: a hand-held device (hand {HAND.stiffness_Npm:g} N/m, {HAND.damping_Nspm:g} N·s/m, pushing "
           f"{HAND.push_N:g} N) on a wall, tapped at {KICK_S:g} s; the force held over each period (ZOH), the "
           "handle integrated exactly between ticks")
@@ -514,5 +515,3 @@ def main(args) -> int:
         print(f"    {'ok  ' if c['ok'] else 'FAIL'} {c['case']}")
     for f in result["failed"]:
         print(f"  FAILED cell {f['cell']}: {f['error']}")
-    print(f"  wrote {json_path} and {png_path}")
-    return 0 if all(c["ok"] for c in result["extremes"]) and not result["failed"] else 1

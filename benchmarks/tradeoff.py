@@ -30,14 +30,13 @@ side by side, so they run in this process.
 
 from __future__ import annotations
 
-import json
 import time
 import timeit
 
 import mujoco
 import numpy as np
 
-from .report import Progress, figure, save
+from .report import Progress, figure, publish
 from softproxy.cells import Backend, run_cells
 from softproxy.fingertip_sensors import SensingSpec, TactileSpec
 from softproxy.run import _rotation_about, build, open_device
@@ -281,10 +280,12 @@ def main(args) -> int:
     result = measure(getattr(args, "full", False), progress, min(args.duration, 2.2),
                      getattr(args, "backend", None) or Backend())
     progress.done()
-    json_path, png_path = save(args.out, "tradeoff", result, chart(result))
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0
+    publish(args, "tradeoff", result, chart(result), print_report)
+    return 0 if args.json or not result["failed"] else 1
+
+
+def print_report(result: dict) -> None:
+    """What `softproxy bench tradeoff` prints: the result as a table."""
     print(f"tradeoff: reference LFM at {result['reference']['rate_hz']:g} Hz; bare mj_step p50 "
           f"{result['mj_step_us_p50']} µs (grasp scene model)")
     print(f"  {'scene':17s}{'model':6s}{'rate (Hz)':>10s}{'tick p50 (µs)':>15s}{'× mj_step':>11s}{'force RMS (N)':>15s}"
@@ -311,5 +312,3 @@ def main(args) -> int:
               f"{'; '.join(got)}")
     for f in result["failed"]:
         print(f"  FAILED cell {f['cell']}: {f['error']}")
-    print(f"  wrote {json_path} and {png_path}")
-    return 1 if result["failed"] else 0
