@@ -183,37 +183,45 @@ class _Path:
         return r.y - 0.02, r.z - 0.03, l.y - 0.02, l.z - 0.03
 
 
-class MujocoRig:
+class _MujocoBox:
+    """A rig whose box MuJoCo simulates: the box's orientation, height, spin about the grasp
+    axis (rad/s) and a torque on it (N·m), read from and written to its mjData."""
+
+    def _find_box(self, model, data) -> None:
+        self.data = data
+        box = model.body("box").id
+        self.box, self.dof = box, model.body_dofadr[box] + 3  # the free joint's spin about the box's x
+        self.inertia = float(model.body_inertia[box][0])
+        self.damping = float(model.dof_damping[self.dof])
+
+    def quat(self):
+        return self.data.xquat[self.box].copy()
+
+    def height(self) -> float:
+        return float(self.data.xpos[self.box][2])
+
+    def spin(self) -> float:
+        return float(self.data.qvel[self.dof])  # local x = the grasp axis while the box turns about it
+
+    def apply(self, torque: float) -> None:
+        self.data.qfrc_applied[self.dof] = torque
+
+
+class MujocoRig(_MujocoBox):
     """The grasp as a MuJoCo user builds it: slide-jointed sphere fingers, MuJoCo's contact."""
 
     def __init__(self, setup: MujocoSetup, grip: float, gravity: bool, coefficient: float):
         self.m = mujoco.MjModel.from_xml_string(mujoco_xml(setup, gravity, coefficient))
-        self.d = mujoco.MjData(self.m)
+        self._find_box(self.m, mujoco.MjData(self.m))
         self.grip, self.path = grip, _Path(still=not gravity)
-        box = self.m.body("box").id
-        self.box, self.dof = box, self.m.body_dofadr[box] + 3  # the free joint's spin about the box's x
-        self.inertia = float(self.m.body_inertia[box][0])
-        self.damping = float(self.m.dof_damping[self.dof])
 
     def step(self, t: float) -> float:
         g = _grip_ramp(t, self.grip)
         ry, rz, ly, lz = self.path.targets(t)
-        self.d.ctrl[:] = (-g, ry, rz, g, ly, lz)
+        self.data.ctrl[:] = (-g, ry, rz, g, ly, lz)
         start = time.perf_counter()
-        mujoco.mj_step(self.m, self.d)
+        mujoco.mj_step(self.m, self.data)
         return time.perf_counter() - start
-
-    def quat(self):
-        return self.d.xquat[self.box].copy()
-
-    def height(self) -> float:
-        return float(self.d.xpos[self.box][2])
-
-    def spin(self) -> float:
-        return float(self.d.qvel[self.dof])  # local x = the grasp axis while the box turns about it
-
-    def apply(self, torque: float) -> None:
-        self.d.qfrc_applied[self.dof] = torque
 
 
 def mujoco_xml(setup: MujocoSetup, gravity: bool, coefficient: float) -> str:
@@ -321,7 +329,7 @@ class PybulletRig:
         self.pb.disconnect(physicsClientId=self.client)
 
 
-class SoftproxyRig:
+class SoftproxyRig(_MujocoBox):
     """The grasp scene itself: two soft-finger proxies on the simulated device."""
 
     def __init__(self, setup: SoftproxySetup, grip: float, gravity: bool):
@@ -335,28 +343,12 @@ class SoftproxyRig:
             world.model.opt.gravity[:] = 0.0
             floor = world.model.geom("floor").id
             world.model.geom_contype[floor] = world.model.geom_conaffinity[floor] = 0  # only the fingers hold it
-        self.box = world.body_id("box")
-        self.dof = world.model.body_dofadr[self.box] + 3
-        self.inertia = float(world.model.body_inertia[self.box][0])
-        self.damping = float(world.model.dof_damping[self.dof])
-        self.data = world.data
+        self._find_box(world.model, world.data)
 
     def step(self, t: float) -> float:
         start = time.perf_counter()
         self.loop.tick()
         return time.perf_counter() - start
-
-    def quat(self):
-        return self.data.xquat[self.box].copy()
-
-    def height(self) -> float:
-        return float(self.data.xpos[self.box][2])
-
-    def spin(self) -> float:
-        return float(self.data.qvel[self.dof])
-
-    def apply(self, torque: float) -> None:
-        self.data.qfrc_applied[self.dof] = torque
 
 
 def _zero_gravity_keyframes(scene, grip: float) -> None:
@@ -423,7 +415,7 @@ def _mujoco_step_cost(rig: MujocoRig, calls: int = 300, nstep: int = 10) -> floa
     cost = np.empty(calls)
     for k in range(calls):
         start = time.perf_counter()
-        mujoco.mj_step(rig.m, rig.d, nstep)
+        mujoco.mj_step(rig.m, rig.data, nstep)
         cost[k] = time.perf_counter() - start
     return float(np.median(cost)) / nstep
 
