@@ -1,13 +1,13 @@
-"""Checks of a device adapter's settings, shared by the adapters (hid, forcedimension, openhaptics).
+"""Checks of a device adapter's settings, shared by the adapters (sim, hid, forcedimension, openhaptics).
 
 Two ways in: a scene's [device] table (`from_config`), where every error is one ValueError line
 naming the source file (or `--device` argument) and the field, `"{source}: device.FIELD must be
 ..., got ..."`; and the `--device TYPE:...` argument (`from_argument`), whose `key=value` items
-become such a table. The constructors' own checks of the workspace mapping live here too. What a
-field means is each adapter's (its `from_config` docstring); only how it is checked is shared.
-Each shipped type's table is declared, with its fields' bounds and units, in
-`softproxy.schema.DEVICE_TABLES` (the JSON Schema `softproxy schema` writes for editors); the
-errors are in that module's one-line format (`softproxy.input_error`).
+become such a table. Each shipped type's table is declared, with its fields' types, bounds and
+units, in `softproxy.schema.DEVICE_TABLES` (the JSON Schema `softproxy schema` writes for
+editors): `check_type` checks a table against it and `given` hands the checked fields to the
+constructor; what depends on the device (a limit within its profile's or its SDK's) stays the
+adapter's. The constructors' own checks of the workspace mapping live here too.
 """
 
 from __future__ import annotations
@@ -61,52 +61,11 @@ def check_type(cfg: dict, source: str, type_name: str, what: str = ""):
     return schema.validate(schema.DEVICE_TABLES[type_name], {**cfg, "type": type_name}, source=source, path="device")
 
 
-def check_keys(cfg: dict, source: str, keys) -> None:
-    """Every field must be one of `keys`: a misspelt one is an error, not silently ignored."""
-    unknown = set(cfg) - set(keys)
-    if unknown:
-        raise ValueError(f"{source}: device has unknown field(s) {sorted(unknown)}; expected some of {sorted(keys)}")
-
-
-def number(cfg: dict, source: str, key: str, expected: str, ok) -> float | None:
-    """cfg[key] as a float, None when absent; the field's error when it is no finite number or
-    `ok(value)` is false (`expected` says what it must be)."""
-    if key not in cfg:
-        return None
-    v = cfg[key]
-    if not (finite(v) and ok(v)):
-        raise field_error(source, f"device.{key}", expected, v)
-    return float(v)
-
-
-def vector3(cfg: dict, source: str, key: str, *, positive: bool = False, kinds=(list, tuple)):
-    """cfg[key] as 3 floats (m), None when absent; the field's error unless it is a `kinds`
-    (a TOML array is a list) of 3 finite numbers, each > 0 when `positive`."""
-    if key not in cfg:
-        return None
-    v = cfg[key]
-    if not (isinstance(v, kinds) and len(v) == 3 and all(finite(c) and (c > 0 or not positive) for c in v)):
-        raise field_error(source, f"device.{key}", f"3 finite numbers{' > 0' if positive else ''} [x, y, z] (m)", v)
-    return tuple(float(c) for c in v)
-
-
-def workspace_fields(cfg: dict, source: str, kwargs: dict, *, kinds=(list, tuple)) -> None:
-    """workspace_scale (> 0) and workspace_offset (m) into `kwargs`, those of them given."""
-    scale = number(cfg, source, "workspace_scale", "a finite number > 0", lambda v: v > 0)
-    if scale is not None:
-        kwargs["workspace_scale"] = scale
-    offset = vector3(cfg, source, "workspace_offset", kinds=kinds)
-    if offset is not None:
-        kwargs["workspace_offset"] = offset
-
-
-def limit_fields(cfg: dict, source: str, kwargs: dict, fields) -> None:
-    """Force / torque limits into `kwargs`: `fields` pairs a config key (`max_force_N`) with its
-    argument (`max_force`); each must be a finite number >= 0 (the device checks its own cap)."""
-    for key, arg in fields:
-        v = number(cfg, source, key, "a finite number >= 0", lambda v: v >= 0)
-        if v is not None:
-            kwargs[arg] = v
+def given(table, cfg: dict, arguments: dict) -> dict:
+    """The checked values (from `check_type`'s table) of the fields `cfg` gives, as keyword
+    arguments: `arguments` maps a field to its argument; a field left out keeps the adapter's
+    own default."""
+    return {arg: getattr(table, key) for key, arg in arguments.items() if key in cfg}
 
 
 def construct(source: str, make, *args, **kwargs):

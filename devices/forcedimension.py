@@ -71,7 +71,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import functools
 import importlib
 import io
 import math
@@ -129,8 +128,6 @@ _OPEN = OpenDevices()
 """Devices opened and not closed yet: closed (zero force, forces disabled) at interpreter exit."""
 
 
-_CONFIG_KEYS = {"type", "index", "serial", "gripper", "gripper_axis", "workspace_scale", "workspace_offset",
-                "max_force_N", "max_torque_Nm", "max_gripper_force_N", "stall_ms"}
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -632,35 +629,15 @@ class ForceDimensionDevice(DeviceLifecycle, FaultRecovery):
             stall_ms = 50                 # a force not renewed for this long is replaced by zero (0: never)
         """
         config.check_table(cfg, source)
-        config.check_type(cfg, source, "forcedimension")
-        config.check_keys(cfg, source, _CONFIG_KEYS)
-        fail = functools.partial(config.field_error, source)
-        kwargs = {}
-        for key in ("index", "serial"):
-            if key in cfg:
-                v = cfg[key]
-                if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                    raise fail(f"device.{key}", "an integer >= 0", v)
-                kwargs[key] = v
+        table = config.check_type(cfg, source, "forcedimension")  # each field as softproxy.schema declares it
+        kwargs = config.given(table, cfg, {
+            "index": "index", "serial": "serial", "gripper": "gripper", "gripper_axis": "gripper_axis",
+            "workspace_scale": "workspace_scale", "workspace_offset": "workspace_offset", "max_force_N": "max_force",
+            "max_torque_Nm": "max_torque", "max_gripper_force_N": "max_gripper_force", "stall_ms": "stall_ms"})
         if "index" in kwargs and "serial" in kwargs:
             raise ValueError(f"{source}: device.index and device.serial both choose a device: give one")
-        if "gripper" in cfg:
-            v = cfg["gripper"]
-            v = {True: "on", False: "off"}.get(v, v) if isinstance(v, bool) else v
-            if v not in ("auto", "on", "off"):
-                raise fail("device.gripper", "\"auto\", \"on\" or \"off\"", cfg["gripper"])
-            kwargs["gripper"] = v
-        if "gripper_axis" in cfg:
-            if cfg["gripper_axis"] not in _AXES:
-                raise fail("device.gripper_axis", "\"x\", \"y\" or \"z\"", cfg["gripper_axis"])
-            kwargs["gripper_axis"] = cfg["gripper_axis"]
-        config.workspace_fields(cfg, source, kwargs)
-        config.limit_fields(cfg, source, kwargs, (("max_force_N", "max_force"), ("max_torque_Nm", "max_torque"),
-                                                  ("max_gripper_force_N", "max_gripper_force")))
-        stall_ms = config.number(cfg, source, "stall_ms", "a number of milliseconds in [0, 1000] (0: no watchdog)",
-                                 lambda v: 0 <= v <= 1000)
-        if stall_ms is not None:
-            kwargs["stall_ms"] = stall_ms
+        if isinstance(kwargs.get("gripper"), bool):
+            kwargs["gripper"] = "on" if kwargs["gripper"] else "off"
         if clock is not None:
             kwargs["clock"] = clock
         return config.construct(source, cls, dhd, **kwargs)

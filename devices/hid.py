@@ -99,8 +99,6 @@ from .hid_profile import (
     zero_output,
 )
 
-_CONFIG_KEYS = {"type", "profile", "path", "mode", "workspace_scale", "workspace_offset", "workspace_half_m",
-                "twist_limit_rad", "stale_ms", "max_force_N", "max_torque_Nm"}
 MAX_DT = 0.1
 """Longest step (s) integrated at once in rate mode: a stalled loop does not make the finger jump."""
 NO_REOPEN_NOTICE_ERRORS = 100
@@ -354,40 +352,25 @@ class HidDevice(DeviceLifecycle, FaultRecovery):
         """
         fail = functools.partial(config.field_error, source)
         config.check_table(cfg, source)
-        config.check_keys(cfg, source, _CONFIG_KEYS)
-        config.check_type(cfg, source, "hid", " for a HID device")
-        name = cfg.get("profile")
-        if not isinstance(name, str) or not name.strip():
-            raise fail("device.profile", "the name of a HID profile (e.g. \"spacemouse\") or a path to one", name)
+        table = config.check_type(cfg, source, "hid", " for a HID device")  # each field as softproxy.schema declares it
         base = Path(source).resolve().parent if Path(source).is_file() else None
         try:
-            profile = load_profile(name.strip(), base)
+            profile = load_profile(table.profile.strip(), base)
         except ProfileError as exc:
             raise ValueError(f"{source}: device.profile: {exc}") from None
-        kwargs = {}
-        if "path" in cfg:
-            if not isinstance(cfg["path"], str) or not cfg["path"]:
-                raise fail("device.path", "a HID device path (a string, see `softproxy devices`)", cfg["path"])
-        if "mode" in cfg:
-            if cfg["mode"] not in profile.modes:
-                raise fail("device.mode", f"one of {list(profile.modes)} (what profile {profile.name!r} supports)",
-                           cfg["mode"])
-            kwargs["mode"] = cfg["mode"]
-        config.workspace_fields(cfg, source, kwargs, kinds=list)
-        half = config.vector3(cfg, source, "workspace_half_m", positive=True, kinds=list)
-        if half is not None:
-            kwargs["workspace_half_m"] = half
-        for key, expected, ok in (("twist_limit_rad", "a finite number > 0", lambda v: v > 0),
-                                  ("stale_ms", "a finite number >= 0", lambda v: v >= 0)):
-            v = config.number(cfg, source, key, expected, ok)
-            if v is not None:
-                kwargs[key] = v
+        kwargs = config.given(table, cfg, {
+            "mode": "mode", "workspace_scale": "workspace_scale", "workspace_offset": "workspace_offset",
+            "workspace_half_m": "workspace_half_m", "twist_limit_rad": "twist_limit_rad", "stale_ms": "stale_ms"})
+        if "mode" in kwargs and kwargs["mode"] not in profile.modes:
+            raise fail("device.mode", f"one of {list(profile.modes)} (what profile {profile.name!r} supports)",
+                       kwargs["mode"])
         for key, arg, cap in (("max_force_N", "max_force", profile.max_force),
                               ("max_torque_Nm", "max_torque", profile.max_torque)):
-            v = config.number(cfg, source, key, f"a finite number in [0, {cap:g}] (profile {profile.name!r}'s limit)",
-                              lambda v, cap=cap: 0 <= v <= cap)
-            if v is not None:
-                kwargs[arg] = v
+            if key in cfg:  # within the profile's limit (the schema checked it is a finite number >= 0)
+                if getattr(table, key) > cap:
+                    raise fail(f"device.{key}", f"a finite number in [0, {cap:g}] (profile {profile.name!r}'s limit)",
+                               cfg[key])
+                kwargs[arg] = getattr(table, key)
         if clock is not None:
             kwargs["clock"] = clock
         if transport is not None:

@@ -117,8 +117,6 @@ their scheduler still runs - its thread calls into Python, which must not happen
 being torn down."""
 
 
-_CONFIG_KEYS = {"type", "device_name", "workspace_scale", "workspace_offset", "max_force_N", "stale_ms",
-                "command_timeout_ms"}
 
 
 def load_binding():
@@ -469,21 +467,12 @@ class OpenHapticsDevice(DeviceLifecycle, FaultRecovery):
             command_timeout_ms = 50         # a force older than this is not rendered
         """
         config.check_table(cfg, source)
-        config.check_type(cfg, source, "openhaptics")
-        config.check_keys(cfg, source, _CONFIG_KEYS)
-        kwargs = {}
-        if "device_name" in cfg:
-            v = cfg["device_name"]
-            if not isinstance(v, str) or not v.strip():
-                raise config.field_error(source, "device.device_name",
-                                         "the device's name in Touch Setup (e.g. \"Default Device\")", v)
-            kwargs["device_name"] = v.strip()
-        config.workspace_fields(cfg, source, kwargs)
-        config.limit_fields(cfg, source, kwargs, (("max_force_N", "max_force"),))
-        for key in ("stale_ms", "command_timeout_ms"):
-            v = config.number(cfg, source, key, "a number of milliseconds in (0, 1000]", lambda v: 0 < v <= 1000)
-            if v is not None:
-                kwargs[key] = v
+        table = config.check_type(cfg, source, "openhaptics")  # each field as softproxy.schema declares it
+        kwargs = config.given(table, cfg, {"device_name": "device_name", "workspace_scale": "workspace_scale",
+                                           "workspace_offset": "workspace_offset", "max_force_N": "max_force",
+                                           "stale_ms": "stale_ms", "command_timeout_ms": "command_timeout_ms"})
+        if "device_name" in kwargs:
+            kwargs["device_name"] = kwargs["device_name"].strip()
         if clock is not None:
             kwargs["clock"] = clock
         if sleep is not None:
