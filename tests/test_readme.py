@@ -38,3 +38,20 @@ def test_the_readme_test_command_is_what_ci_runs():
     assert "softproxy run two_finger_grasp --device sim --headless" in main
     ci = (README.parent / ".ci" / "run").read_text()
     assert f'"{tests}"' in ci  # one of .ci/run's phases runs exactly this command
+
+
+def test_the_main_job_prints_what_the_readme_shows():
+    """`softproxy run two_finger_grasp --device sim --headless` prints the README's lines digit
+    for digit, all but the tick times (they vary with the machine): the grasp's figures the
+    README promises are the engine's."""
+    shown = README.read_text().split("The main job prints", 1)[1]
+    block = re.search(r"```\n(.*?)\n```", shown, re.S).group(1)
+    out = subprocess.run([sys.executable, "-m", "softproxy.cli", "run", "two_finger_grasp", "--device", "sim",
+                          "--headless"], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+
+    def untimed(text: str) -> list[str]:
+        return [re.sub(r"tick p50 [0-9.]+ us, p99 [0-9.]+ us, max [0-9.]+ us", "tick times", line)
+                for line in text.strip().splitlines()]
+
+    assert untimed(out.stdout) == untimed(block)
