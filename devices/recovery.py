@@ -1,6 +1,6 @@
 """The failed state the hardware adapters share: a failure counted once, the device reopened
-every REOPEN_INTERVAL_S of its clock while failed, recovered on its next valid sample, and
-zero force tried CLOSE_ZERO_ATTEMPTS times on close.
+every REOPEN_INTERVAL_S of its clock while failed, recovered on its next valid sample; and, for
+an adapter that writes zero force itself on close, up to CLOSE_ZERO_ATTEMPTS tries of it.
 
 `FaultRecovery` is a mixin. The adapter says what a failure is (`_fail`, which calls
 `_enter_failure`), how to reopen (`_try_reopen`) and when it is back (its `_recover` calls
