@@ -222,7 +222,7 @@ class ShapeSet(list):
         self.S = S
         self.T = self.C = None
         if any(s.gtype == GEOM_MESH for s in self):
-            from softproxy.compiled.mesh import mesh_tables
+            from softproxy.mesh_tables import mesh_tables
 
             self.T, self.C = mesh_tables(self, S)
 

@@ -9,7 +9,7 @@ those triangles ready, once, when a world is loaded (numpy; nothing here runs in
   the frame of `data.geom_xpos` / `geom_xmat`): coincident vertices welded, degenerate and
   duplicate triangles dropped, winding made consistent, inverted normals flipped, open and
   non-manifold meshes reported, each defect a `MeshWarning` naming geom, mesh and file.
-- `MeshShape`, the `Shape` of a mesh geom, builds what `softproxy.compiled.mesh.mesh_tables`
+- `MeshShape`, the `Shape` of a mesh geom, builds what `softproxy.mesh_tables.mesh_tables`
   and `softproxy.compiled.certificate.certificate_tables` pack into the tables T and C. Per
   triangle: its corners, edges, plane, the angle-weighted pseudo-normals of its face, edges
   and vertices (they sign the distance on a watertight mesh; Bærentzen & Aanæs 2005), its
@@ -22,7 +22,7 @@ those triangles ready, once, when a world is loaded (numpy; nothing here runs in
   patch to hold a resting proxy (`dense`), per face and side where the plane's list fails,
   the few triangles a ball of the proxy's radius resting on the face reaches
   (`softproxy.compiled.ball`). And the box tree the queries walk where no certificate
-  holds (`softproxy.compiled.mesh.tree_nodes`).
+  holds (`softproxy.mesh_tables.tree_nodes`).
 A watertight mesh has an inside (signed distance); an open or non-manifold one is a
 two-sided sheet (unsigned distance, both sides solid).
 """
@@ -50,9 +50,10 @@ from softproxy.compiled.certificate import (
     vertex_tables,
 )
 from softproxy.compiled.layout import GEOM_MESH, PATCH_RECORDS, T_INV
-from softproxy.compiled.mesh import PATCH_KEEP, tree_nodes
+from softproxy.compiled.patch import PATCH_KEEP
 from softproxy.compiled.tolerances import CONTACT_TOL
 from softproxy.geometry import Shape
+from softproxy.mesh_tables import tree_nodes
 
 KEPT_RADIUS = 0.005
 """Proxy radius (m) the kept certificates are built for at load, for every face and vertex at

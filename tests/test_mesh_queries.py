@@ -25,7 +25,7 @@ from softproxy.compiled.certificate import ABOVE_TOL, VERTEX_READ
 from softproxy.compiled.layout import (
     EDGE_BC, EDGE_WIDTH, HINT_SLOTS, P_COUNT, P_FULL, P_RADIUS, PATCH_RECORDS, PATCH_WIDTH, T_COLUMNS, T_EDGES,
 )
-from softproxy.compiled.mesh import Sweep, _sweep_triangle
+from softproxy.compiled.triangle import Sweep, sweep_triangle
 from softproxy.compiled.tolerances import GRAZE
 from softproxy.proxy import GodObject
 
@@ -397,7 +397,7 @@ def test_a_sweep_names_the_edge_it_touched():
         length = float(np.linalg.norm(s1 - s0))
         row[0, T_EDGES + EDGE_WIDTH * k:T_EDGES + EDGE_WIDTH * (k + 1)] = [*s0, *((s1 - s0) / length), length]
     start, move, r = (0.8, 0.8, 0.05), (-0.6, 0.0, 0.0), 0.1
-    lam, _, _, _, feature = _sweep_triangle(row, 0, Sweep(*start, *move, r, 0.36, GRAZE * 0.6), (r + 0.6 + 1e-9) ** 2)
+    lam, _, _, _, feature = sweep_triangle(row, 0, Sweep(*start, *move, r, 0.36, GRAZE * 0.6), (r + 0.6 + 1e-9) ** 2)
     assert lam >= 0.0 and feature == EDGE_BC
     x = start[0] + lam * move[0]  # the centre is r from the line x + y = 1 (in 3-d)
     assert math.hypot((x + start[1] - 1.0) / math.sqrt(2.0), start[2]) == pytest.approx(r, abs=1e-12)

@@ -721,7 +721,7 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
     from softproxy.compiled.layout import (
         P_COUNT, P_KEYS, P_RADIUS, P_RECORDS, PATCH_RECORDS, PATCH_WIDTH, R_ROW, RECORD_WIDTH,
     )
-    from softproxy.compiled.mesh import _gather
+    from softproxy.compiled.patch import _gather
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # an open mesh
@@ -812,7 +812,7 @@ def test_a_finger_held_still_gathers_a_close_patch():
     was. On a dish denser still, where even that patch is too full, it is tried once and
     remembered. Every answer is the brute force's."""
     from softproxy.compiled.layout import HINT_SLOTS, P_FULL, PATCH_WIDTH
-    from softproxy.compiled.mesh import PATCH_CLOSE, PATCH_STILL
+    from softproxy.compiled.patch import PATCH_CLOSE, PATCH_STILL
     from test_mesh_queries import check_distance, patches
 
     r = 0.005
@@ -852,7 +852,7 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
     about twice at one place is stretched too. A capsule holds the query that noted it, 4 mm
     across the slide. Every answer is the brute force's."""
     from softproxy.compiled.layout import HINT_SLOTS, P_FULL, PATCH_WIDTH
-    from softproxy.compiled.mesh import PATCH_AHEAD, PATCH_CLOSE, PATCH_KEEP, PATCH_MARGIN
+    from softproxy.compiled.patch import PATCH_AHEAD, PATCH_CLOSE, PATCH_KEEP, PATCH_MARGIN
     from test_mesh_queries import check_distance
 
     r = 0.005
@@ -911,7 +911,7 @@ def test_a_dense_patch_shrinks_to_what_it_holds():
     capsule: a sphere pressed at the bottom, trembling and creeping, reads it. Every answer is
     the brute force's."""
     from softproxy.compiled.layout import PATCH_RECORDS
-    from softproxy.compiled.mesh import PATCH_MARGIN
+    from softproxy.compiled.patch import PATCH_MARGIN
     from test_mesh_queries import check_distance, patches
 
     s, o, a, n, _ = dish_floor(3.5e-4)
@@ -932,14 +932,14 @@ def test_a_dense_patch_shrinks_to_what_it_holds():
 
 
 def test_record_bounds_hold_and_are_as_thin_as_a_sliver():
-    """A record's bound (`_record_gap2`: height over the triangle's plane, distance beyond
+    """A record's bound (`record_gap2`: height over the triangle's plane, distance beyond
     the rectangle that holds it in the plane) never exceeds the brute-force distance from a
     segment to the triangle, and is tight across slivers: over the cap fans of a CAD part
     (slivers 7 mm long, a fifth of a millimetre wide at the rim), a point a few millimetres
     over a cap is bounded near only the slivers truly near it. A ball about each sliver
     would be as wide as the cap and rule out none of a third of the fan."""
     from softproxy.compiled.layout import RECORD_WIDTH, R_ROW, TREE_RECORDS
-    from softproxy.compiled.mesh import _record_gap2
+    from softproxy.compiled.box_tree import record_gap2
 
     s, _ = tree_shape(*sliver_part())
     t = s.tables
@@ -961,7 +961,7 @@ def test_record_bounds_hold_and_are_as_thin_as_a_sliver():
         b = a + rng.normal(size=3) * [0.0, 2e-4, 2e-3][i % 3]
         ha = np.einsum("ij,ij->i", normal, a - A)
         hb = np.einsum("ij,ij->i", normal, b - A)
-        bound = np.array([_record_gap2(C, j, *a, *b, ha[q], hb[q]) for q, j in enumerate(records)])
+        bound = np.array([record_gap2(C, j, *a, *b, ha[q], hb[q]) for q, j in enumerate(records)])
         d = segment_triangles(a, b, A, B, Cv)
         assert np.all(bound <= d * d * (1.0 + 1e-9) + 1e-18), i
         if i % 6 == 0:  # a point over a cap's fan: bounded near only the slivers near it

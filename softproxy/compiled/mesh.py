@@ -4,7 +4,7 @@ MuJoCo collides a mesh geom through its convex hull, so a finger pressed into a 
 stop on the plane of the rim. These kernels answer the god-object's queries on the triangles
 themselves, in the geom frame MuJoCo compiled them into (`model.mesh_vert` is expressed in
 the frame of `geom_xpos` / `geom_xmat`), from two arrays that `mesh_tables` packs for every
-mesh of a world out of what `softproxy.mesh.MeshShape` built at load: T, one row per
+mesh of a world out of what `softproxy.mesh.MeshShape` built at load (`softproxy.mesh_tables`): T, one row per
 triangle (its corners, edges, plane, the pseudo-normals of its features, its vertex normals,
 its neighbours and certificate lists; columns in `layout`), and C (per mesh a box tree over
 its triangles, and the kept certificates of `softproxy.compiled.certificate`).
@@ -19,7 +19,7 @@ its triangles, and the kept certificates of `softproxy.compiled.certificate`).
   vertex): so the first touch is exact on a non-convex mesh, a sphere touching a triangle and
   moving along or away from it never enters it, and no speed carries the sphere through a
   triangle. A touching sphere is stopped only when pressed into a triangle beyond a touch
-  (CONTACT_TOL, `_pressed`), so sliding along a tangent plane that a nearly parallel
+  (CONTACT_TOL, `pressed`), so sliding along a tangent plane that a nearly parallel
   neighbour's dips below by a rounding goes on. A point proxy is swept as a 10 nm sphere
   (POINT_RADIUS).
 
@@ -70,26 +70,24 @@ frictionless proxy on from last tick's (`_free_from_last`), every motion still s
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
 from softproxy.compiled.ball import BALL_SLACK
-from softproxy.compiled.certificate import (
-    ABOVE_TOL, LEAF, face_few, certificate_tables, heap_offer, heap_pop, node_frames, static_clear,
+from softproxy.compiled.box_tree import (
+    STACK, TREE_MARGIN, leaf_records, node_entry, node_gap2, node_top, push_ordered, record_beyond2, record_gap2,
+    record_top, tree_of,
 )
-from softproxy.compiled.finite import finite
+from softproxy.compiled.certificate import ABOVE_TOL, face_few, static_clear
 from softproxy.compiled.layout import (
-    CUT_NODES, C_FEW, C_STAMP, C_STAMPS, EDGE_AB, EDGE_WIDTH, FACE, GEOM_MESH, HINT_SLOTS, KEPT_DISTANCE,
-    KEPT_NORMAL, KEPT_POINT, KEPT_ROW, KEPT_WIDTH, NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, PATCH_RECORDS,
-    PATCH_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS, RECORD_WIDTH, R_CENTRE, R_ROW,
-    SLOT_AGE, SLOT_HINT, SLOT_KEPT, TREE_NODES, TREE_RECORDS, TREE_SIZE, T_A, T_AA, T_AB, T_ABAC, T_AC, T_ADJ,
-    T_BALL, T_CC, T_COLUMNS, T_EDGES, T_INV, T_N, T_PSEUDO, T_TV, T_VN, VERTEX_A, VERTEX_WIDTH, V_AXIS, V_COS,
-    V_RING,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, HINT_SLOTS, KEPT_DISTANCE, KEPT_NORMAL, KEPT_POINT, KEPT_ROW,
+    KEPT_WIDTH, NODE_WIDTH, P_RECORDS, RECORD_WIDTH, R_ROW, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_BALL, T_N,
+    T_PSEUDO, T_TV, VERTEX_A, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
+from softproxy.compiled.patch import slot_patch
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
-from softproxy.compiled.triangle import closest
+from softproxy.compiled.triangle import Sweep, closest, pressed, shade, sweep_triangle
 
 POINT_RADIUS = 1e-8
 """A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
@@ -100,468 +98,6 @@ SLOT_NEAR = 0.0005
 a finger's proxy and its frictionless proxy, a millimetre apart, keep a patch each."""
 WALK_STEPS = 8
 """Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
-
-
-TREE_MARGIN = 1e-12
-"""A box tree's boxes are grown by this (m, plus as much per metre of the mesh's bounding
-radius) beyond their triangles, so that no rounding of a box test leaves a triangle out."""
-STACK = 256
-"""Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
-FRONTIER = 4096
-"""Most nodes a patch's gathering walk keeps waiting, nearest first (`_gather`): no more wait
-than were read (each adds two), a few hundred at a million triangles. Past it the patch
-holds less, down to the gap of the node it had no room for."""
-PATCH_MARGIN = 0.001
-"""A slot's patch gathers the triangles this much (m) beyond the capsule the query gathering
-it needs, so the next queries of a finger that moved less than that read it again; a
-capsule found too full is stretched this far ahead along a sliding finger's way."""
-PATCH_KEEP = 1e-4
-"""A patch must hold at least this much (m) beyond the capsule of the query gathering it: one
-holding less (a million triangles under a 5 mm proxy) would serve next to no other query, and
-be gathered again and again as the finger trembles: the box tree answers the queries about it
-instead, from the cut under a capsule this much wider than the query, noted too full."""
-PATCH_AHEAD = 2e-4
-"""A sliding finger's patch is stretched this far (m) ahead along the way its slot has
-travelled since the last one (`_ahead`): its queries keep near the line it slides on, so a
-strip serves a longer slide than a round capsule holding as many triangles (the 1M scanned
-sphere's patches: gathered every ~130 µm of sliding, now every ~270 µm)."""
-PATCH_KEEP_AHEAD = 3e-5
-"""The least (m) a stretched patch must hold beyond the query's capsule, across the strip: it
-serves the slide along its length, so it may be thinner than PATCH_KEEP."""
-PATCH_STILL = 2e-6
-"""But a query within this (m) of its slot's last, inside a capsule found too full, gathers a
-patch only PATCH_CLOSE wider than itself (`_patch`): a finger held still asks about one place
-tick after tick (a sliding one's queries move ~10 µm a tick)."""
-PATCH_CLOSE = 2e-5
-"""How much wider (m) than its query a held-still finger's patch is: at a million triangles
-the ~30 within 20 µm of a 5 mm proxy make a patch where the ~300 within 0.1 mm do not (the
-tree walk it saves: ~3 µs an update)."""
-
-
-# ---------------------------------------------------------------------------------------
-# Packing (numpy, at load)
-# ---------------------------------------------------------------------------------------
-
-def tree_nodes(order, nlo, nhi, size, V, F, plane):
-    """The nodes (2 size, NODE_WIDTH; node 0 unused) of a box tree over triangles (`box_tree`'s
-    order, node boxes and size over the triangles' boxes; vertices V, faces F, planes): each
-    node's axis-aligned box and its box oriented by its first triangle (`node_frames`). An
-    empty node's boxes are inverted (+inf..-inf)."""
-    axes, ext = node_frames(order, size, V, F, plane)
-    out = np.empty((2 * size, NODE_WIDTH))
-    out[:, N_LO:N_LO + 3] = nlo
-    out[:, N_HI:N_HI + 3] = nhi
-    out[:, N_AXES:N_AXES + 9] = axes.reshape(2 * size, 9)
-    out[:, N_EXT:N_EXT + 3] = ext[:, :, 0]
-    out[:, N_EXT + 3:N_EXT + 6] = ext[:, :, 1]
-    return out
-
-
-def _rectangles(tri: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """The rectangle in each triangle's plane that holds it, as its record's columns
-    R_CENTRE..R_ROW: its centre, its axis (the longest edge's direction) and its half-length
-    and half-width (m), grown by a part in 10¹² and 1 fm so that rounding never leaves a
-    corner out."""
-    a, b, c, n = tri[:, 0:3], tri[:, 3:6], tri[:, 6:9], tri[:, T_N:T_N + 3]
-    longest = np.argmax(edges[:, :, 6], axis=1)
-    u = edges[np.arange(len(tri)), longest, 3:6]
-    w = np.cross(n, u)
-    su = np.stack([(v * u).sum(1) for v in (a, b, c)], axis=1)
-    sw = np.stack([(v * w).sum(1) for v in (a, b, c)], axis=1)
-    mu, mw = (su.max(1) + su.min(1)) / 2.0, (sw.max(1) + sw.min(1)) / 2.0
-    # the centre: in the plane, at the middle of both spans
-    out = np.empty((len(tri), R_ROW - R_CENTRE))
-    out[:, 0:3] = a + (mu - su[:, 0])[:, None] * u + (mw - sw[:, 0])[:, None] * w
-    out[:, 3:6] = u
-    out[:, 6] = (su.max(1) - su.min(1)) / 2.0 * (1.0 + 1e-12) + 1e-15
-    out[:, 7] = (sw.max(1) - sw.min(1)) / 2.0 * (1.0 + 1e-12) + 1e-15
-    return out
-
-
-def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
-    rows of the shape table S filled in (where their triangles and box tree live). Geoms of
-    one mesh asset (one `MeshTables`) share its rows of T and its part of C; each keeps its
-    own pose, hint and kept answers in S. A world with no mesh gets empty tables (the
-    kernels' types stay the same)."""
-    meshes = [(k, s) for k, s in enumerate(shapes) if s.gtype == GEOM_MESH]
-    assets = list({id(s.tables): s.tables for _, s in meshes}.values())
-    ntri = sum(a.triangles for a in assets)
-    rows, parts, where = [], [], {}
-    t0 = 0
-    c0 = C_STAMPS + ntri  # the scan counter, the certificates' scratch, a stamp per triangle, then the trees
-    for a in assets:
-        n = a.triangles
-        order, size, nodes = a.tree
-        nodes = nodes[1:].copy()  # node 0 is not a node
-        grow = TREE_MARGIN * (1.0 + a.rbound)
-        nodes[:, N_LO:N_LO + 3] -= grow
-        nodes[:, N_HI:N_HI + 3] += grow
-        nodes[:, N_EXT:N_EXT + 3] -= grow
-        nodes[:, N_EXT + 3:N_EXT + 6] += grow
-        first = c0 + TREE_NODES + nodes.size  # where this asset's records begin in C
-        records = np.empty((n, RECORD_WIDTH))
-        records[:, 0:4] = a.plane[order]
-        records[:, R_CENTRE:R_ROW] = _rectangles(a.tri, a.edges)[order]
-        records[:, R_ROW] = order + t0
-        parts += [np.array([size, first], dtype=np.float64), nodes.ravel(), records.ravel()]
-        del records, nodes
-        tree = c0
-        c0 = first + n * RECORD_WIDTH
-        columns, kept, reach, ball = certificate_tables(a, t0, c0)
-        rows.append(np.concatenate([a.tri, a.edges.reshape(n, 3 * EDGE_WIDTH), a.pn.reshape(n, 21), a.vn, columns],
-                                   axis=1))
-        where[id(a)] = (t0, n, tree, c0, reach, ball)
-        parts.append(kept)
-        c0 += len(kept)
-        t0 += n
-    for k, s in meshes:
-        t0, n, tree, verts, reach, ball = where[id(s.tables)]
-        S[k].t0, S[k].nt, S[k].tree = t0, n, tree
-        S[k].signed = s.signed
-        S[k].shading = s.shading
-        S[k].hint = S[k].feature = -1
-        S[k].key[:, :] = math.nan  # no hint slot used, none kept
-        S[k].verts = verts
-        S[k].kept = reach
-        S[k].ball = ball
-        S[k].patch = c0
-        patches = np.zeros((HINT_SLOTS, PATCH_WIDTH))
-        patches[:, P_RADIUS] = -1.0  # holds nothing yet
-        patches[:, P_FULL + 6] = -1.0  # nor was found too full
-        parts.append(patches.ravel())
-        c0 += patches.size
-    T = np.concatenate(rows) if len(rows) != 1 else rows[0]
-    if not rows:
-        T = np.zeros((0, T_COLUMNS))
-    assert T.shape[1] == T_COLUMNS
-    C = np.empty(c0)
-    C[:C_STAMPS + ntri] = 0.0
-    at = C_STAMPS + ntri
-    for g in parts:
-        C[at:at + len(g)] = g
-        at += len(g)
-    assert at == c0 and len(C) < 2 ** 53
-    return np.ascontiguousarray(T), C
-
-
-# ---------------------------------------------------------------------------------------
-# One triangle: its features FACE, EDGE_AB/BC/CA, VERTEX_A/B/C (softproxy.compiled.layout)
-# ---------------------------------------------------------------------------------------
-
-Sweep = namedtuple("Sweep", "ax ay az ux uy uz r dd graze")
-"""A sphere's sweep in a mesh's geom frame: from a (m) by u (m, the whole move), radius r (m),
-dd = |u|² (m²) and graze = GRAZE·|u| (m): a touch whose motion into the surface is slower
-than that is a graze, not a hit."""
-
-MISS = (-1.0, 0.0, 0.0, 0.0, FACE)
-"""A sweep's answer when the sphere does not touch the triangle: lam -1 (no feature)."""
-
-@njit(cache=True, error_model="numpy")
-def _pressed(dist, into, r, graze):
-    """Whether a sphere of radius r touching a triangle, its centre `dist` (m) from it, is
-    pressed into it by a motion whose component along the outward direction (from the nearest
-    point to the centre) is `into` (m, negative inward): it moves in by more than a graze, and
-    so far that the end of the motion would be more than CONTACT_TOL deeper than a touch. The
-    distance along the motion is convex (the triangle inflated by r is), so it never falls
-    below its tangent line dist + λ·into: a motion that keeps that line within CONTACT_TOL of
-    r never takes the sphere further in than a touch. Without that allowance a sphere resting
-    on two nearly parallel features (the rim edges meeting at a vertex of a bowl) and sliding
-    on one's tangent plane is pressed into the other by that plane's rounding, and stopped at
-    once, sweep after sweep."""
-    return into < -graze and dist + into < r - CONTACT_TOL
-
-
-@njit(cache=True, error_model="numpy")
-def _sweep_triangle(T, i, sweep, far2):
-    """First touch of a sphere (radius r) from a moving by d into triangle row i, geom frame:
-    (lam, nx, ny, nz, feature), lam in [0, 1), n the unit normal of the inflated triangle at
-    the touch (out of it, against the motion); lam -1.0 when none. dd = |d|², far2: the
-    squared distance from a beyond which the triangle is out of reach, graze = GRAZE |d|."""
-    ax, ay, az, dx, dy, dz, r, dd, graze = sweep
-    t = T[i]
-    nx, ny, nz = t[T_N], t[T_N + 1], t[T_N + 2]
-    h0 = nx * (ax - t[T_A]) + ny * (ay - t[T_A + 1]) + nz * (az - t[T_A + 2])
-    hd = nx * dx + ny * dy + nz * dz
-    h1 = h0 + hd
-    reach = r + CONTACT_TOL
-    if (h0 > reach and h1 > reach) or (h0 < -reach and h1 < -reach):
-        return MISS  # the segment never comes within r of the plane
-    d2, qx, qy, qz, feature = closest(T, i, ax, ay, az)
-    if d2 > far2:
-        return MISS  # farther than the sphere can reach on this segment
-    if d2 <= reach * reach:
-        # touching now: a hit only if pressed into it (`_pressed`)
-        dist = math.sqrt(d2)
-        if dist > 1e-12:
-            mx, my, mz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
-        elif hd != 0.0:  # the centre on the triangle (a point proxy): the side it comes from
-            s = -1.0 if hd > 0.0 else 1.0
-            mx, my, mz = s * nx, s * ny, s * nz
-        else:
-            return MISS
-        if _pressed(dist, mx * dx + my * dy + mz * dz, r, graze):
-            return (0.0, mx, my, mz, feature)
-        return MISS
-    # 1. the face: the slab |h| <= r is entered at most once; if the sphere enters it over
-    #    the triangle's interior, nothing of the inflated triangle was reached before
-    if h0 > r or h0 < -r:
-        s = 1.0 if h0 > 0.0 else -1.0
-        rate = s * hd
-        if rate >= -graze:
-            return MISS  # along or away from the plane: never entered
-        lam = (s * h0 - r) / -rate
-        if lam >= 1.0:
-            return MISS
-        wx = ax + lam * dx - s * r * nx - t[T_A]
-        wy = ay + lam * dy - s * r * ny - t[T_A + 1]
-        wz = az + lam * dz - s * r * nz - t[T_A + 2]
-        d1 = t[T_AB] * wx + t[T_AB + 1] * wy + t[T_AB + 2] * wz
-        e2 = t[T_AC] * wx + t[T_AC + 1] * wy + t[T_AC + 2] * wz
-        inv = t[T_INV]
-        v = (t[T_CC] * d1 - t[T_ABAC] * e2) * inv
-        w = (t[T_AA] * e2 - t[T_ABAC] * d1) * inv
-        if v >= 0.0 and w >= 0.0 and v + w <= 1.0:
-            return (lam, s * nx, s * ny, s * nz, FACE)
-    # 2. the edges (cylinders of radius r; their ends belong to the vertex balls)
-    best = 1.0
-    found = False
-    mx = my = mz = 0.0
-    feature = EDGE_AB
-    for e in range(3):
-        c = T_EDGES + EDGE_WIDTH * e
-        px, py, pz, ex, ey, ez, length = t[c], t[c + 1], t[c + 2], t[c + 3], t[c + 4], t[c + 5], t[c + 6]
-        wx, wy, wz = ax - px, ay - py, az - pz
-        we = wx * ex + wy * ey + wz * ez
-        de = dx * ex + dy * ey + dz * ez
-        qa = dd - de * de
-        qb = wx * dx + wy * dy + wz * dz - we * de
-        if qa <= 0.0 or qb >= 0.0:
-            continue  # along the edge, or moving away from its axis
-        qc = wx * wx + wy * wy + wz * wz - we * we - r * r
-        if qc <= 0.0:
-            continue  # already within r of the axis, beyond the edge's ends: a vertex ball first
-        disc = qb * qb - qa * qc
-        if disc <= 0.0:
-            continue
-        lam = (-qb - math.sqrt(disc)) / qa
-        if lam < best:
-            s = we + lam * de
-            if 0.0 <= s <= length:
-                best = lam
-                found = True
-                mx, my, mz = wx + lam * dx - s * ex, wy + lam * dy - s * ey, wz + lam * dz - s * ez
-                feature = EDGE_AB + e
-    # 3. the vertices (balls of radius r)
-    for k in range(3):
-        wx, wy, wz = ax - t[T_A + 3 * k], ay - t[T_A + 3 * k + 1], az - t[T_A + 3 * k + 2]
-        qb = wx * dx + wy * dy + wz * dz
-        if qb >= 0.0:
-            continue
-        qc = wx * wx + wy * wy + wz * wz - r * r
-        disc = qb * qb - dd * qc
-        if disc <= 0.0:
-            continue
-        lam = (-qb - math.sqrt(disc)) / dd
-        if lam < best:
-            best = lam
-            found = True
-            mx, my, mz = wx + lam * dx, wy + lam * dy, wz + lam * dz
-            feature = VERTEX_A + k
-    if not found:
-        return MISS
-    n = math.sqrt(mx * mx + my * my + mz * mz)
-    mx, my, mz = mx / n, my / n, mz / n
-    if mx * dx + my * dy + mz * dz >= -graze:
-        return MISS  # a tangent graze: the sphere touches without entering
-    return (best if best > 0.0 else 0.0, mx, my, mz, feature)
-
-
-@njit(cache=True, error_model="numpy")
-def _shade(T, i, qx, qy, qz, nx, ny, nz):
-    """Force shading: the vertex normals of triangle row i interpolated at q (barycentric,
-    clamped to the triangle), on n's side; n itself where they disagree with the face."""
-    t = T[i]
-    wx, wy, wz = qx - t[T_A], qy - t[T_A + 1], qz - t[T_A + 2]
-    d1 = t[T_AB] * wx + t[T_AB + 1] * wy + t[T_AB + 2] * wz
-    d2 = t[T_AC] * wx + t[T_AC + 1] * wy + t[T_AC + 2] * wz
-    v = (t[T_CC] * d1 - t[T_ABAC] * d2) * t[T_INV]
-    w = (t[T_AA] * d2 - t[T_ABAC] * d1) * t[T_INV]
-    v = 0.0 if v < 0.0 else 1.0 if v > 1.0 else v
-    w = 0.0 if w < 0.0 else 1.0 - v if w > 1.0 - v else w
-    u = 1.0 - v - w
-    a = T_VN
-    sx = u * t[a] + v * t[a + 3] + w * t[a + 6]
-    sy = u * t[a + 1] + v * t[a + 4] + w * t[a + 7]
-    sz = u * t[a + 2] + v * t[a + 5] + w * t[a + 8]
-    if sx * t[T_N] + sy * t[T_N + 1] + sz * t[T_N + 2] < 0.0:
-        return (nx, ny, nz)  # the vertex normals disagree with the face: the geometric one
-    if sx * nx + sy * ny + sz * nz < 0.0:  # n on the back of the face (an open mesh)
-        sx, sy, sz = -sx, -sy, -sz
-    s = math.sqrt(sx * sx + sy * sy + sz * sz)
-    if s > 0.0:
-        return (sx / s, sy / s, sz / s)
-    return (nx, ny, nz)
-
-
-# ---------------------------------------------------------------------------------------
-# The box tree: node j of mesh k at C[S.tree + TREE_NODES + NODE_WIDTH (j - 1)]
-# ---------------------------------------------------------------------------------------
-
-@njit(cache=True, error_model="numpy")
-def _node_gap2(C, at, x, y, z):
-    """A lower bound on the squared distance (m²) from p to any triangle of the node at C[at]:
-    the larger of the squared distances to its axis-aligned and to its oriented box (inf for
-    an empty node)."""
-    ex = C[at + N_LO] - x if x < C[at + N_LO] else x - C[at + N_HI] if x > C[at + N_HI] else 0.0
-    ey = C[at + N_LO + 1] - y if y < C[at + N_LO + 1] else y - C[at + N_HI + 1] if y > C[at + N_HI + 1] else 0.0
-    ez = C[at + N_LO + 2] - z if z < C[at + N_LO + 2] else z - C[at + N_HI + 2] if z > C[at + N_HI + 2] else 0.0
-    box = ex * ex + ey * ey + ez * ez
-    oriented = 0.0
-    for a in range(3):
-        c = at + N_AXES + 3 * a
-        p = C[c] * x + C[c + 1] * y + C[c + 2] * z
-        lo, hi = C[at + N_EXT + a], C[at + N_EXT + 3 + a]
-        e = lo - p if p < lo else p - hi if p > hi else 0.0
-        oriented += e * e
-    return box if box > oriented else oriented
-
-
-@njit(cache=True, error_model="numpy")
-def _slab_entry(p, u, lo, hi, t0, t1):
-    """The part [t0, t1] of the line p + t u (one axis) that lies within lo..hi (t0 > t1: none)."""
-    if u == 0.0:
-        if p < lo or p > hi:
-            return 1.0, 0.0
-        return t0, t1
-    a, b = (lo - p) / u, (hi - p) / u
-    if a > b:
-        a, b = b, a
-    return (a if a > t0 else t0), (b if b < t1 else t1)
-
-
-@njit(cache=True, error_model="numpy")
-def _span_gap(p0, p1, lo, hi):
-    """The gap (m) between the span p0..p1 and lo..hi on one axis (0 where they overlap)."""
-    if p0 > p1:
-        p0, p1 = p1, p0
-    return lo - p1 if p1 < lo else p0 - hi if p0 > hi else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def _span_gap2(C, at, ax, ay, az, ux, uy, uz, tmax):
-    """A lower bound on the squared distance (m²) from the segment a + t u (t in [0, tmax])
-    to the node at C[at]'s triangles: over either box, the sum over its axes of the squared
-    gap between the segment's span and the box's along the axis (the larger of the two)."""
-    ex = _span_gap(ax, ax + tmax * ux, C[at + N_LO], C[at + N_HI])
-    ey = _span_gap(ay, ay + tmax * uy, C[at + N_LO + 1], C[at + N_HI + 1])
-    ez = _span_gap(az, az + tmax * uz, C[at + N_LO + 2], C[at + N_HI + 2])
-    box = ex * ex + ey * ey + ez * ez
-    oriented = 0.0
-    for a in range(3):
-        c = at + N_AXES + 3 * a
-        p = C[c] * ax + C[c + 1] * ay + C[c + 2] * az
-        v = C[c] * ux + C[c + 1] * uy + C[c + 2] * uz
-        e = _span_gap(p, p + tmax * v, C[at + N_EXT + a], C[at + N_EXT + 3 + a])
-        oriented += e * e
-    return box if box > oriented else oriented
-
-
-@njit(cache=True, error_model="numpy")
-def _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
-    """True when a sphere of radius r (m) on the segment a + t u, t in [0, tmax], stays r
-    off the node at C[at]'s oriented box along its first axis (the plane of its first
-    face), on one side from start to end (sliding over a flat patch, or lifting off it): it
-    never comes nearer than r to the node's triangles, so touches none. The box's extents
-    are taken less `slack` (m), what they were grown by at packing: a sphere resting on a
-    flat patch is r above it to a rounding."""
-    n0 = C[at + N_AXES] * ax + C[at + N_AXES + 1] * ay + C[at + N_AXES + 2] * az
-    n1 = n0 + tmax * (C[at + N_AXES] * ux + C[at + N_AXES + 1] * uy + C[at + N_AXES + 2] * uz)
-    top, bottom = C[at + N_EXT + 3] - slack, C[at + N_EXT] + slack
-    return (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r)
-
-
-@njit(cache=True, error_model="numpy")
-def _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
-    """Where (fraction of the segment a + t u, t in [0, tmax], |u| = length (m)) it enters
-    the node at C[at]'s boxes, each grown by `grow` (m) on every side; > tmax when it does
-    not, or when the boxes lie farther than `grow` plus half its length from its middle, or
-    when a sphere of radius r (m) on it stays r above the node's oriented box along its first
-    axis (`_stays_above`). A sphere of radius r < grow
-    touching a triangle of the node has its centre within r of both boxes, so no touch on
-    the segment comes before this, nor before the distance from a to the boxes less `grow`
-    is travelled. The second test is what keeps
-    a sphere sliding over a surface to the nodes right under it: grown per axis, the boxes
-    of every patch within r beside it would hold its centre."""
-    # no touch before the distance from a falls to r: the distance moves by `length` at most
-    # over the segment (1-Lipschitz)
-    g2 = _node_gap2(C, at, ax, ay, az)
-    if g2 <= grow * grow:
-        # the start lies within `grow` of both boxes, so within them grown on every axis:
-        # entered at once (what every test below would find, for less), unless the sphere
-        # stays r above the node's plane: sliding over a flat cap of 10⁴ slivers, it is
-        # within reach of every one, and clear of all
-        if _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
-            return 2.0 * tmax + 1.0
-        return 0.0
-    lower = (math.sqrt(g2) - grow) / length
-    if lower > tmax:
-        return 2.0 * tmax + 1.0
-    mx, my, mz = ax + 0.5 * tmax * ux, ay + 0.5 * tmax * uy, az + 0.5 * tmax * uz
-    ball = grow + 0.5 * tmax * length
-    if _node_gap2(C, at, mx, my, mz) > ball * ball:
-        return 2.0 * tmax + 1.0
-    if _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
-        return 2.0 * tmax + 1.0
-    # per axis of either box, the least gap (m) between the segment's span and the box's:
-    # together they bound the distance from every point of the segment (a tube about it,
-    # where the boxes grown per axis are a square one)
-    if _span_gap2(C, at, ax, ay, az, ux, uy, uz, tmax) > grow * grow:
-        return 2.0 * tmax + 1.0
-    t0, t1 = 0.0, tmax
-    t0, t1 = _slab_entry(ax, ux, C[at + N_LO] - grow, C[at + N_HI] + grow, t0, t1)
-    t0, t1 = _slab_entry(ay, uy, C[at + N_LO + 1] - grow, C[at + N_HI + 1] + grow, t0, t1)
-    t0, t1 = _slab_entry(az, uz, C[at + N_LO + 2] - grow, C[at + N_HI + 2] + grow, t0, t1)
-    if t0 > t1:
-        return 2.0 * tmax + 1.0
-    for a in range(3):
-        c = at + N_AXES + 3 * a
-        p = C[c] * ax + C[c + 1] * ay + C[c + 2] * az
-        v = C[c] * ux + C[c + 1] * uy + C[c + 2] * uz
-        t0, t1 = _slab_entry(p, v, C[at + N_EXT + a] - grow, C[at + N_EXT + 3 + a] + grow, t0, t1)
-        if t0 > t1:
-            return 2.0 * tmax + 1.0
-    return t0 if t0 > lower else lower
-
-
-@njit(cache=True, error_model="numpy")
-def _tree(S, C, k):
-    """Mesh k's box tree: where it begins in C, its number of leaves, the mesh's number of
-    triangles, and `base`, from which node j's record is at base + NODE_WIDTH j."""
-    tree = int(S[k].tree)
-    return tree, int(C[tree + TREE_SIZE]), int(S[k].nt), tree + TREE_NODES - NODE_WIDTH
-
-
-@njit(cache=True, error_model="numpy")
-def _push_ordered(nodes, keys, top, node, key):
-    """Push `node` with `key` onto a walk's stack nodes[:top], keys[:top] kept in descending
-    key order, so the least (the nearest, the earliest entered) is read first; returns the
-    new top."""
-    j = top
-    while j > 0 and keys[j - 1] < key:
-        nodes[j], keys[j] = nodes[j - 1], keys[j - 1]
-        j -= 1
-    nodes[j], keys[j] = node, key
-    return top + 1
-
-
-@njit(cache=True, error_model="numpy")
-def _leaf_records(C, tree, node, size, n):
-    """The records (C[j0:j1]) of the triangles of leaf node `node` of a tree at C[tree]."""
-    first = (node - size) * LEAF
-    last = min(first + LEAF, n)
-    rec = int(C[tree + TREE_RECORDS])
-    return rec + first * RECORD_WIDTH, rec + max(last, first) * RECORD_WIDTH
 
 
 @njit(cache=True, error_model="numpy")
@@ -628,7 +164,7 @@ def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
             continue  # its plane is already farther than the best
         # or the rectangle in its plane that holds it: the height over the plane and how far
         # the foot lies beyond the rectangle bound it
-        if h * h + _beyond2(C, j, x - C[j + 4], y - C[j + 5], z - C[j + 6]) >= best2:
+        if h * h + record_beyond2(C, j, x - C[j + 4], y - C[j + 5], z - C[j + 6]) >= best2:
             continue
         i = int(C[j + R_ROW])
         if i == bi:
@@ -638,305 +174,6 @@ def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
             best = math.sqrt(d2)
     return best2, qx, qy, qz, bf, bi
-
-
-@njit(cache=True, error_model="numpy")
-def _segment_gap(ax, ay, az, bx, by, bz, px, py, pz):
-    """The distance (m) from p to the segment a..b."""
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    wx, wy, wz = px - ax, py - ay, pz - az
-    uu = ux * ux + uy * uy + uz * uz
-    t = 0.0 if uu == 0.0 else (wx * ux + wy * uy + wz * uz) / uu
-    t = 0.0 if t < 0.0 else 1.0 if t > 1.0 else t
-    ex, ey, ez = wx - t * ux, wy - t * uy, wz - t * uz
-    return math.sqrt(ex * ex + ey * ey + ez * ez)
-
-
-@njit(cache=True, error_model="numpy")
-def _across(C, j):
-    """The unit vector across the rectangle of the record at C[j]: its plane's normal × its
-    axis."""
-    nx, ny, nz = C[j], C[j + 1], C[j + 2]
-    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
-    return ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
-
-
-@njit(cache=True, error_model="numpy")
-def _beyond2(C, j, ex, ey, ez):
-    """How far (m², squared) the foot of a point at e (m) from the centre of the record at
-    C[j] lies beyond its rectangle, in the triangle's plane."""
-    wx, wy, wz = _across(C, j)
-    along = abs(ex * C[j + 7] + ey * C[j + 8] + ez * C[j + 9]) - C[j + 10]
-    across = abs(ex * wx + ey * wy + ez * wz) - C[j + 11]
-    out = 0.0
-    if along > 0.0:
-        out += along * along
-    if across > 0.0:
-        out += across * across
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def _span_beyond(s0, s1, half):
-    """How far (m) the span s0..s1 lies from the span -half..half."""
-    lo, hi = (s0, s1) if s0 <= s1 else (s1, s0)
-    return lo - half if lo > half else -half - hi if hi < -half else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def _record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
-    """A lower bound on the squared distance (m²) from the segment a..b to the triangle of
-    the record at C[j], whose plane a and b lie ha and hb (m) over: at every point of the
-    segment its height over the plane and how far its foot lies beyond the rectangle that
-    holds the triangle, along the rectangle's axis and across it, bound its distance, so
-    the least of each along the segment bound them all."""
-    low = 0.0 if ha * hb <= 0.0 else min(abs(ha), abs(hb))
-    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
-    wx, wy, wz = _across(C, j)
-    ex, ey, ez = ax - C[j + 4], ay - C[j + 5], az - C[j + 6]
-    fx, fy, fz = bx - C[j + 4], by - C[j + 5], bz - C[j + 6]
-    along = _span_beyond(ex * ux + ey * uy + ez * uz, fx * ux + fy * uy + fz * uz, C[j + 10])
-    across = _span_beyond(ex * wx + ey * wy + ez * wz, fx * wx + fy * wy + fz * wz, C[j + 11])
-    return low * low + along * along + across * across
-
-
-@njit(cache=True, error_model="numpy")
-def _capsule_gap(C, at, ax, ay, az, bx, by, bz):
-    """How far (m) the segment a..b strays from the segment whose ends are at C[at:at + 6]:
-    the larger of its ends' distances (the distance to a segment is convex along a segment)."""
-    return max(_segment_gap(C[at], C[at + 1], C[at + 2], C[at + 3], C[at + 4], C[at + 5], ax, ay, az),
-               _segment_gap(C[at], C[at + 1], C[at + 2], C[at + 3], C[at + 4], C[at + 5], bx, by, bz))
-
-
-@njit(cache=True, error_model="numpy")
-def _patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
-    """Where the patch of mesh k's hint slot sl is in C, and how many of its records (the
-    first ones) may lie within `need` (m) of the segment a..b (geom frame; a point when
-    a = b), gathered now if its capsule does not hold the query's, and -1; or (-1, 0, cut)
-    when so many triangles are there that the box tree serves the query instead, from the
-    nodes of the cut at C[cut] (-1: from the root, as when the shape keeps no patches:
-    S.patch -1).
-
-    A capsule gathered or found too full where the slot has slid since its last one is
-    stretched ahead along that slide (`_ahead`): a finger's queries keep near the line it
-    slides on, so a strip a few triangles wide serves as long a slide as a round capsule of
-    hundreds (the too-full capsule: PATCH_KEEP beyond the query, stretched PATCH_MARGIN; the
-    patch: PATCH_AHEAD)."""
-    if S[k].patch < 0:
-        return -1, 0, -1
-    if not finite(abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz) + need):
-        # a query off the map (NaN, inf) never becomes a capsule: NaN compares false, and
-        # every later query in the slot would take the patch for holding it
-        return -1, 0, -1
-    at = int(S[k].patch) + PATCH_WIDTH * sl
-    gap = _capsule_gap(C, at, ax, ay, az, bx, by, bz)
-    if gap + need > C[at + P_RADIUS]:
-        f = at + P_FULL
-        qx, qy, qz = bx - ax, by - ay, bz - az
-        length = math.sqrt(qx * qx + qy * qy + qz * qz)
-        inside = _capsule_gap(C, f, ax, ay, az, bx, by, bz) + need <= C[f + 6]
-        # inside a capsule found too full, the tree serves the query, unless every query
-        # found too full in it was much wider or longer than this one (a long sweep's), as
-        # a smaller capsule may not be too full
-        close = inside and need + 2.0 * PATCH_KEEP >= C[f + 8] and length + 2.0 * PATCH_KEEP >= C[f + 7]
-        if close:
-            # a finger held still asks about one place tick after tick (its frictionless
-            # proxy's sweep along the planes it is pressed into): a patch only PATCH_CLOSE
-            # wider than its queries, gathered once, serves them, unless even that is too full
-            # (a fan of slivers). A sliding finger asks twice about one place at the turn of a
-            # tick, and outgrows such a patch a tick later: where it has moved on from the
-            # last one, the patch is stretched ahead along the slide
-            key = S[k].key
-            ex, ey, ez = ax - key[sl, 0], ay - key[sl, 1], az - key[sl, 2]  # from its last query
-            if C[f + 9] != 0.0 or length > PATCH_STILL or ex * ex + ey * ey + ez * ez > PATCH_STILL * PATCH_STILL:
-                return -1, 0, at + P_CUT
-        # a patch gathered now is stretched ahead along the slot's slide; the query's end
-        # strays `gap` off it
-        cx, cy, cz, gap = _ahead(C, at, C[at + P_RADIUS] > 0.0, ax, ay, az, bx, by, bz, PATCH_AHEAD)
-        if close:
-            if not _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_CLOSE,
-                           need + gap + 0.5 * PATCH_CLOSE):
-                C[f + 9] = 1.0  # too full even that close: no more tries in this capsule
-                return -1, 0, at + P_CUT
-            return _read(C, at, gap, need)
-        keep = PATCH_KEEP_AHEAD if cx != bx or cy != by or cz != bz else PATCH_KEEP
-        if _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_MARGIN, need + gap + keep):
-            return _read(C, at, gap, need)
-        if inside:  # noted in it (its cut holds this capsule's triangles too)
-            C[f + 7], C[f + 8] = min(C[f + 7], length), min(C[f + 8], need)
-        else:
-            # the capsule found too full, PATCH_KEEP beyond the query and stretched
-            # PATCH_MARGIN ahead: its cut lies deeper in the tree than a round one's of
-            # PATCH_MARGIN, and serves as long a slide
-            cx, cy, cz, off = _ahead(C, f, C[f + 6] > 0.0, ax, ay, az, bx, by, bz, PATCH_MARGIN)
-            C[f], C[f + 1], C[f + 2], C[f + 3], C[f + 4], C[f + 5] = ax, ay, az, cx, cy, cz
-            C[f + 6], C[f + 7], C[f + 8], C[f + 9] = need + off + PATCH_KEEP, length, need, 0.0
-            _cut(S, C, k, at + P_CUT, ax, ay, az, cx, cy, cz, need + off + PATCH_KEEP)
-        return -1, 0, at + P_CUT
-    return _read(C, at, gap, need)
-
-
-@njit(cache=True, error_model="numpy")
-def _read(C, at, gap, need):
-    """(at, how many of the patch's first records to read, -1) for a query `need` (m) wide
-    whose segment strays `gap` (m) from the patch's at C[at]."""
-    m = int(C[at + P_COUNT])
-    # a triangle within `need` of the query's segment is within gap + need of the patch's, so
-    # its key is no more: the keys ascend, the first ones up to that are read
-    limit = (gap + need) * (gap + need)
-    lo, hi = 0, m
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if C[at + P_KEYS + mid] <= limit:
-            lo = mid + 1
-        else:
-            hi = mid
-    return at, lo, -1
-
-
-@njit(cache=True, error_model="numpy")
-def _ahead(C, at, kept, ax, ay, az, bx, by, bz, ahead):
-    """The far end c of a capsule for the query a..b stretched `ahead` (m) along the way its
-    slot travelled since the capsule at C[at] began (when `kept`, and it is 1 µm to 4 mm
-    back: a finger sliding, not one held still or a slot taken over elsewhere), and how far
-    (m) b lies off a..c; (b, 0) when not stretched."""
-    tx, ty, tz = ax - C[at], ay - C[at + 1], az - C[at + 2]
-    tt = math.sqrt(tx * tx + ty * ty + tz * tz)
-    if not kept or not 1e-6 < tt < 4e-3:
-        return bx, by, bz, 0.0
-    s = ahead / tt
-    cx, cy, cz = bx + s * tx, by + s * ty, bz + s * tz
-    return cx, cy, cz, _segment_gap(ax, ay, az, cx, cy, cz, bx, by, bz)
-
-
-@njit(cache=True, error_model="numpy")
-def _cut(S, C, k, at, ax, ay, az, bx, by, bz, radius):
-    """Fill the cut at C[at] with the nodes of mesh k's box tree, at the deepest level where at
-    most CUT_NODES come within `radius` (m) of the segment a..b (geom frame; a leaf counted
-    at every level below its own): every triangle within the capsule lies in one of them, so
-    a walk for a query inside it starts there, not at the root (a million triangles make
-    seventeen levels, and the sphere lies within reach of two or three nodes of each)."""
-    tree, size, n, base = _tree(S, C, k)
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    r2 = radius * radius
-    level = np.empty(CUT_NODES, dtype=np.int64)
-    below = np.empty(CUT_NODES, dtype=np.int64)
-    level[0] = 1
-    m = 1
-    while True:
-        q = 0
-        deeper = True
-        split = False
-        for i in range(m):
-            node = level[i]
-            if node >= size:
-                if q == CUT_NODES:
-                    deeper = False
-                    break
-                below[q] = node
-                q += 1
-                continue
-            for child in range(2 * node, 2 * node + 2):
-                if _span_gap2(C, base + NODE_WIDTH * child, ax, ay, az, ux, uy, uz, 1.0) <= r2:
-                    if q == CUT_NODES:
-                        deeper = False
-                        break
-                    below[q] = child
-                    q += 1
-            split = True
-            if not deeper:
-                break
-        if not deeper or not split or q == 0:
-            break
-        level, below = below, level
-        m = q
-    C[at] = m
-    for i in range(m):
-        C[at + 1 + i] = level[i]
-
-
-@njit(cache=True, error_model="numpy")
-def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
-    """Fill the patch at C[at] with the records of mesh k's triangles nearest the segment a..b
-    (geom frame), out to `radius` (m) from it, or to less where more than PATCH_RECORDS lie
-    that near: then those whose lower bound on the distance is least are kept, and the
-    capsule's radius becomes the least bound of those left out, so the patch holds every
-    triangle within it. Where that radius falls below `least` (m), the walk stops and the
-    patch is left as it was: returns whether the patch was gathered.
-
-    A walk of the box tree nearest node first (a heap of the nodes waiting, by their gap to
-    the segment), leaving out the nodes and records whose bounds lie beyond the radius found
-    so far: the first records kept are the nearest, the radius shrinks to theirs at once, and
-    the walk ends at the first node beyond it (depth first, a walk that found the place too
-    full read on until the radius came down: the 1M grid's slowest sliding ticks spent 119 µs
-    gathering, now 75). At most `room` nodes wait (FRONTIER); one it has no room for bounds
-    the radius."""
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    r2 = radius * radius
-    tree, size, n, base = _tree(S, C, k)
-    # a max-heap on minus the nodes' gaps (m²): the nearest on top
-    waiting = np.empty(room)
-    nodes = np.empty(room, dtype=np.int64)
-    w = heap_offer(waiting, nodes, 0, room, -_span_gap2(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, 1.0), 1)
-    # a max-heap of the kept records' bounds (m²) and their rows in `kept`
-    keys = np.empty(PATCH_RECORDS)
-    rows = np.empty(PATCH_RECORDS, dtype=np.int64)
-    kept = np.empty((PATCH_RECORDS, RECORD_WIDTH))
-    m = 0
-    while w > 0:
-        gap, node, w = heap_pop(waiting, nodes, w)
-        if -gap > r2:
-            break  # every node waiting lies at least as far
-        if node < size:
-            for child in range(2 * node, 2 * node + 2):
-                g2 = _span_gap2(C, base + NODE_WIDTH * child, ax, ay, az, ux, uy, uz, 1.0)
-                if g2 > r2:
-                    continue
-                if w == room:
-                    # no room to keep it waiting: the patch holds only what lies nearer
-                    r2 = g2
-                    if r2 < least * least:
-                        return False
-                    continue
-                w = heap_offer(waiting, nodes, w, room, -g2, child)
-            continue
-        j0, j1 = _leaf_records(C, tree, node, size, n)
-        for j in range(j0, j1, RECORD_WIDTH):
-            ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
-            hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
-            if ha * ha > r2 and hb * hb > r2 and ha * hb > 0.0:
-                continue
-            g2 = _record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb)
-            if g2 > r2:
-                continue
-            if m == PATCH_RECORDS:
-                # full: the farthest kept (or this one) is left out, and the patch holds only
-                # what lies nearer than it (a node it had no room for may have said less)
-                out = g2 if g2 >= keys[0] else keys[0]
-                if out < r2:
-                    r2 = out
-                if r2 < least * least:
-                    return False
-                if g2 >= keys[0]:
-                    continue
-            row = m if m < PATCH_RECORDS else rows[0]  # the row of the one it displaces
-            m = heap_offer(keys, rows, m, PATCH_RECORDS, g2, row)
-            for c in range(RECORD_WIDTH):
-                kept[row, c] = C[j + c]
-    order = np.argsort(keys[:m])
-    for q in range(m):
-        h = order[q]
-        C[at + P_KEYS + q] = keys[h]
-        o = at + P_RECORDS + RECORD_WIDTH * q
-        for c in range(RECORD_WIDTH):
-            C[o + c] = kept[rows[h], c]
-    C[at], C[at + 1], C[at + 2] = ax, ay, az
-    C[at + P_END], C[at + P_END + 1], C[at + P_END + 2] = bx, by, bz
-    # just under the least bound left out, so that a triangle at exactly that bound is not
-    # taken for held
-    C[at + P_RADIUS] = math.sqrt(r2) * (1.0 - 1e-12) if m == PATCH_RECORDS or r2 < radius * radius else radius
-    C[at + P_COUNT] = m
-    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -1002,7 +239,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
                 S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
-        at, m, cut = _patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
+        at, m, cut = slot_patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
         if at >= 0:
             j0 = at + P_RECORDS
             best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j0 + m * RECORD_WIDTH, x, y, z,
@@ -1011,7 +248,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
             return math.sqrt(best2), qx, qy, qz, bf, bi
     # the box tree, nearest node first; a node whose boxes lie farther than the best found
     # holds nothing nearer
-    tree, size, n, base = _tree(S, C, k)
+    tree, size, n, base = tree_of(S, C, k)
     nodes = np.empty(STACK, dtype=np.int64)
     gaps = np.empty(STACK)
     if cut >= 0:
@@ -1019,11 +256,11 @@ def _nearest(S, T, C, k, sl, x, y, z):
         top = 0
         for i in range(int(C[cut])):
             node = int(C[cut + 1 + i])
-            g = _node_gap2(C, base + NODE_WIDTH * node, x, y, z)
+            g = node_gap2(C, base + NODE_WIDTH * node, x, y, z)
             if g <= best2:
-                top = _push_ordered(nodes, gaps, top, node, g)
+                top = push_ordered(nodes, gaps, top, node, g)
     else:
-        nodes[0], gaps[0] = 1, _node_gap2(C, base + NODE_WIDTH, x, y, z)
+        nodes[0], gaps[0] = 1, node_gap2(C, base + NODE_WIDTH, x, y, z)
         top = 1
     while top > 0:
         top -= 1
@@ -1031,11 +268,11 @@ def _nearest(S, T, C, k, sl, x, y, z):
         if gap > best2:
             continue
         if node >= size:
-            j0, j1 = _leaf_records(C, tree, node, size, n)
+            j0, j1 = leaf_records(C, tree, node, size, n)
             best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi)
             continue
-        g0 = _node_gap2(C, base + NODE_WIDTH * 2 * node, x, y, z)
-        g1 = _node_gap2(C, base + NODE_WIDTH * (2 * node + 1), x, y, z)
+        g0 = node_gap2(C, base + NODE_WIDTH * 2 * node, x, y, z)
+        g1 = node_gap2(C, base + NODE_WIDTH * (2 * node + 1), x, y, z)
         # the nearer child on top of the stack, read first
         if g0 <= g1:
             if g1 <= best2:
@@ -1080,7 +317,7 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
             n = math.sqrt(px * px + py * py + pz * pz)
             nx, ny, nz = px / n, py / n, pz / n
     if S[k].shading and feature < VERTEX_A:
-        nx, ny, nz = _shade(T, i, qx, qy, qz, nx, ny, nz)
+        nx, ny, nz = shade(T, i, qx, qy, qz, nx, ny, nz)
     return sign * best, nx, ny, nz
 
 
@@ -1227,26 +464,6 @@ def mesh_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _record_top(C, j, nx, ny, nz):
-    """The highest point (m, along unit n) of the rectangle of the record at C[j]."""
-    ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
-    wx, wy, wz = _across(C, j)
-    return (nx * C[j + 4] + ny * C[j + 5] + nz * C[j + 6] + C[j + 10] * abs(nx * ux + ny * uy + nz * uz)
-            + C[j + 11] * abs(nx * wx + ny * wy + nz * wz))
-
-
-@njit(cache=True, error_model="numpy")
-def _node_top(C, at, nx, ny, nz):
-    """The highest point (m, along unit n) of the oriented box of the node at C[at]."""
-    top = 0.0
-    for a in range(3):
-        c = at + N_AXES + 3 * a
-        k = nx * C[c] + ny * C[c + 1] + nz * C[c + 2]
-        top += max(k * C[at + N_EXT + a], k * C[at + N_EXT + 3 + a])
-    return top
-
-
-@njit(cache=True, error_model="numpy")
 def _sweep_run(T, C, j0, j1, stamp, sweep, slab, reach, length,
                best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff):
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
@@ -1266,20 +483,20 @@ def _sweep_run(T, C, j0, j1, stamp, sweep, slab, reach, length,
         # nor one that stays r off it and does not touch the triangle at the start (sliding
         # over a flat patch): the rectangle in its plane that holds it bounds its distance
         if (h0 >= r and h1 >= r) or (h0 <= -r and h1 <= -r):
-            beyond2 = _beyond2(C, j, ax - C[j + 4], ay - C[j + 5], az - C[j + 6])
+            beyond2 = record_beyond2(C, j, ax - C[j + 4], ay - C[j + 5], az - C[j + 6])
             if beyond2 > 0.0 and h0 * h0 + beyond2 > slab * slab:
                 continue
         # nor one that stays more than r off the rectangle in its plane that holds it along
         # the part of the segment before the earliest touch found
-        if _record_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
+        if record_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
             continue
-        if cull and _record_top(C, j, pnx, pny, pnz) <= poff:
+        if cull and record_top(C, j, pnx, pny, pnz) <= poff:
             continue
         i = int(C[j + R_ROW])
         if C[C_STAMPS + i] == stamp:
             continue
         C[C_STAMPS + i] = stamp
-        lam, mx, my, mz, _ = _sweep_triangle(T, i, sweep, far2)
+        lam, mx, my, mz, _ = sweep_triangle(T, i, sweep, far2)
         if lam >= 0.0 and lam < best_lam:
             best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, i
             far = reach + best_lam * length  # only the segment before this hit matters now
@@ -1297,7 +514,7 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, sweep):
     S[k].hint = S[k].feature = tri
     if S[k].shading:
         qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
-        sx, sy, sz = _shade(T, tri, qx, qy, qz, nx, ny, nz)
+        sx, sy, sz = shade(T, tri, qx, qy, qz, nx, ny, nz)
         if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
             nx, ny, nz = sx, sy, sz
     nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
@@ -1326,7 +543,7 @@ def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz
         h1 = h0 + nx * ux + ny * uy + nz * uz
         if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
             continue
-        hit, hx, hy, hz, _ = _sweep_triangle(T, i, sweep, far2)
+        hit, hx, hy, hz, _ = sweep_triangle(T, i, sweep, far2)
         if hit >= 0.0 and hit < best_lam:
             best_lam, mx, my, mz, bi = hit, hx, hy, hz, i
     return best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si
@@ -1441,7 +658,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
             dist = math.sqrt(d2)
             nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
             into = nx * ux + ny * uy + nz * uz
-            if _pressed(dist, into, r, graze):  # pressed into the one it touches: nothing comes earlier
+            if pressed(dist, into, r, graze):  # pressed into the one it touches: nothing comes earlier
                 return _hit(S, T, k, xmat, g, hint, 0.0, nx, ny, nz, sweep)
             if dist >= r - CONTACT_TOL and dist + into >= r - CONTACT_TOL:
                 # moving along or away, r above the hint's tangent plane from start to end (a
@@ -1456,12 +673,12 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 cull = True
                 pnx, pny, pnz, poff = nx, ny, nz, nx * qx + ny * qy + nz * qz + ABOVE_TOL
         else:
-            lam, mx, my, mz, f = _sweep_triangle(T, hint, sweep, far2)
+            lam, mx, my, mz, f = sweep_triangle(T, hint, sweep, far2)
             if lam >= 0.0 and EDGE_AB <= f < VERTEX_A:
                 # touched on an edge: the neighbour across it may be touched first
                 other = int(T[hint, T_ADJ + f - EDGE_AB])
                 if other >= 0:
-                    lam2, nx, ny, nz, f2 = _sweep_triangle(T, other, sweep, far2)
+                    lam2, nx, ny, nz, f2 = sweep_triangle(T, other, sweep, far2)
                     if lam2 >= 0.0 and lam2 < lam:
                         lam, mx, my, mz, f, hint = lam2, nx, ny, nz, f2, other
             elif lam > 0.0 and f >= VERTEX_A:
@@ -1472,7 +689,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
                 if cf >= VERTEX_A:
                     walked = _walk(S, T, C, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
                     if walked != hint:
-                        lam2, nx, ny, nz, f2 = _sweep_triangle(T, walked, sweep, far2)
+                        lam2, nx, ny, nz, f2 = sweep_triangle(T, walked, sweep, far2)
                         if lam2 >= 0.0 and lam2 < lam:
                             lam, mx, my, mz, f, hint = lam2, nx, ny, nz, f2, walked
             if lam >= 0.0:
@@ -1503,7 +720,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     # the slot's patch, when it holds every triangle within the slab of the segment before
     # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
     # about one point)
-    at, m, cut = _patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
+    at, m, cut = slot_patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
     if at >= 0:
         j0 = at + P_RECORDS
         best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
@@ -1515,7 +732,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
     # a node entered after the earliest touch found holds no earlier one
     slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
-    tree, size, n, base = _tree(S, C, k)
+    tree, size, n, base = tree_of(S, C, k)
     nodes = np.empty(STACK, dtype=np.int64)
     entries = np.empty(STACK)
     asked = np.empty(STACK)  # the earliest touch when the node's entry was found
@@ -1524,13 +741,13 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
         top = 0
         for i in range(int(C[cut])):
             node = int(C[cut + 1 + i])
-            e = _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+            e = node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
             if e <= best_lam:
-                top = _push_ordered(nodes, entries, top, node, e)
+                top = push_ordered(nodes, entries, top, node, e)
         asked[:top] = best_lam
     else:
         nodes[0] = 1
-        entries[0] = _node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+        entries[0] = node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
         asked[0] = best_lam
         top = 1
     while top > 0:
@@ -1539,20 +756,20 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
         if entry > best_lam:
             continue
         if best_lam < asked[top]:  # a touch found since: the segment before it is shorter
-            again = _node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+            again = node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
             if again > best_lam:
                 continue
-        if cull and _node_top(C, base + NODE_WIDTH * node, pnx, pny, pnz) <= poff:
+        if cull and node_top(C, base + NODE_WIDTH * node, pnx, pny, pnz) <= poff:
             continue
         if node >= size:
-            j0, j1 = _leaf_records(C, tree, node, size, n)
+            j0, j1 = leaf_records(C, tree, node, size, n)
             best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
                 T, C, j0, j1, stamp, sweep, slab, reach, length,
                 best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff)
             continue
         at = base + NODE_WIDTH * 2 * node
-        e0 = _node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
-        e1 = _node_entry(C, at + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+        e0 = node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
+        e1 = node_entry(C, at + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
         if e0 <= e1:  # the earlier entered on top of the stack, read first
             if e1 <= best_lam:
                 nodes[top], entries[top], asked[top] = 2 * node + 1, e1, best_lam
