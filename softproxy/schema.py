@@ -596,7 +596,7 @@ class MeasureTable(Table):
     start_s: quantity("s", "from when", low=0.0, high=MAX_DURATION_S) = 0.0
 
 
-GeomGroup = count("a geom group", low=0, high=GEOM_GROUPS - 1)
+GeomGroup = count("a geom group", low=0, high=GEOM_GROUPS - 1, hint=f"a geom group is 0 to {GEOM_GROUPS - 1}")
 
 
 class HapticsTable(Table):

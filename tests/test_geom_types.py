@@ -215,7 +215,7 @@ def _scene(tmp_path, haptics: str, xml: str):
     ('[haptics]\nmesh_surface = "convex"\n', ["s.toml", "haptics.mesh_surface", "'hull'", "'convex'"]),
     ('[haptics]\nexclude = "ring"\n', ["s.toml", "haptics.exclude", "list"]),
     ('[haptics]\nexclude_groups = [7]\n', ["s.toml", "haptics.exclude_groups", "0 to 5"]),
-    ('[haptics]\nexclud = ["ring"]\n', ["s.toml", "[haptics]", "exclud"]),
+    ('[haptics]\nexclud = ["ring"]\n', ["s.toml", "haptics has unknown field(s) ['exclud']", "exclude_groups"]),
 ])
 def test_a_bad_haptics_table_names_the_file_and_field(tmp_path, haptics, words):
     """A malformed [haptics] table: one SceneError line naming the file and the field."""
