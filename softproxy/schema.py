@@ -22,8 +22,7 @@ one-line error format (and every caller catching ValueError) would have to unwra
 
 Layering: this module imports the constants it bounds fields with from the modules that own
 them (`fingertip`, `tactile`, `geometry`, `compiled.godobject`), none of which imports it; the
-servo loop's rate range is repeated here (`SERVO_RATE_HZ`; `softproxy.servo` imports
-`softproxy.finger`, which imports this module) and a test checks the two agree.
+servo loop's rate range is declared here (`SERVO_RATE_HZ`) and `softproxy.servo` takes it.
 """
 
 import dataclasses
@@ -45,7 +44,7 @@ from softproxy.input_error import InputError, must_be
 from softproxy.tactile import PAPER_CELLS, PAPER_YOUNGS_MODULUS
 
 SERVO_RATE_HZ = (10.0, 100_000.0)
-"""Servo rates a scene may ask for, Hz: what `softproxy.servo.ServoLoop` runs (its MIN_RATE_HZ, MAX_RATE_HZ)."""
+"""Servo rates a scene may ask for, Hz: what `softproxy.servo.ServoLoop` runs (its MIN_RATE_HZ, MAX_RATE_HZ, taken from here)."""
 MAX_DURATION_S = 86_400.0
 """Longest run a scene (duration_s) or `softproxy run --duration` may ask for, s (24 h); more is
 taken for a mistake (a run's recording and video grow with its length)."""

@@ -46,10 +46,11 @@ from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
 from softproxy.finger_rows import FingerRows
+from softproxy.schema import SERVO_RATE_HZ
 from softproxy.scheduling import check_priority, realtime_thread, spin_time
 from softproxy.world import World
 
-MIN_RATE_HZ, MAX_RATE_HZ = 10.0, 100_000.0
+MIN_RATE_HZ, MAX_RATE_HZ = SERVO_RATE_HZ
 """The servo rates a loop runs at (Hz)."""
 FAULTS = ("device_error", "invalid_sample", "overrun", "send_error", "unsafe_output")
 """What `ServoLoop.faults` counts; each fault renders zero force on the fingers it touched.
