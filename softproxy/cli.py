@@ -616,13 +616,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_devices)
 
-    p = sub.add_parser("bench", help="run a benchmark: latency, godobject, friction, peer, stability, tradeoff, sensing, or all")
-    p.add_argument("name", help="benchmark name, or all")
+    names = ", ".join(sorted(_benchmarks()))
+    p = sub.add_parser("bench", help=f"run a benchmark: {names}, or all")
+    p.add_argument("name", help=f"benchmark name ({names}), or all")
     p.add_argument("--duration", type=float, default=5.0, help="seconds of servo time to time (default 5)")
     p.add_argument("--paced", type=float, default=None, help="seconds of the paced (real-time) run (default: --duration)")
     p.add_argument("--out", default="bench-out", help="folder for JSON and charts (default bench-out)")
     p.add_argument("--full", action="store_true", help="the long versions (e.g. a 20 s grasp hold)")
     p.add_argument("--json", action="store_true", help="print the JSON result")
+    p.add_argument("--realtime", action="store_true",
+                   help="latency: also pace under SCHED_FIFO (priority 80) on a CPU of its own, where the OS "
+                        "grants it: a busy loop that can starve the machine's other work while it runs")
     _add_backend_flags(p, "the grids of stability and tradeoff")
     p.set_defaults(func=cmd_bench)
 

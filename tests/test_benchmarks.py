@@ -25,7 +25,7 @@ def test_latency_bench(tmp_path):
     """The latency figures agree with each other: ordered percentiles, the ratio of the two
     medians, as many ticks as the durations ask for, miss rates of the counts, and no stage's
     median longer than the tick's that holds it."""
-    data, text = bench(tmp_path, "latency", "--duration", "0.5", "--paced", "0.3")
+    data, text = bench(tmp_path, "latency", "--duration", "0.5", "--paced", "0.3", "--realtime")
     for key in ("tick_us", "mj_step_us"):
         t = data[key]
         assert set(t) == {"p50", "p99", "max"} and 0 < t["p50"] <= t["p99"] <= t["max"], (key, t)
@@ -44,6 +44,15 @@ def test_latency_bench(tmp_path):
     # each stage is timed inside its tick, so its median is at most the tick's (+ rounding)
     assert all(0 < v <= data["tick_us"]["p50"] + 0.01 for v in stages.values()), (stages, data["tick_us"])
     assert "/ mj_step" in text and "stages" in text
+
+
+def test_latency_bench_leaves_the_scheduling_alone_unless_asked(tmp_path):
+    """Without --realtime no paced run asks for SCHED_FIFO (a priority-80 busy loop would starve
+    the machine's other work), and the report says how to ask."""
+    data, text = bench(tmp_path, "latency", "--duration", "0.2", "--paced", "0.1")
+    assert [p["rate_hz"] for p in data["paced"]] == [1000.0, 10000.0]
+    assert not any("SCHED_FIFO" in p["scheduling"] for p in data["paced"]) and data["realtime"] is False
+    assert "add --realtime" in text
 
 
 def test_the_pacer_alone_counts_what_it_misses():
