@@ -131,11 +131,6 @@ class SoftFingerProxy(RecordView):
         if getattr(self, "torsion", None) is not None:
             self.torsion._bind(rows, i)
 
-    def _args(self):
-        r = self._rows
-        s = r.shapes
-        return s.S, s.T, s.C, s.xpos, s.xmat
-
     def place(self, x: float, y: float, z: float) -> bool:
         """Put the proxy at a device position (device frame, m), out of contact.
 
@@ -143,7 +138,7 @@ class SoftFingerProxy(RecordView):
         An unplaced finger places itself at its first good sample and renders nothing then.
         """
         r = self._rows
-        return r.run(kernel.place_row, *self._args(), r.F, r.near, self._i, float(x), float(y), float(z))
+        return r.run(kernel.place_row, r.shapes.tables, r.F, r.near, self._i, float(x), float(y), float(z))
 
     def hold(self) -> None:
         """No usable device sample this tick: zero force, the proxy only follows its body.
@@ -151,7 +146,7 @@ class SoftFingerProxy(RecordView):
         (a device error, invalid samples) the clamps come back from max·(1 − T/soft_start):
         a finger that moved into an object meanwhile gets no kick."""
         r = self._rows
-        r.run(kernel.hold_row, *self._args(), r.shapes.cvel, r.F, r.near, self._i)
+        r.run(kernel.hold_row, r.shapes.tables, r.F, r.near, self._i)
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
@@ -164,7 +159,7 @@ class SoftFingerProxy(RecordView):
         the finger then renders zero force and its proxy stays where it was.
         """
         r = self._rows
-        return r.run(kernel.update_row, *self._args(), r.shapes.cvel, r.F, r.near, self._i, float(x), float(y),
+        return r.run(kernel.update_row, r.shapes.tables, r.F, r.near, self._i, float(x), float(y),
                      float(z), float(twist), float(dt), r.scratch)
 
     def use_torsion(self, model: FingertipModel | None) -> None:
@@ -196,4 +191,4 @@ class SoftFingerProxy(RecordView):
         """Deepest the proxy sits inside any shape now (m, >= 0); updates penetration_max.
         An unplaced finger has no proxy in the world yet: nothing to audit."""
         r = self._rows
-        return r.run(kernel.audit_row, *self._args(), r.F, self._i)
+        return r.run(kernel.audit_row, r.shapes.tables, r.F, self._i)

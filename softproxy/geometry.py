@@ -31,7 +31,7 @@ import numpy as np
 from softproxy.compiled import shapes as kernels
 from softproxy.compiled.dispatch import EntryPoints
 from softproxy.compiled.layout import (
-    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, SHAPE,
+    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, SHAPE, Shapes,
 )
 
 
@@ -76,7 +76,7 @@ class Shape:
     def distance(self, x: float, y: float, z: float) -> tuple[float, float, float, float]:
         """Signed distance from the surface (m) and outward unit normal, world frame."""
         s = self._tables()
-        return s.run(kernels.shape_distance, s.S, s.T, s.C, s.xpos, s.xmat, self.row, float(x), float(y), float(z))
+        return s.run(kernels.shape_distance, s.tables, self.row, float(x), float(y), float(z))
 
     def on_face(self, nx: float, ny: float, nz: float) -> bool:
         """True when a contact of normal n (world) lies on a planar face, not on a rounded
@@ -88,7 +88,7 @@ class Shape:
         """First touch of a sphere (radius r, m) moving from x0 by (dx, dy, dz) (m) into the
         geom: (fraction in [0, 1), nx, ny, nz), or None when it touches nothing."""
         s = self._tables()
-        hit = s.run(kernels.shape_sweep, s.S, s.T, s.C, s.xpos, s.xmat, self.row, float(x0), float(y0), float(z0),
+        hit = s.run(kernels.shape_sweep, s.tables, self.row, float(x0), float(y0), float(z0),
                     float(dx), float(dy), float(dz), float(r))
         return None if hit[0] < 0.0 else hit
 
@@ -225,6 +225,7 @@ class ShapeSet(list):
             from softproxy.mesh_tables import mesh_tables
 
             self.T, self.C = mesh_tables(self, S)
+        self.tables = Shapes(self.S, self.T, self.C, self.xpos, self.xmat, self.cvel)
 
     def prepare(self, radius: float) -> None:
         """Get every shape ready for a proxy of `radius` (m); rebuild the tables if a mesh grew."""

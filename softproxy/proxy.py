@@ -102,7 +102,7 @@ class GodObject(RecordView):
         ValueError for a position outside the workspace (±WORKSPACE_LIMIT m on each axis)."""
         r = self._rows
         s = r.shapes
-        if not r.run(kernel.reset_row, s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i, float(x), float(y),
+        if not r.run(kernel.reset_row, s.tables, r.F, r.near, self._i, float(x), float(y),
                      float(z)):
             raise ValueError(f"proxy position must lie within ±{WORKSPACE_LIMIT} m, got {(x, y, z)!r}")
 
@@ -112,7 +112,7 @@ class GodObject(RecordView):
         its body (`follow`)."""
         r = self._rows
         s = r.shapes
-        return r.run(kernel.update_row, s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i, float(xd), float(yd),
+        return r.run(kernel.update_row, s.tables, r.F, r.near, self._i, float(xd), float(yd),
                      float(zd), float(dt), r.scratch)
 
     def follow(self) -> None:
@@ -120,4 +120,4 @@ class GodObject(RecordView):
         that moved into it, so a skipped tick never leaves it inside a moving object."""
         r = self._rows
         s = r.shapes
-        r.run(kernel.follow_row, s.S, s.T, s.C, s.xpos, s.xmat, r.F, r.near, self._i)
+        r.run(kernel.follow_row, s.tables, r.F, r.near, self._i)

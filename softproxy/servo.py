@@ -40,7 +40,7 @@ from softproxy import termination
 from softproxy.compiled import coupling, native
 from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
-from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, ShapeTables, StatRings
+from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, StatRings
 from softproxy.device import Device, check_device, DeviceSample
 from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
@@ -293,9 +293,8 @@ class ServoLoop:
         of arrays they take (`softproxy.compiled.layout`: built once, the same arrays every tick)."""
         world, shapes, data = self.world, self.world.shapes, self.world.data
         m, d = (np.uintp(a) for a in native.addresses(world.model, data))
-        self._mj = MjViews(m, d, shapes.xpos, shapes.xmat, shapes.cvel, data.qvel, data.qacc, data.xfrc_applied,
-                           data.xipos)
-        self._shapes = ShapeTables(shapes.S, shapes.T, shapes.C)
+        self._mj = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos)
+        self._shapes = shapes.tables
         self._fingers = FingerTables(self.rows.F, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
                                      world.bodies, world.counts, self._coupling)
         stats = self.stats

@@ -902,7 +902,7 @@ def advancement_steps(monkeypatch, shape, *args):
     monkeypatch.setattr(kernels, "shape_distance", lambda *a: calls.append(a) or compiled(*a))
     s = shape.set
     try:
-        result = kernels.shape_sweep.py_func(s.S, s.T, s.C, s.xpos, s.xmat, shape.row, *args)
+        result = kernels.shape_sweep.py_func(s.tables, shape.row, *args)
     finally:
         monkeypatch.setattr(kernels, "shape_distance", compiled)
     return len(calls), result
@@ -1019,7 +1019,7 @@ def test_nan_inputs_never_crash(scene, kind):
                      (*start, NAN, NAN, NAN, NAN)):
             hit = shape.sweep(*args)
             assert hit is None or len(hit) == 4
-            lam = shape_sweep(shape.set.S, shape.set.T, shape.set.C, d.geom_xpos, d.geom_xmat, shape.row, *args)[0]
+            lam = shape_sweep(shape.set.tables, shape.row, *args)[0]
             assert not (0.0 < lam < 1.0), (shape.name, args, lam)
 
 

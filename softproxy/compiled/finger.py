@@ -191,13 +191,13 @@ def _follow_body(S, cvel, f):
 
 
 @njit(cache=True, error_model="numpy")
-def place(S, T, C, xpos, xmat, f, near, x, y, z):
+def place(sh, f, near, x, y, z):
     """Put the proxy at a device position (device frame, m), out of contact and torsion, the
     soft start's ramp back at zero. False, and the finger left unplaced, for a position
     outside the workspace: an unplaced finger places itself at its first good sample and
     renders nothing then."""
     xd, yd, zd = f.ox + f.scale * x, f.oy + f.scale * y, f.oz + f.scale * z
-    if not godobject.reset(S, T, C, xpos, xmat, f, near, xd, yd, zd):
+    if not godobject.reset(sh, f, near, xd, yd, zd):
         f.placed = False
         return False
     f.placed = True
@@ -210,7 +210,7 @@ def place(S, T, C, xpos, xmat, f, near, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def hold(S, T, C, xpos, xmat, cvel, f, near):
+def hold(sh, f, near):
     """No usable device sample this tick: zero force, the proxy only follows its body. The
     soft start's ramp winds down as fast as it winds up, so after an outage of T s (a device
     error, invalid samples) the clamps come back from max·(1 - T/soft_start): a finger that
@@ -218,6 +218,7 @@ def hold(S, T, C, xpos, xmat, cvel, f, near):
     clamp at 1 kHz (0.1 s soft start), not the grip. α_p turns with the touched body on every
     held tick, as the proxy follows it (keyed on the contact, not on `body`: clear_output
     empties that)."""
+    S, cvel = sh.S, sh.cvel
     f.rel_dx = f.rel_dy = f.rel_dz = f.rel_turn = 0.0  # (nothing was sent over a held tick to count)
     if f.touched >= 0:
         _follow_body(S, cvel, f)
@@ -225,22 +226,23 @@ def hold(S, T, C, xpos, xmat, cvel, f, near):
         ramp = f.ramp - f.dt / f.soft_start
         f.ramp = ramp if ramp > 0.0 else 0.0
     if f.placed:
-        godobject.follow(S, T, C, xpos, xmat, f, near)
+        godobject.follow(sh, f, near)
     clear_output(f)
 
 
 @njit(cache=True, error_model="numpy")
-def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
+def update(sh, f, near, x, y, z, twist, dt, scratch):
     """One tick from a device sample (device frame, m and rad) over period dt (s): god-object,
     virtual coupling, torsion. False when the sample was not used (a spike held back, a
     position outside the workspace, a non-finite twist): the finger then renders zero force."""
+    S, xpos, xmat, cvel = sh.S, sh.xpos, sh.xmat, sh.cvel
     f.dt = dt
     f.body_turn = 0.0
     f.rel_dx = f.rel_dy = f.rel_dz = f.rel_turn = 0.0
     if f.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
         _follow_body(S, cvel, f)
     if not f.placed:
-        ok = place(S, T, C, xpos, xmat, f, near, x, y, z) and finite(twist)
+        ok = place(sh, f, near, x, y, z) and finite(twist)
         clear_output(f)
         return ok
     xd = f.ox + f.scale * x
@@ -253,12 +255,12 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
     if ex * ex + ey * ey + ez * ez > reach * reach and f.spike_run < SPIKE_PATIENCE:
         f.spike_run += 1
         f.spikes_rejected += 1
-        godobject.follow(S, T, C, xpos, xmat, f, near)  # zero force; the proxy stays on its body
+        godobject.follow(sh, f, near)  # zero force; the proxy stays on its body
         clear_output(f)
         return False
     f.spike_run = 0
     if not finite(twist):  # an unusable sample: the proxy stays where it was, on its body
-        godobject.follow(S, T, C, xpos, xmat, f, near)
+        godobject.follow(sh, f, near)
         clear_output(f)
         return False
     # for the damper, before the god-object moves the proxy: how far the touched surface
@@ -271,7 +273,7 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
         cx, cy, cz = shape_to_world(S, xpos, xmat, shape, f.lx, f.ly, f.lz)
         wx, wy, wz = wx + cx - f.x, wy + cy - f.y, wz + cz - f.z
     f.rel_dx, f.rel_dy, f.rel_dz = wx, wy, wz  # (the passivity observer's port motion)
-    if not godobject.update(S, T, C, xpos, xmat, f, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
+    if not godobject.update(sh, f, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
         clear_output(f)
         return False
     f.xd, f.yd, f.zd = xd, yd, zd
@@ -356,14 +358,15 @@ def update(S, T, C, xpos, xmat, cvel, f, near, x, y, z, twist, dt, scratch):
 
 
 @njit(cache=True, error_model="numpy")
-def audit(S, T, C, xpos, xmat, f):
+def audit(sh, f):
     """Deepest the proxy sits inside any shape now (m, >= 0), kept in penetration_max: the
     check that no finger was let in. An unplaced finger has no proxy in the world yet: 0."""
+    S = sh.S
     if not f.placed:
         return 0.0
     worst = 0.0
     for s in range(S.shape[0]):
-        inside = f.radius - shape_distance(S, T, C, xpos, xmat, s, f.x, f.y, f.z)[0]
+        inside = f.radius - shape_distance(sh, s, f.x, f.y, f.z)[0]
         if inside > worst:
             worst = inside
     if worst > f.penetration_max:
@@ -448,9 +451,9 @@ def _clamp_for_device(f, safe, fmax, tmax):
 
 
 @njit(cache=True, error_model="numpy")
-def tick(mj, shapes, fingers, dt, safe, check, fmax, tmax, control):
+def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2 (`mj`,
-    `shapes`, `fingers`: MjViews, ShapeTables, FingerTables of `softproxy.compiled.layout`).
+    `sh`, `fingers`: MjViews, Shapes, FingerTables of `softproxy.compiled.layout`).
 
     Each finger record holds this tick's device sample in its in_ fields; a sample not valid
     (or from a failed read) or not finite holds the finger. The fingers' wrenches on moving
@@ -465,8 +468,6 @@ def tick(mj, shapes, fingers, dt, safe, check, fmax, tmax, control):
     not finite (zeroed before they reached a body or the device). The touched body gets the
     reaction of exactly the wrench the device is sent, after every clamp (the finger's, the
     device's, the soft start's), so both sides of the coupling exchange the same energy."""
-    S, T, C = shapes.S, shapes.T, shapes.C
-    xpos, xmat, cvel = mj.xpos, mj.xmat, mj.cvel
     F, near, scratch, wrench, bodies, counts = (fingers.F, fingers.near, fingers.scratch, fingers.wrench,
                                                 fingers.bodies, fingers.counts)
     refused = 0
@@ -475,12 +476,12 @@ def tick(mj, shapes, fingers, dt, safe, check, fmax, tmax, control):
         f = F[i]
         row = near[i]
         if not f.in_valid:
-            hold(S, T, C, xpos, xmat, cvel, f, row)
+            hold(sh, f, row)
         elif not finite(f.in_x + f.in_y + f.in_z + f.in_qw + f.in_qx + f.in_qy + f.in_qz + f.in_twist):
             refused += 1
-            hold(S, T, C, xpos, xmat, cvel, f, row)
+            hold(sh, f, row)
         else:
-            if not update(S, T, C, xpos, xmat, cvel, f, row, f.in_x, f.in_y, f.in_z, f.in_twist, dt, scratch):
+            if not update(sh, f, row, f.in_x, f.in_y, f.in_z, f.in_twist, dt, scratch):
                 refused += 1
             if safe:
                 clear_output(f)
@@ -488,7 +489,7 @@ def tick(mj, shapes, fingers, dt, safe, check, fmax, tmax, control):
                 unsafe += 1
                 clear_output(f)
         if check:
-            audit(S, T, C, xpos, xmat, f)
+            audit(sh, f)
         passivity.observe(f)  # last tick's sends times this tick's motion
     if not safe:
         coupling.implicit(mj.m, mj.d, mj.qvel, mj.qacc, F, bodies[FIXED], dt, fingers.ws)
@@ -529,18 +530,18 @@ def torsion_follow_row(F, i, omega_n, dt):
 
 
 @njit(cache=True, error_model="numpy")
-def place_row(S, T, C, xpos, xmat, F, near, i, x, y, z):
-    return place(S, T, C, xpos, xmat, F[i], near[i], x, y, z)
+def place_row(sh, F, near, i, x, y, z):
+    return place(sh, F[i], near[i], x, y, z)
 
 
 @njit(cache=True, error_model="numpy")
-def hold_row(S, T, C, xpos, xmat, cvel, F, near, i):
-    hold(S, T, C, xpos, xmat, cvel, F[i], near[i])
+def hold_row(sh, F, near, i):
+    hold(sh, F[i], near[i])
 
 
 @njit(cache=True, error_model="numpy")
-def update_row(S, T, C, xpos, xmat, cvel, F, near, i, x, y, z, twist, dt, scratch):
-    return update(S, T, C, xpos, xmat, cvel, F[i], near[i], x, y, z, twist, dt, scratch)
+def update_row(sh, F, near, i, x, y, z, twist, dt, scratch):
+    return update(sh, F[i], near[i], x, y, z, twist, dt, scratch)
 
 
 @njit(cache=True, error_model="numpy")
@@ -549,5 +550,5 @@ def clear_output_row(F, i):
 
 
 @njit(cache=True, error_model="numpy")
-def audit_row(S, T, C, xpos, xmat, F, i):
-    return audit(S, T, C, xpos, xmat, F[i])
+def audit_row(sh, F, i):
+    return audit(sh, F[i])

@@ -335,7 +335,7 @@ def _touched(pl, n, nx, ny, nz):
 
 
 @njit(cache=True, error_model="numpy")
-def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz, rested):
+def _touched_at(sh, g, near, x, y, z, nx, ny, nz, rested):
     """The shape the proxy at (x, y, z) touches, where it ends the tick (the pushed body is
     its body, the proxy is carried in its frame): among the near shapes whose surface is
     within TOUCH_TOL of the sphere, the one whose outward normal there is most aligned with
@@ -347,6 +347,7 @@ def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz, rested):
     one geom while the frictionless proxy went on across a seam onto its neighbour. The
     finger's first `rested` planes are known to rest on their shapes' surfaces at the proxy
     (checked by the solve): their shapes are in touch, their normals the planes', no query."""
+    S, xpos = sh.S, sh.xpos
     r = g.radius
     best, best_dot, best_gap = -1, -2.0, math.inf
     for j in range(int(g.nnear)):
@@ -366,7 +367,7 @@ def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz, rested):
         ex, ey, ez = x - xpos[k, 0], y - xpos[k, 1], z - xpos[k, 2]
         if ex * ex + ey * ey + ez * ez > reach * reach:
             continue  # its bounding sphere is out of touch (a plane's never is): no query
-        d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
+        d, mx, my, mz = shape_distance(sh, s, x, y, z)
         gap = d - r
         if gap > TOUCH_TOL:
             continue
@@ -377,20 +378,20 @@ def _touched_at(S, T, C, xpos, xmat, g, near, x, y, z, nx, ny, nz, rested):
 
 
 @njit(cache=True, error_model="numpy")
-def _nearest(S, T, C, xpos, xmat, g, near, x, y, z):
+def _nearest(sh, g, near, x, y, z):
     """The near shape nearest the point (x, y, z) and its answer there: (row, signed distance
     (m), outward normal); row -1 when no shape is near."""
     best, best_d, bx, by, bz = -1, math.inf, 0.0, 0.0, 0.0
     for j in range(int(g.nnear)):
         s = near[j]
-        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
+        d, nx, ny, nz = shape_distance(sh, s, x, y, z)
         if d < best_d:
             best, best_d, bx, by, bz = s, d, nx, ny, nz
     return best, best_d, bx, by, bz
 
 
 @njit(cache=True, error_model="numpy")
-def _land(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, pl):
+def _land(sh, g, near, x, y, z, xd, yd, zd, pl):
     """A proxy in contact that touches no shape at (x, y, z), brought onto a surface: a
     slipping proxy's point on the dynamic cone's edge lies on the chord from where it was
     held to the frictionless proxy, and across a convex edge or a step down that chord runs
@@ -398,7 +399,7 @@ def _land(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, pl):
     toward the device, which lies inside the constraint, onto the first surface it meets, so
     it ends touching the shape it pushes. pl: a scratch plane list. Returns the position."""
     dx, dy, dz = xd - x, yd - y, zd - z
-    hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
+    hit, lam, _, _, _, _ = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, 0)
     if hit:
         return x + lam * dx, y + lam * dy, z + lam * dz
     return x, y, z
@@ -416,11 +417,12 @@ def _on_static_faces(S, xmat, pl, n):
 
 
 @njit(cache=True, error_model="numpy")
-def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
+def gather_ball(sh, g, near, cx, cy, cz, room):
     """near: every shape the proxy can touch while its centre stays within `room` (m) of c,
     the shapes whose bounding sphere meets the ball of radius room + r (a plane: when the
     ball reaches its surface). The ball is kept (bx, by, bz, room): a sub-move that would
     leave it widens it first."""
+    S, xpos, xmat = sh.S, sh.xpos, sh.xmat
     g.bx, g.by, g.bz, g.room = cx, cy, cz, room
     reach = room + g.radius
     count = 0
@@ -440,16 +442,17 @@ def gather_ball(S, T, C, xpos, xmat, g, near, cx, cy, cz, room):
 
 
 @njit(cache=True, error_model="numpy")
-def _push_out_of(S, T, C, xpos, xmat, g, near, static):
+def _push_out_of(sh, g, near, static):
     """One pass: the proxy out of every shape of `near` that is static (or moving) it overlaps,
     to CONTACT_TOL outside. True when it moved."""
+    S = sh.S
     r = g.radius
     moved = False
     for j in range(int(g.nnear)):
         s = near[j]
         if S[s].static != static:
             continue
-        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, g.x, g.y, g.z)
+        d, nx, ny, nz = shape_distance(sh, s, g.x, g.y, g.z)
         gap = d - r
         if gap < 0.0:
             push = -gap + CONTACT_TOL
@@ -461,7 +464,7 @@ def _push_out_of(S, T, C, xpos, xmat, g, near, static):
 
 
 @njit(cache=True, error_model="numpy")
-def push_out(S, T, C, xpos, xmat, g, near):
+def push_out(sh, g, near):
     """Move the proxy out of any shape of `near` it overlaps (an object moved into it), to
     CONTACT_TOL outside: out of the moving shapes, then out of the static ones, a few rounds
     (a push out of one shape can push into another). The static shapes have the last word: a
@@ -469,31 +472,33 @@ def push_out(S, T, C, xpos, xmat, g, near):
     of both (a gap narrower than the proxy) the proxy stays on the static side and the finger
     is `squeezed`; while it is, the moving shape does not push it at all (out through its far
     side would be a jump of its whole thickness), until it has moved off the proxy."""
+    S = sh.S
     was = g.squeezed
     for _ in range(4):
-        moved = False if was else _push_out_of(S, T, C, xpos, xmat, g, near, False)
-        moved = _push_out_of(S, T, C, xpos, xmat, g, near, True) or moved
+        moved = False if was else _push_out_of(sh, g, near, False)
+        moved = _push_out_of(sh, g, near, True) or moved
         if not moved:
             break
     g.squeezed = False
     for j in range(int(g.nnear)):
         s = near[j]
-        if not S[s].static and shape_distance(S, T, C, xpos, xmat, s, g.x, g.y, g.z)[0] - g.radius < -SQUEEZE_TOL:
+        if not S[s].static and shape_distance(sh, s, g.x, g.y, g.z)[0] - g.radius < -SQUEEZE_TOL:
             g.squeezed = True
             g.squeeze_ticks += 1
             return
 
 
 @njit(cache=True, error_model="numpy")
-def _rest_squeezed(S, T, C, xpos, xmat, g, near, xd, yd, zd):
+def _rest_squeezed(sh, g, near, xd, yd, zd):
     """A squeezed proxy (`push_out`) rests where the static surfaces put it, in contact with
     the nearest static shape: the finger renders that surface's spring force (never into it),
     held, no sweep through the moving object that overlaps it."""
+    S = sh.S
     best, bd, bnx, bny, bnz = -1, math.inf, 0.0, 0.0, 0.0
     for j in range(int(g.nnear)):
         s = near[j]
         if S[s].static:
-            d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, g.x, g.y, g.z)
+            d, nx, ny, nz = shape_distance(sh, s, g.x, g.y, g.z)
             if d < bd:
                 best, bd, bnx, bny, bnz = s, d, nx, ny, nz
     g.free_x, g.free_y, g.free_z = g.x, g.y, g.z
@@ -515,9 +520,10 @@ def _rest_squeezed(S, T, C, xpos, xmat, g, near, xd, yd, zd):
 
 
 @njit(cache=True, error_model="numpy")
-def reset(S, T, C, xpos, xmat, g, near, x, y, z):
+def reset(sh, g, near, x, y, z):
     """Put the proxy at (x, y, z) with no contact, every shape near, pushed out of any it
     overlaps; False (nothing changed) for a position outside the workspace."""
+    S = sh.S
     if not (-WORKSPACE_LIMIT < x < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < y < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < z < WORKSPACE_LIMIT):
         return False
@@ -533,14 +539,15 @@ def reset(S, T, C, xpos, xmat, g, near, x, y, z):
     for s in range(S.shape[0]):
         near[s] = s
     g.nnear = S.shape[0]
-    push_out(S, T, C, xpos, xmat, g, near)
+    push_out(sh, g, near)
     return True
 
 
 @njit(cache=True, error_model="numpy")
-def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
+def _settle(sh, g, near, xd, yd, zd, around_proxy):
     """Carry the proxy with the touched body, gather the shapes near it and the device, push
     it out of any that moved into it. Returns the proxy position before the push."""
+    S, xpos, xmat = sh.S, sh.xpos, sh.xmat
     shape = int(g.touched)
     carrier = -1
     if shape >= 0 and not S[shape].static:
@@ -551,17 +558,17 @@ def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
     # broad phase: the shapes near the ball that holds both the proxy and the device, with a
     # margin of 1 mm (`_move_once` widens it if a sub-move would leave it)
     if around_proxy:
-        gather_ball(S, T, C, xpos, xmat, g, near, x, y, z, g.radius + 1e-3)
+        gather_ball(sh, g, near, x, y, z, g.radius + 1e-3)
     else:
         ex, ey, ez = xd - x, yd - y, zd - z
-        gather_ball(S, T, C, xpos, xmat, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
+        gather_ball(sh, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
                     0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + g.radius + 1e-3)
     # Only a moving shape can have come into the proxy, or a static one if the proxy itself
     # was carried; the carrier holds the proxy where it was, outside.
     for j in range(int(g.nnear)):
         s = near[j]
         if s != carrier and (carrier >= 0 or not S[s].static):
-            push_out(S, T, C, xpos, xmat, g, near)
+            push_out(sh, g, near)
             break
     else:
         g.squeezed = False
@@ -569,20 +576,21 @@ def _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, around_proxy):
 
 
 @njit(cache=True, error_model="numpy")
-def follow(S, T, C, xpos, xmat, g, near):
+def follow(sh, g, near):
     """Without a device sample: the proxy stays on the body it touches and out of anything
     that moved into it, so a skipped tick never leaves it inside a moving object."""
-    _settle(S, T, C, xpos, xmat, g, near, g.x, g.y, g.z, True)
+    _settle(sh, g, near, g.x, g.y, g.z, True)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
+def _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, n):
     """Earliest hit over the near shapes of the sphere moving by (dx, dy, dz): (found, lam,
     nx, ny, nz, shape row).
 
     pl[:n]: constraint planes that the start and the end of the move both satisfy. A convex
     shape owning one of them lies behind it, so a move on or above it cannot enter the shape:
     it is not swept (a slide along a face or a tangent plane sweeps only the other shapes)."""
+    S = sh.S
     r = g.radius
     found = False
     best_lam, bnx, bny, bnz, bs = 1.0, 0.0, 0.0, 0.0, -1
@@ -596,7 +604,7 @@ def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
                     break
             if behind:
                 continue
-        lam, nx, ny, nz = shape_sweep(S, T, C, xpos, xmat, s, x, y, z, dx, dy, dz, r)
+        lam, nx, ny, nz = shape_sweep(sh, s, x, y, z, dx, dy, dz, r)
         if lam >= 0.0 and lam < best_lam:
             found = True
             best_lam, bnx, bny, bnz, bs = lam, nx, ny, nz, s
@@ -604,12 +612,13 @@ def _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
+def _rests_on(sh, g, pl, i, x, y, z, on_surface):
     """True when the proxy at (x, y, z) still rests on plane pl[i] and on its shape's real
     surface, both within LIFT_TOL (m): a plane runs on past a face's edge, a curved shape
     falls away from its tangent plane, and a point friction held back short of the plane (on
     a rounded edge below a face's plane) does not rest on it. `on_surface`: the shape's
     surface is known to be under the proxy already, or its own triangle is (a mesh's)."""
+    S, T, xpos, xmat = sh.S, sh.T, sh.xpos, sh.xmat
     nx, ny, nz, c = plane(pl, i)
     if not abs(nx * x + ny * y + nz * z - c) <= LIFT_TOL:
         return False
@@ -618,17 +627,17 @@ def _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surface):
     s, f = int(pl[i, PLANE_SHAPE]), int(pl[i, PLANE_ROW])
     if f >= 0 and shape_feature_distance(S, T, xpos, xmat, s, f, x, y, z)[0] - g.radius <= LIFT_TOL:
         return True
-    return shape_distance(S, T, C, xpos, xmat, s, x, y, z)[0] - g.radius <= LIFT_TOL
+    return shape_distance(sh, s, x, y, z)[0] - g.radius <= LIFT_TOL
 
 
 @njit(cache=True, error_model="numpy")
-def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
+def _keep_resting(sh, g, resting, nr, pl, n, x, y, z):
     """After friction held the proxy back from the frictionless end: the planes it rests on
     at (x, y, z), resting[:nr] (those a slide itself ran into) plus those of pl[:n] (the
     frictionless solve's) it still touches, on their real surfaces, not past an edge. The
     newest three become the finger's planes: what the next tick's warm start builds on."""
     for i in range(n):
-        if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, False) and \
+        if _rests_on(sh, g, pl, i, x, y, z, False) and \
                 _plane_of(resting, nr, int(pl[i, PLANE_SHAPE]), *normal(pl, i)) < 0:
             for k in range(PLANE_WIDTH):
                 resting[nr, k] = pl[i, k]
@@ -637,9 +646,10 @@ def _keep_resting(S, T, C, xpos, xmat, g, resting, nr, pl, n, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
+def _still_in_corner(sh, g, xd, yd, zd, pl, n):
     """`_still_stuck` in a corner of three static faces: holds while projecting the device
     onto the three planes gives the corner point, where the proxy is (every plane pushes)."""
+    S, xmat = sh.S, sh.xmat
     if not _on_static_faces(S, xmat, pl, n):
         return False
     found, qx, qy, qz = _corner(xd, yd, zd, pl)
@@ -659,7 +669,7 @@ def _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
+def _still_stuck(sh, g, near, xd, yd, zd, pl):
     """Fast path of the hold: a stuck proxy that stays stuck, on one flat face or pinned in a
     corner of three static faces; True when it does (n, depth and planes updated).
 
@@ -668,21 +678,22 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
     the same face, the way there clear of every other shape), and the cone test passes. In a
     corner: the device pushes into all three faces, so f is the corner, where the proxy
     already is."""
+    S = sh.S
     n = _load_planes(g, pl)
     if n == 3:
-        return _still_in_corner(S, T, C, xpos, xmat, g, xd, yd, zd, pl, n)
+        return _still_in_corner(sh, g, xd, yd, zd, pl, n)
     shape = int(g.touched)
     if n != 1 or not S[shape].planar:
         return False
     x, y, z, r = g.x, g.y, g.z, g.radius
-    d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, shape, x, y, z)
+    d, nx, ny, nz = shape_distance(sh, shape, x, y, z)
     if abs(d - r) > 1e-7:
         return False
     depth = nx * (x - xd) + ny * (y - yd) + nz * (z - zd)
     if depth <= 0.0:
         return False
     fx, fy, fz = xd + depth * nx, yd + depth * ny, zd + depth * nz
-    df, mx, my, mz = shape_distance(S, T, C, xpos, xmat, shape, fx, fy, fz)
+    df, mx, my, mz = shape_distance(sh, shape, fx, fy, fz)
     if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
         return False
     sx, sy, sz = x - fx, y - fy, z - fz
@@ -690,7 +701,7 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
         return False
     for j in range(int(g.nnear)):  # an obstacle on the face between the proxy and f changes f
         s = near[j]
-        if s != shape and shape_sweep(S, T, C, xpos, xmat, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
+        if s != shape and shape_sweep(sh, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
             return False
     set_plane(g.planes, 0, nx, ny, nz, nx * x + ny * y + nz * z, shape, -1.0)
     g.nplanes = 1
@@ -700,7 +711,7 @@ def _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
 
 
 @njit(cache=True, error_model="numpy")
-def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
+def _warm_planes(sh, g, x, y, z, warm):
     """Last tick's planes to start the solve from, into warm; returns their count (0: solve
     cold), when every one belongs to a static shape.
 
@@ -715,6 +726,7 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
     shape's surface: a proxy that lifts off one (past a face's edge, round a curve) is solved
     again from no planes (`_move`), so a warm start ends where the cold solve ends. Never
     unsafe either way: every motion is still swept."""
+    S, xmat = sh.S, sh.xmat
     n = int(g.nplanes)
     count = 0
     for j in range(n):
@@ -737,7 +749,7 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
                 warm[count, k] = p[k]
             count += 1
             continue
-        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, s, x, y, z)
+        d, nx, ny, nz = shape_distance(sh, s, x, y, z)
         if d - g.radius > LIFT_TOL:
             return 0
         # (a box's face and its rounded edge at their seam give one plane; its offset is taken
@@ -750,7 +762,7 @@ def _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm):
 
 
 @njit(cache=True, error_model="numpy")
-def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
+def _free_from_last(sh, g, near, xd, yd, zd, warm):
     """Last tick's frictionless proxy's planes, to solve this tick's frictionless proxy from
     there, into warm; returns their count (0: solve from the proxy) and the proxy's gap (m)
     to the surface it touches, within TOUCH_TOL (the chord of a slide back to the dynamic
@@ -765,6 +777,7 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
     surface again if it is in the way), while the device presses into one at least and into
     the surface at the proxy (which is then where the proxy touches first, as a sweep from
     it would find)."""
+    S, T, xpos, xmat = sh.S, sh.T, sh.xpos, sh.xmat
     n = int(g.nfree)
     if n == 0 or not g.contact or g.touched < 0:
         return 0, 0.0
@@ -796,25 +809,25 @@ def _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm):
         if not S[near[j]].static:
             return 0, 0.0
     x, y, z = g.x, g.y, g.z
-    d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, int(g.touched), x, y, z)
+    d, nx, ny, nz = shape_distance(sh, int(g.touched), x, y, z)
     if d - g.radius > TOUCH_TOL or nx * (xd - x) + ny * (yd - y) + nz * (zd - z) >= 0.0:
         return 0, 0.0
     return m, d - g.radius
 
 
 @njit(cache=True, error_model="numpy")
-def _arrives(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl):
+def _arrives(sh, g, near, x, y, z, dx, dy, dz, pl):
     """True when a sweep by (dx, dy, dz) (m) from (x, y, z) meets nothing before its end,
     where it may arrive touching (within LIFT_TOL); never for a way with NaN or inf in it."""
     length = math.sqrt(dx * dx + dy * dy + dz * dz)
     if not finite(abs(x) + abs(y) + abs(z) + length):
         return False
-    hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
+    hit, lam, _, _, _, _ = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, 0)
     return not hit or (1.0 - lam) * length <= LIFT_TOL
 
 
 @njit(cache=True, error_model="numpy")
-def _clear_way(S, T, C, xpos, xmat, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
+def _clear_way(sh, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
     """True when the proxy can move from (x, y, z), on the surface, to (px, py, pz), resting
     on it with outward normal n there, through free space: straight, or over the arc.
 
@@ -824,9 +837,9 @@ def _clear_way(S, T, C, xpos, xmat, g, near, x, y, z, px, py, pz, nx, ny, nz, pl
     twice that along its normal first, three sweeps: it crosses no rise higher than the
     arc's own, and no surface (every leg is swept)."""
     dx, dy, dz = px - x, py - y, pz - z
-    if _arrives(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl):
+    if _arrives(sh, g, near, x, y, z, dx, dy, dz, pl):
         return True
-    s, _, mx, my, mz = _nearest(S, T, C, xpos, xmat, g, near, x, y, z)
+    s, _, mx, my, mz = _nearest(sh, g, near, x, y, z)
     c = min(mx * nx + my * ny + mz * nz, 1.0)  # (unit normals: a hair over 1 by rounding)
     if s < 0 or c <= 0.0:
         return False
@@ -835,13 +848,13 @@ def _clear_way(S, T, C, xpos, xmat, g, near, x, y, z, px, py, pz, nx, ny, nz, pl
     lift = math.sqrt(dx * dx + dy * dy + dz * dz) * t2 / (1.0 + math.sqrt(1.0 + t2 * t2)) + LIFT_TOL
     ux, uy, uz = x + lift * mx, y + lift * my, z + lift * mz
     vx, vy, vz = px + lift * nx, py + lift * ny, pz + lift * nz
-    return _arrives(S, T, C, xpos, xmat, g, near, x, y, z, ux - x, uy - y, uz - z, pl) \
-        and _arrives(S, T, C, xpos, xmat, g, near, ux, uy, uz, vx - ux, vy - uy, vz - uz, pl) \
-        and _arrives(S, T, C, xpos, xmat, g, near, vx, vy, vz, px - vx, py - vy, pz - vz, pl)
+    return _arrives(sh, g, near, x, y, z, ux - x, uy - y, uz - z, pl) \
+        and _arrives(sh, g, near, ux, uy, uz, vx - ux, vy - uy, vz - uz, pl) \
+        and _arrives(sh, g, near, vx, vy, vz, px - vx, py - vy, pz - vz, pl)
 
 
 @njit(cache=True, error_model="numpy")
-def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
+def _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl):
     """The end of a move toward the goal g (m, world) from (x, y, z), when it is the position
     r off the surface point q nearest the goal, along the normal there: (found, the
     position), and the plane it rests on (q's tangent plane) in pl[0] when found.
@@ -853,8 +866,9 @@ def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
     patch of 0.14 mm triangles), and rolling round an edge it creeps (SLIDE_HITS): this asks
     a distance at the goal, one to four sweeps and a distance at the end. A corner (the end
     overlaps another shape) is left to sliding."""
+    S = sh.S
     r = g.radius
-    s, d, nx, ny, nz = _nearest(S, T, C, xpos, xmat, g, near, gx, gy, gz)
+    s, d, nx, ny, nz = _nearest(sh, g, near, gx, gy, gz)
     if s < 0 or d >= r:
         return False, x, y, z
     f = shape_feature(S, s)  # before the sweep below queries s again
@@ -862,17 +876,17 @@ def _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl):
     ex, ey, ez = px - g.bx, py - g.by, pz - g.bz
     if ex * ex + ey * ey + ez * ez > g.room * g.room:  # past the shapes gathered
         return False, x, y, z
-    if not _clear_way(S, T, C, xpos, xmat, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
+    if not _clear_way(sh, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
         return False, x, y, z
     for j in range(int(g.nnear)):
-        if shape_distance(S, T, C, xpos, xmat, near[j], px, py, pz)[0] - r < -LIFT_TOL:
+        if shape_distance(sh, near[j], px, py, pz)[0] - r < -LIFT_TOL:
             return False, x, y, z
     set_plane(pl, 0, nx, ny, nz, nx * px + ny * py + nz * pz, s, f)
     return True, px, py, pz
 
 
 @njit(cache=True, error_model="numpy")
-def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
+def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """Constrained motion from (x, y, z) toward (gx, gy, gz), starting from the planes
     warm[:nwarm] the proxy rests on (none: cold). Returns (restart, x, y, z, hx, hy, hz,
     straight, n): restart when what a warm start assumed no longer holds (`_move` solves
@@ -882,6 +896,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
     `follow_lifts`: a warm start's plane that lifts is followed on as a cold solve follows
     it, not solved again (the frictionless proxy's solve, which wants only where sliding
     ends, not the first surface point)."""
+    S, T, xpos, xmat = sh.S, sh.T, sh.xpos, sh.xmat
     n = 0
     has_first = False
     hx = hy = hz = 0.0
@@ -926,11 +941,11 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
         # it (round a curved surface, along a plane's projection) widens it first
         ex, ey, ez = tx - bx, ty - by, tz - bz
         if ex * ex + ey * ey + ez * ez > room2:
-            gather_ball(S, T, C, xpos, xmat, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
+            gather_ball(sh, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
             room2 = g.room * g.room
         # the proxy and the target are on or above every plane (the target is projected onto
         # them; a hit, a lifted plane's replacement lie below the proxy)
-        hit, lam, nx, ny, nz, s = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, n)
+        hit, lam, nx, ny, nz, s = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, n)
         if not hit:
             x, y, z = tx, ty, tz
             if n == 0 or (tx == gx and ty == gy and tz == gz):
@@ -956,10 +971,10 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
                         nk += 1
                         continue
                     fd, fnx, fny, fnz = d, mx, my, mz  # its triangle's distance and normal
-                    d, mx, my, mz, walked = shape_walk_distance(S, T, C, xpos, xmat, si, fi, x, y, z)
+                    d, mx, my, mz, walked = shape_walk_distance(sh, si, fi, x, y, z)
                     f = float(walked)
                 else:
-                    d, mx, my, mz = shape_distance(S, T, C, xpos, xmat, si, x, y, z)
+                    d, mx, my, mz = shape_distance(sh, si, x, y, z)
                     f = shape_feature(S, si)
                 if d - r <= LIFT_TOL:
                     if S[si].convex or 1.0 - along(pl, i, mx, my, mz) <= LIFT_TOL / r:
@@ -998,7 +1013,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             n = nk
             hits += 1  # rolling round an edge creeps: SLIDE_HITS
             if hits == SLIDE_HITS:
-                done, x, y, z = _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl)
+                done, x, y, z = _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl)
                 if done:
                     n = 1
                     break
@@ -1018,7 +1033,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
         if hits == SLIDE_HITS and S[s].type == GEOM_MESH:
             # sliding across a mesh's facets, one sweep each: to where sliding ends, if that
             # is one clear move away
-            done, x, y, z = _rest_nearest(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, pl)
+            done, x, y, z = _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl)
             if done:
                 n = 1
                 break
@@ -1032,7 +1047,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
         # (a jump of centimetres a tick deep into it): one sweep straight toward the goal puts
         # it back on the surface, in contact, instead of microns above it with no force for a tick
         dx, dy, dz = gx - x, gy - y, gz - z
-        hit, lam, nx, ny, nz, s = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, dx, dy, dz, pl, 0)
+        hit, lam, nx, ny, nz, s = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, 0)
         if not hit:
             x, y, z = gx, gy, gz
         else:
@@ -1043,7 +1058,7 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
             n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(S, s))
     nr = 0  # keep only the planes the proxy still rests on (the loop may end before it checked)
     for i in range(n):
-        if _rests_on(S, T, C, xpos, xmat, g, pl, i, x, y, z, on_surfaces):
+        if _rests_on(sh, g, pl, i, x, y, z, on_surfaces):
             for k in range(PLANE_WIDTH):
                 pl[nr, k] = pl[i, k]
             nr += 1
@@ -1056,13 +1071,13 @@ def _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, p
 
 
 @njit(cache=True, error_model="numpy")
-def _move(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
+def _move(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """`_move_once`, warm-started, and solved again cold when the warm start's planes did not
     hold: (x, y, z, hx, hy, hz, straight, n), the resting planes in pl[:n]."""
-    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz,
+    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, g, near, x, y, z, gx, gy, gz,
                                                               warm, nwarm, pl, kept, follow_lifts)
     if restart:  # what the warm start assumed no longer holds: solve again from no planes
-        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(S, T, C, xpos, xmat, g, near, x, y, z, gx, gy, gz,
+        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, g, near, x, y, z, gx, gy, gz,
                                                                   warm, 0, pl, kept, False)
     return ex, ey, ez, hx, hy, hz, straight, n
 
@@ -1087,44 +1102,45 @@ def _slips(g, sx, sy, sz, slide, depth):
 
 
 @njit(cache=True, error_model="numpy")
-def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
+def update(sh, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
     """Move the proxy toward the device position (m, world) over a tick of dt s (the friction
     cone's re-stick time counts in it): the tick's god-object.
 
     pl, saved, warm, kept: scratch plane lists of PLANE_ROOM rows. False on NaN, Inf or a
     position outside the workspace: the proxy then only follows its body (`follow`)."""
+    S, xpos, xmat = sh.S, sh.xpos, sh.xmat
     if not (-WORKSPACE_LIMIT < xd < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < yd < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < zd < WORKSPACE_LIMIT):
-        follow(S, T, C, xpos, xmat, g, near)
+        follow(sh, g, near)
         return False
-    x, y, z = _settle(S, T, C, xpos, xmat, g, near, xd, yd, zd, False)
+    x, y, z = _settle(sh, g, near, xd, yd, zd, False)
     if g.squeezed:
-        _rest_squeezed(S, T, C, xpos, xmat, g, near, xd, yd, zd)
+        _rest_squeezed(sh, g, near, xd, yd, zd)
         return True
     if g.sticking and g.x == x and g.y == y and g.z == z \
-            and _still_stuck(S, T, C, xpos, xmat, g, near, xd, yd, zd, pl):
+            and _still_stuck(sh, g, near, xd, yd, zd, pl):
         return True
     x, y, z = g.x, g.y, g.z
     n = 0
-    nfree, gap = _free_from_last(S, T, C, xpos, xmat, g, near, xd, yd, zd, warm)
+    nfree, gap = _free_from_last(sh, g, near, xd, yd, zd, warm)
     hx, hy, hz = x, y, z
     if nfree > 0 and gap > LIFT_TOL:
         # the proxy ended last tick on the chord of its slide back to the dynamic cone, which
         # floats up to TOUCH_TOL over a concave patch: where it touches first is where a
         # sweep from it toward the device touches, as the solve from it would find
-        hit, lam, _, _, _, _ = _sweep(S, T, C, xpos, xmat, g, near, x, y, z, xd - x, yd - y, zd - z, pl, 0)
+        hit, lam, _, _, _, _ = _sweep(sh, g, near, x, y, z, xd - x, yd - y, zd - z, pl, 0)
         if hit:
             hx, hy, hz = x + lam * (xd - x), y + lam * (yd - y), z + lam * (zd - z)
         else:
             nfree = 0
     if nfree > 0:
         # a plane lifting on the way is followed on: both ends are reached through free space
-        fx, fy, fz, _, _, _, _, n = _move(S, T, C, xpos, xmat, g, near, g.free_x, g.free_y, g.free_z, xd, yd, zd,
+        fx, fy, fz, _, _, _, _, n = _move(sh, g, near, g.free_x, g.free_y, g.free_z, xd, yd, zd,
                                           warm, nfree, pl, kept, True)
         straight = False  # the proxy is where it touches first (h)
     if n == 0:
-        nwarm = _warm_planes(S, T, C, xpos, xmat, g, x, y, z, warm)
-        fx, fy, fz, hx, hy, hz, straight, n = _move(S, T, C, xpos, xmat, g, near, x, y, z, xd, yd, zd, warm, nwarm,
+        nwarm = _warm_planes(sh, g, x, y, z, warm)
+        fx, fy, fz, hx, hy, hz, straight, n = _move(sh, g, near, x, y, z, xd, yd, zd, warm, nwarm,
                                                     pl, kept, False)
     # the frictionless proxy and its planes, for the next tick
     g.free_x, g.free_y, g.free_z = fx, fy, fz
@@ -1156,7 +1172,7 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
     if held:
         fx, fy, fz = hx, hy, hz
         if slide > 0.0:  # held back: keep the planes that reach back to h
-            _keep_resting(S, T, C, xpos, xmat, g, saved, 0, pl, n, hx, hy, hz)
+            _keep_resting(sh, g, saved, 0, pl, n, hx, hy, hz)
     else:
         # slides: remember which way, for the reversal test of the next ticks
         g.slide_ux, g.slide_uy, g.slide_uz = sx / slide, sy / slide, sz / slide
@@ -1179,9 +1195,9 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
             for j in range(n):  # the frictionless solve's planes, kept aside
                 for k in range(PLANE_WIDTH):
                     saved[j, k] = pl[j, k]
-            fx, fy, fz, _, _, _, _, m = _move(S, T, C, xpos, xmat, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept,
+            fx, fy, fz, _, _, _, _, m = _move(sh, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept,
                                               False)
-            _keep_resting(S, T, C, xpos, xmat, g, pl, m, saved, n, fx, fy, fz)
+            _keep_resting(sh, g, pl, m, saved, n, fx, fy, fz)
     g.contact = True
     g.nx, g.ny, g.nz = nx, ny, nz
     g.depth = depth
@@ -1189,12 +1205,12 @@ def update(S, T, C, xpos, xmat, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
     # the finger's planes rest on their shapes at the proxy (checked by the solve or by
     # _keep_resting), except those of the frictionless proxy kept for a point on the chord
     rested = 0 if (not held and g.mu_d > 0.0 and straight) else int(g.nplanes)
-    best = _touched_at(S, T, C, xpos, xmat, g, near, fx, fy, fz, nx, ny, nz, rested)
+    best = _touched_at(sh, g, near, fx, fy, fz, nx, ny, nz, rested)
     if best < 0:  # floating on the chord across an edge: down onto the surface it pushes
-        fx, fy, fz = _land(S, T, C, xpos, xmat, g, near, fx, fy, fz, xd, yd, zd, saved)
-        best = _touched_at(S, T, C, xpos, xmat, g, near, fx, fy, fz, nx, ny, nz, 0)
+        fx, fy, fz = _land(sh, g, near, fx, fy, fz, xd, yd, zd, saved)
+        best = _touched_at(sh, g, near, fx, fy, fz, nx, ny, nz, 0)
         if best < 0:  # not expected: a proxy in contact ends on a surface
-            best = _nearest(S, T, C, xpos, xmat, g, near, fx, fy, fz)[0]
+            best = _nearest(sh, g, near, fx, fy, fz)[0]
     g.x, g.y, g.z = fx, fy, fz
     g.touched = best
     if not S[best].static:  # remember the proxy in the touched geom's frame: it carries it
@@ -1209,15 +1225,15 @@ def scratch() -> np.ndarray:
 
 # -- entries for the views (`softproxy.proxy.GodObject`): finger i of a table ------------------
 @njit(cache=True, error_model="numpy")
-def reset_row(S, T, C, xpos, xmat, F, near, i, x, y, z):
-    return reset(S, T, C, xpos, xmat, F[i], near[i], x, y, z)
+def reset_row(sh, F, near, i, x, y, z):
+    return reset(sh, F[i], near[i], x, y, z)
 
 
 @njit(cache=True, error_model="numpy")
-def update_row(S, T, C, xpos, xmat, F, near, i, xd, yd, zd, dt, scratch):
-    return update(S, T, C, xpos, xmat, F[i], near[i], xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3])
+def update_row(sh, F, near, i, xd, yd, zd, dt, scratch):
+    return update(sh, F[i], near[i], xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3])
 
 
 @njit(cache=True, error_model="numpy")
-def follow_row(S, T, C, xpos, xmat, F, near, i):
-    follow(S, T, C, xpos, xmat, F[i], near[i])
+def follow_row(sh, F, near, i):
+    follow(sh, F[i], near[i])

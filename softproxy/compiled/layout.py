@@ -13,12 +13,15 @@ from collections import namedtuple
 import numpy as np
 
 # -- what a tick's kernels take: four bundles of arrays, built once per loop ------------------
-MjViews = namedtuple("MjViews", "m d xpos xmat cvel qvel qacc xfrc xipos")
-"""MuJoCo as the tick reads and writes it: the mjModel and mjData addresses (for mj_step1/2
-and the body response) and views of mjData: geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9),
-cvel (nbody × 6), qvel, qacc, xfrc_applied (nbody × 6, N and N·m), xipos (nbody × 3, m)."""
-ShapeTables = namedtuple("ShapeTables", "S T C")
-"""The shapes: their SHAPE records, the mesh triangle table T and the mesh grids C."""
+MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos")
+"""MuJoCo as the tick's coupling reads and writes it: the mjModel and mjData addresses (for
+mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied (nbody × 6,
+N and N·m), xipos (nbody × 3, m)."""
+Shapes = namedtuple("Shapes", "S T C xpos xmat cvel")
+"""The shapes as every query reads them (`sh` in the kernels): their SHAPE records, the mesh
+triangle table T and the mesh grids C (None in a world without meshes), and their poses,
+views of mjData: geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9), cvel (nbody × 6: the
+touched body's spin drags the torsion). `softproxy.geometry.ShapeSet.tables` holds one."""
 FingerTables = namedtuple("FingerTables", "F near device_of scratch wrench bodies counts ws")
 """The fingers: their FINGER records, each one's near shapes, the device sample row each
 reads, the god-object's scratch, the body wrenches with their body lists and counts, and the

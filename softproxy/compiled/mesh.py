@@ -398,13 +398,14 @@ def _to_world(xmat, g, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def mesh_distance(S, T, C, xpos, xmat, k, x, y, z):
+def mesh_distance(sh, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
     the outward unit normal, world frame; S[k].feature is then the row of T of the nearest
     point. Each hint slot (`_slot`) keeps its last two answers, keyed by the point in the
     geom frame, where the triangles never move (the god-object asks again about the point it
     holds, about the point it moved to, and about a sweep's start whose nearest point the
     sweep proved)."""
+    S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
     lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     sl, hint = _slot(S, k, lx, ly, lz)
@@ -442,7 +443,7 @@ def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def mesh_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
+def mesh_walk_distance(sh, k, row, x, y, z):
     """Distance (m, unsigned) and normal (world, from the triangle toward p) at the world
     point p from the triangle nearest p found by walking from triangle `row` (`_from_hint`:
     across an edge, round a vertex), and that triangle's row: the mesh's distance as seen
@@ -453,6 +454,7 @@ def mesh_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
     Unsigned: a walk may end on a nearest triangle of its own across the mesh, and p behind
     that one is not inside (a point proxy 4 cm from a sphere's far side was taken for
     resting on it, and floated 4 mm off the sphere with the device inside)."""
+    S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
     lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     d2, qx, qy, qz, f, i = _from_hint(S, T, C, k, row, lx, ly, lz)
@@ -607,11 +609,12 @@ def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx,
 
 
 @njit(cache=True, error_model="numpy")
-def mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
+def mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none (`_sweep`), from
     and into the hint slot of its start (`_slot`). After a touch S[k].feature is the row of T
     touched (`_hit`)."""
+    S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
     ax, ay, az = _to_geom(xmat, g, x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2])
     sl, hint = _slot(S, k, ax, ay, az)

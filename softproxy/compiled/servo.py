@@ -93,7 +93,7 @@ def begin_tick(loop, samples, ok, mj, shapes, fingers):
     """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
     failed) into the finger records, mj_step1, then every finger (`finger.tick`). A sample
     the device marked not valid is an invalid_sample fault. `mj`, `shapes`, `fingers`: the
-    bundles of `softproxy.compiled.layout` (MjViews, ShapeTables, FingerTables)."""
+    bundles of `softproxy.compiled.layout` (MjViews, Shapes, FingerTables)."""
     L = loop[0]
     safe = L.safe_next
     L.safe_next = False

@@ -188,23 +188,44 @@ def shape_feature_distance(S, T, xpos, xmat, k, row, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def shape_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z):
+def shape_walk_distance(sh, k, row, x, y, z):
     """Distance (m, unsigned) from mesh shape k at the world point p, unit normal toward p and
     row of T, as seen from triangle `row` of it (`mesh_walk_distance`): the nearest triangle
     a walk from there reaches, which may be farther than the mesh's nearest."""
+    return _mesh_walk_distance(sh.T, sh, k, row, x, y, z)
+
+
+# A world without meshes has T and C None and never compiles the mesh kernels: numba drops
+# the branch of an `is None` test on a None argument, so the test is on T as an argument.
+
+@njit(cache=True, error_model="numpy")
+def _mesh_walk_distance(T, sh, k, row, x, y, z):
     if T is None:
         return (math.inf, 0.0, 0.0, 1.0, -1)
-    return mesh_walk_distance(S, T, C, xpos, xmat, k, row, x, y, z)
+    return mesh_walk_distance(sh, k, row, x, y, z)
 
 
 @njit(cache=True, error_model="numpy")
-def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
+def _mesh_distance(T, sh, k, x, y, z):
+    if T is None:
+        return (math.inf, 0.0, 0.0, 1.0)
+    return mesh_distance(sh, k, x, y, z)
+
+
+@njit(cache=True, error_model="numpy")
+def _mesh_sweep(T, sh, k, x0, y0, z0, dx, dy, dz, r):
+    if T is None:
+        return (-1.0, 0.0, 0.0, 0.0)
+    return mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r)
+
+
+@njit(cache=True, error_model="numpy")
+def shape_distance(sh, k, x, y, z):
     """Signed distance (m, < 0 inside) from shape k and outward unit normal, world frame."""
+    S, xpos, xmat = sh.S, sh.xpos, sh.xmat
     t = int(S[k].type)
     if t == GEOM_MESH:
-        if T is None:  # a world without meshes (T, C are None): the mesh kernels are not compiled
-            return (math.inf, 0.0, 0.0, 1.0)
-        return mesh_distance(S, T, C, xpos, xmat, k, x, y, z)
+        return _mesh_distance(sh.T, sh, k, x, y, z)
     g = int(S[k].geom)
     px, py, pz = xpos[g, 0], xpos[g, 1], xpos[g, 2]
     r00, r01, r02 = xmat[g, 0], xmat[g, 1], xmat[g, 2]
@@ -256,14 +277,13 @@ def shape_distance(S, T, C, xpos, xmat, k, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def shape_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
+def shape_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by (dx, dy, dz) (m) into shape k; (-1.0, 0.0, 0.0, 0.0) when it touches nothing."""
+    S, xpos, xmat = sh.S, sh.xpos, sh.xmat
     t = int(S[k].type)
     if t == GEOM_MESH:
-        if T is None:
-            return (-1.0, 0.0, 0.0, 0.0)
-        return mesh_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r)
+        return _mesh_sweep(sh.T, sh, k, x0, y0, z0, dx, dy, dz, r)
     if t == GEOM_PLANE:
         g = int(S[k].geom)
         nx, ny, nz = xmat[g, 2], xmat[g, 5], xmat[g, 8]
@@ -284,7 +304,7 @@ def shape_sweep(S, T, C, xpos, xmat, k, x0, y0, z0, dx, dy, dz, r):
     lam = 0.0
     nx, ny, nz = 0.0, 0.0, 0.0
     for _ in range(MAX_ADVANCE_STEPS):
-        d, nx, ny, nz = shape_distance(S, T, C, xpos, xmat, k, x0 + lam * dx, y0 + lam * dy, z0 + lam * dz)
+        d, nx, ny, nz = shape_distance(sh, k, x0 + lam * dx, y0 + lam * dy, z0 + lam * dz)
         approach = -(nx * dx + ny * dy + nz * dz)
         if approach <= graze:
             return (-1.0, 0.0, 0.0, 0.0)
