@@ -684,12 +684,20 @@ class Segment:
         if lowest[1] > 0.0:
             return None
         lo, hi = 0.0, lowest[0]
-        while True:
+        for _ in range(200):  # adjacent floats within ~8 brackets; the bound only guards the loop
             lams = np.linspace(lo, hi, DENSE)
-            j = int(np.argmax(self.many(lams) <= 0.0))
+            below = self.many(lams) <= 0.0
+            # g of one λ may differ by a rounding from batch to batch (the matrix product's
+            # summation order follows the batch's size): at the bracket's ends, trust the last
+            if not below.any():
+                return float(hi)
+            j = int(np.argmax(below))
+            if j == 0:
+                return float(lo)
             if lams[j - 1] == lo and lams[j] == hi:
                 return float(hi)
             lo, hi = lams[j - 1], lams[j]
+        raise AssertionError(("the bisection did not settle", self.p0, self.d, self.r))
 
 
 def check_sweep(scene, shape, p0, d, r, long=False):
