@@ -11,9 +11,9 @@ import math
 import mujoco
 import numpy as np
 import pytest
-import trimesh
 
 from conftest import ScriptedDevice
+from mesh_oracle import point_triangle
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
 from softproxy.geometry import hfield_triangles
@@ -440,10 +440,10 @@ HEIGHT_FIELD = """<mujoco><option gravity="0 0 -9.81"/>
 
 
 def distance_to_triangles(points, vertices, faces):
-    """Each point's distance (m) to the nearest of the triangles, by brute force over all."""
-    tri = vertices[faces]
-    return np.array([np.linalg.norm(trimesh.triangles.closest_point(tri, np.repeat(p[None], len(tri), 0)) - p,
-                                    axis=1).min() for p in points])
+    """Each point's distance (m) to the nearest of the triangles, by brute force over all
+    (`mesh_oracle.point_triangle`)."""
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    return np.array([point_triangle(p[None], a, b, c)[0].min() for p in points])
 
 
 @pytest.mark.parametrize("mass", [0.1, 1.0])
