@@ -458,7 +458,7 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
     Each finger record holds this tick's device sample in its in_ fields; a sample not valid
     (or from a failed read) or not finite holds the finger. The fingers' wrenches on moving
     bodies are then solved implicitly with the bodies' answer (`coupling.implicit`, over the
-    mjModel/mjData, their qvel and qacc; `ws` its workspace), and each finger's
+    mjModel/mjData, their qvel and qacc; `fingers.ws` its workspace), and each finger's
     energy observed, and with `control` the excess dissipated (`passivity`). Adds the fingers'
     wrenches to `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each
     device finger is sent into its sent_ fields. `bodies`: rows FIXED (welded to the world),

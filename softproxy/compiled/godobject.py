@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.finite import finite
-from softproxy.compiled.layout import GEOM_MESH, PLANE_OFFSET, PLANE_ROW, PLANE_SHAPE, PLANE_WIDTH
+from softproxy.compiled.layout import GEOM_MESH, PLANE_NORMAL, PLANE_OFFSET, PLANE_ROW, PLANE_SHAPE, PLANE_WIDTH
 from softproxy.compiled.shapes import (shape_distance, shape_feature, shape_feature_distance, shape_on_face, shape_sweep,
                                        shape_to_local, shape_to_world, shape_walk_distance)
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
@@ -131,26 +131,26 @@ for none."""
 @njit(cache=True, error_model="numpy")
 def plane(pl, i):
     """Plane i of pl: its unit normal and offset (nx, ny, nz, c; the plane is n·x = c, m)."""
-    return pl[i, 0], pl[i, 1], pl[i, 2], pl[i, PLANE_OFFSET]
+    return pl[i, PLANE_NORMAL], pl[i, PLANE_NORMAL + 1], pl[i, PLANE_NORMAL + 2], pl[i, PLANE_OFFSET]
 
 
 @njit(cache=True, error_model="numpy")
 def normal(pl, i):
     """Plane i's unit normal (nx, ny, nz)."""
-    return pl[i, 0], pl[i, 1], pl[i, 2]
+    return pl[i, PLANE_NORMAL], pl[i, PLANE_NORMAL + 1], pl[i, PLANE_NORMAL + 2]
 
 
 @njit(cache=True, error_model="numpy")
 def along(pl, i, x, y, z):
     """Plane i's normal dotted with (x, y, z): a point's n·x (m, compared with the offset) or a
     direction's cosine to it."""
-    return pl[i, 0] * x + pl[i, 1] * y + pl[i, 2] * z
+    return pl[i, PLANE_NORMAL] * x + pl[i, PLANE_NORMAL + 1] * y + pl[i, PLANE_NORMAL + 2] * z
 
 
 @njit(cache=True, error_model="numpy")
 def set_plane(pl, i, nx, ny, nz, c, shape, row):
     """Row i of pl := the plane n·x = c of shape row `shape`, from row `row` of T (-1: none)."""
-    pl[i, 0], pl[i, 1], pl[i, 2], pl[i, PLANE_OFFSET] = nx, ny, nz, c
+    pl[i, PLANE_NORMAL], pl[i, PLANE_NORMAL + 1], pl[i, PLANE_NORMAL + 2], pl[i, PLANE_OFFSET] = nx, ny, nz, c
     pl[i, PLANE_SHAPE], pl[i, PLANE_ROW] = shape, row
 
 

@@ -12,7 +12,7 @@ from collections import namedtuple
 
 import numpy as np
 
-# -- what a tick's kernels take: four bundles of arrays, built once per loop ------------------
+# -- what the kernels take: five bundles of arrays, built once per loop (or per shape set) ----
 MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos")
 """MuJoCo as the tick's coupling reads and writes it: the mjModel and mjData addresses (for
 mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied (nbody × 6,

@@ -89,10 +89,10 @@ def paced_done(loop, counters):
 
 
 @njit(cache=True, error_model="numpy")
-def begin_tick(loop, samples, ok, mj, shapes, fingers):
+def begin_tick(loop, samples, ok, mj, sh, fingers):
     """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
     failed) into the finger records, mj_step1, then every finger (`finger.tick`). A sample
-    the device marked not valid is an invalid_sample fault. `mj`, `shapes`, `fingers`: the
+    the device marked not valid is an invalid_sample fault. `mj`, `sh`, `fingers`: the
     bundles of `softproxy.compiled.layout` (MjViews, Shapes, FingerTables)."""
     L = loop[0]
     safe = L.safe_next
@@ -113,7 +113,7 @@ def begin_tick(loop, samples, ok, mj, shapes, fingers):
         f.in_valid = True
     mj_step1(mj.m, mj.d)
     _stage(L, STEP1_STAGE)
-    refused, unsafe = finger.tick(mj, shapes, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity)
+    refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity)
     L.invalid_sample += refused
     L.unsafe_output += unsafe
     _stage(L, FINGERS_STAGE)
@@ -142,7 +142,7 @@ def end_tick(loop, mj, fingers, stats, start_ns):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_ticks(loop, read, send, device, mj, shapes, fingers, stats, n, paced):
+def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced):
     """Up to n ticks (fewer if `L.stop` is set), paced in real time or not; returns how many
     ran. `read`/`send`: the device's cfuncs over its `device` (DeviceIO: its state, SAMPLE
     rows and limits, read every tick). A read that fails renders no finger (each holds) and
@@ -166,7 +166,7 @@ def run_ticks(loop, read, send, device, mj, shapes, fingers, stats, n, paced):
             L.read_code = code
             if code == L.stall_code:
                 sleep_until_ns(start + L.stall_ns)
-        begin_tick(loop, samples, code == 0, mj, shapes, fingers)
+        begin_tick(loop, samples, code == 0, mj, sh, fingers)
         for i in range(F.shape[0]):
             f = F[i]
             if L.halt:  # closing from another thread: this block may send nothing but zero
