@@ -119,7 +119,7 @@ def _check_out_folder(command: str, folder: str) -> bool:
 def _check_run_flags(args: argparse.Namespace) -> dict | None:
     """Check `softproxy run`'s flags before anything is loaded; the --faults table (or None).
     ValueError naming the flag and what it takes."""
-    from softproxy.scene import MAX_DURATION_S
+    from softproxy.schema import MAX_DURATION_S
     from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ
 
     if args.duration is not None and not (math.isfinite(args.duration) and 0.0 < args.duration <= MAX_DURATION_S):

@@ -91,7 +91,7 @@ MAX_READS_PER_RECORD = 16
 the recorder dropped; more than this and the claim, not the recording, is what would run)."""
 MAX_CLAIMED_S = 86_400.0
 """The longest run (s) a recording may claim to span at its header's rate: 24 h, the longest
-run a scene file or `softproxy run --duration` asks for (softproxy.scene.MAX_DURATION_S)."""
+run a scene file or `softproxy run --duration` asks for (softproxy.schema.MAX_DURATION_S)."""
 DEFAULT_RATE_HZ = 1000.0  # the rate assumed for a header without a usable rate_hz (Hz)
 
 KIND_READ, KIND_END = 1, 2

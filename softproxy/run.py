@@ -84,9 +84,9 @@ def replay_notes(scene: Scene, device: Device, rate_hz: float) -> list[str]:
 
 def check_run(duration_s: float, rate_hz: float) -> None:
     """ValueError unless `duration_s` is a finite number of seconds > 0 and `rate_hz` a rate
-    the servo loop runs (`softproxy.scene.MIN_RATE_HZ`..`MAX_RATE_HZ`). Nothing in a run is
+    the servo loop runs (`softproxy.servo.MIN_RATE_HZ`..`MAX_RATE_HZ`). Nothing in a run is
     sized by its duration, so an embedding application may plan any length; scene files and
-    `softproxy run --duration` keep to `MAX_DURATION_S` to catch typos."""
+    `softproxy run --duration` keep to `softproxy.schema.MAX_DURATION_S` to catch typos."""
     if not (math.isfinite(duration_s) and duration_s > 0.0):
         raise ValueError(f"duration must be a finite number of seconds > 0, got {duration_s!r}")
     if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):

@@ -47,7 +47,6 @@ import mujoco
 from softproxy import schema
 from softproxy.geometry import exclusions, unsupported_geoms, unsupported_message
 from softproxy.mjcf_files import ModelFileError, check_model_files
-from softproxy.schema import MAX_DURATION_S  # noqa: F401 (the longest run, s; softproxy.cli reads it here)
 from softproxy.schema import FingerParams, InputError, SensingSpec, TactileSpec
 
 _CHANNELS = {"tactile": TactileSpec, "sensing": SensingSpec}
