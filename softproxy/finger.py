@@ -14,8 +14,8 @@ twist renders a steady force or torque (docs/friction.md); `FingerParams.restick
 re-tests the static limits every tick, as the seed prints eq 39.
 
 The tick runs in the compiled kernels (`softproxy.compiled.finger`); `SoftFingerProxy` is a
-view onto the finger's record (`softproxy.finger_rows`): its god-object and torsion views
-read the same record.
+view onto the finger's records (`softproxy.finger_rows`): its god-object and torsion views
+read the same records.
 """
 
 from __future__ import annotations
@@ -42,14 +42,14 @@ class SoftFingerProxy(RecordView):
     """
 
     placed = Field(kind=bool)
-    k = Field()
-    b = Field()
-    b_tau = Field()
+    k = Field("stiffness")
+    b = Field("damping")
+    b_tau = Field("torsion_damping")
     max_force = Field()
     max_torque = Field()
-    ox = Field()
-    oy = Field()
-    oz = Field()
+    ox = Field("origin", 0)
+    oy = Field("origin", 1)
+    oz = Field("origin", 2)
     scale = Field()
     max_speed = Field()
     soft_start = Field()
@@ -57,19 +57,19 @@ class SoftFingerProxy(RecordView):
     """The last tick's period (s), for a hold() that has none of its own."""
     ramp = Field()
     """Soft start: the fraction of the clamps in force; 0 right after placement."""
-    xd = Field()
-    yd = Field()
-    zd = Field()
-    fx = Field()
-    fy = Field()
-    fz = Field()
-    torque = Field()
-    tx = Field()
-    ty = Field()
-    tz = Field()
-    px = Field()
-    py = Field()
-    pz = Field()
+    xd = Field("device_pos", 0)
+    yd = Field("device_pos", 1)
+    zd = Field("device_pos", 2)
+    fx = Field("force", 0)
+    fy = Field("force", 1)
+    fz = Field("force", 2)
+    torque = Field("torque_n")
+    tx = Field("torque", 0)
+    ty = Field("torque", 1)
+    tz = Field("torque", 2)
+    px = Field("contact_pos", 0)
+    py = Field("contact_pos", 1)
+    pz = Field("contact_pos", 2)
     body = Field(kind=int)
     normal_force = Field()
     valid = Field(kind=bool)
@@ -113,14 +113,14 @@ class SoftFingerProxy(RecordView):
         self.torsion = TorsionalFriction(model, params.torsion_stiffness, params.torsion_mu_s, params.torsion_mu_d,
                                          params.saturate, rows=self._rows,
                                          restick_time=params.restick_time) if model.has_torsion else None
-        rec = self._rec
-        rec["placed"] = True
-        rec["k"], rec["b"], rec["b_tau"] = params.stiffness, params.damping, params.torsion_damping
-        rec["max_force"], rec["max_torque"] = params.max_force, params.max_torque
-        rec["ox"], rec["oy"], rec["oz"] = params.offset
-        rec["scale"], rec["max_speed"], rec["soft_start"] = params.scale, params.max_speed, params.soft_start
-        rec["dt"] = 1e-3
-        rec["ramp"] = 1.0
+        fm, fd = self._recs
+        fm["stiffness"], fm["damping"], fm["torsion_damping"] = params.stiffness, params.damping, params.torsion_damping
+        fm["max_force"], fm["max_torque"] = params.max_force, params.max_torque
+        fm["origin"] = params.offset
+        fm["scale"], fm["max_speed"], fm["soft_start"] = params.scale, params.max_speed, params.soft_start
+        fd["placed"] = True
+        fd["dt"] = 1e-3
+        fd["ramp"] = 1.0
         self.clear_output()
 
     def _bind(self, rows: FingerRows, i: int) -> None:
@@ -138,7 +138,7 @@ class SoftFingerProxy(RecordView):
         An unplaced finger places itself at its first good sample and renders nothing then.
         """
         r = self._rows
-        return r.run(kernel.place_row, r.shapes.tables, r.F, r.near, self._i, float(x), float(y), float(z))
+        return r.run(kernel.place_row, r.shapes.tables, r.tables, self._i, float(x), float(y), float(z))
 
     def hold(self) -> None:
         """No usable device sample this tick: zero force, the proxy only follows its body.
@@ -146,11 +146,11 @@ class SoftFingerProxy(RecordView):
         (a device error, invalid samples) the clamps come back from max·(1 − T/soft_start):
         a finger that moved into an object meanwhile gets no kick."""
         r = self._rows
-        r.run(kernel.hold_row, r.shapes.tables, r.F, r.near, self._i)
+        r.run(kernel.hold_row, r.shapes.tables, r.tables, self._i)
 
     def clear_output(self) -> None:
         """Zero force and torque: the safe state."""
-        self._rows.run(kernel.clear_output_row, self._rows.F, self._i)
+        self._rows.run(kernel.clear_output_row, self._rows.tables, self._i)
 
     def update(self, x: float, y: float, z: float, twist: float, dt: float) -> bool:
         """One tick from a device sample (device frame, m and rad) over period dt (s).
@@ -159,28 +159,29 @@ class SoftFingerProxy(RecordView):
         the finger then renders zero force and its proxy stays where it was.
         """
         r = self._rows
-        return r.run(kernel.update_row, r.shapes.tables, r.F, r.near, self._i, float(x), float(y),
-                     float(z), float(twist), float(dt), r.scratch)
+        return r.run(kernel.update_row, r.shapes.tables, r.tables, self._i, float(x), float(y),
+                     float(z), float(twist), float(dt))
 
     def use_torsion(self, model: FingertipModel | None) -> None:
         """Between ticks: make the finger a soft finger with `model`'s torsion law (a fresh
         torsion, out of contact, slip count kept) or, with None, a point contact; either way
         the torque is zero until the next tick computes one."""
         slips = self.torsion.slip_events if self.torsion is not None else 0
-        rec = self._rec
-        rec["torque"] = rec["tx"] = rec["ty"] = rec["tz"] = 0.0
-        rec["twist_prev"] = rec["body_turn"] = 0.0
+        fm, fd = self._recs
+        fd["torque_n"] = 0.0
+        fd["torque"] = 0.0
+        fd["twist_prev"] = fd["body_turn"] = 0.0
         if model is None:
             if self.torsion is not None:
                 self.torsion.release()
-            rec["has_torsion"] = False
+            fm["has_torsion"] = False
             self.torsion = None
             return
         p = self.params
         self.model = model
         self.torsion = TorsionalFriction(model, p.torsion_stiffness, p.torsion_mu_s, p.torsion_mu_d, p.saturate,
                                          rows=self._rows, i=self._i, restick_time=p.restick_time)
-        rec["slip_events"] = slips
+        fd["slip_events"] = slips
 
     @property
     def slip_events(self) -> int:
@@ -191,4 +192,4 @@ class SoftFingerProxy(RecordView):
         """Deepest the proxy sits inside any shape now (m, >= 0); updates penetration_max.
         An unplaced finger has no proxy in the world yet: nothing to audit."""
         r = self._rows
-        return r.run(kernel.audit_row, r.shapes.tables, r.F, self._i)
+        return r.run(kernel.audit_row, r.shapes.tables, r.tables, self._i)

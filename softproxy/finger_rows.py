@@ -1,10 +1,13 @@
 """`FingerRows`: the engine's table of fingers, and `Field`, the attributes that view it.
 
-Every finger's state — its god-object, coupling, torsion, counters — is one `FINGER` record
-(`softproxy.compiled.layout`) of a `FingerRows` table, which the compiled kernels read and
-write in place. `SoftFingerProxy`, `GodObject` and `TorsionalFriction` hold no state of their
-own: their attributes are `Field`s reading and writing their record, so what a user reads is
-always what the engine computed, with nothing to copy back and forth. A finger made alone
+A finger is two records of a `FingerRows` table (`softproxy.compiled.layout`), as MuJoCo
+keeps mjModel apart from mjData: its model (`FINGER_MODEL`: radius, friction, stiffness,
+clamps, the torsion law — what a run holds constant) and its data (`FINGER_DATA`: the
+god-object, coupling, torsion, counters and this tick's sample — what a tick changes), which
+the compiled kernels read and write in place. `SoftFingerProxy`, `GodObject` and
+`TorsionalFriction` hold no state of their own: their attributes are `Field`s reading and
+writing a field (or one component of a vector field) of those records, so what a user reads
+is always what the engine computed, with nothing to copy back and forth. A finger made alone
 has a table of one; a `ServoLoop` moves its fingers into one table of its own (`gather`).
 """
 
@@ -14,28 +17,32 @@ import numpy as np
 
 from softproxy.compiled.dispatch import EntryPoints
 from softproxy.compiled.godobject import scratch
-from softproxy.compiled.layout import FINGER
+from softproxy.compiled.layout import FINGER_DATA, FINGER_MODEL, Fingers
 from softproxy.geometry import ShapeSet
 
 
 class FingerRows:
-    """n finger records over one ShapeSet: `F` (a recarray of `FINGER`), `near` (each finger's
-    broad-phase list of shape rows) and the kernels' scratch."""
+    """n fingers over one ShapeSet: `model` and `data` (recarrays of `FINGER_MODEL` and
+    `FINGER_DATA`), `near` (each finger's broad-phase list of shape rows) and the kernels' scratch."""
 
     def __init__(self, shapes: ShapeSet | None, n: int) -> None:
         """`shapes` None: records that touch nothing (a torsion law on its own)."""
         self.shapes = shapes
-        self.F = np.zeros(n, dtype=FINGER).view(np.recarray)
+        self.model = np.zeros(n, dtype=FINGER_MODEL).view(np.recarray)
+        self.data = np.zeros(n, dtype=FINGER_DATA).view(np.recarray)
         self.near = np.zeros((n, max(len(shapes or ()), 1)), dtype=np.int64)
         self.scratch = scratch()
-        self._plain = self.F.view(np.ndarray)  # item access on a plain structured row is ~7x faster
+        self.tables = Fingers(self.model, self.data, self.near, self.scratch)
+        """What the kernels take (`softproxy.compiled.layout.Fingers`)."""
+        # item access on a plain structured row is ~7x faster than on a recarray's
+        self._plain = (self.model.view(np.ndarray), self.data.view(np.ndarray))
         self.run = EntryPoints()
         """`run(kernel, *args)`: the kernel through its entry point (numba's per-call dispatch of
         this table's record arrays would cost more than the kernel itself)."""
 
-    def record(self, i: int):
-        """Row i as a numpy structured scalar that reads and writes the table in place."""
-        return self._plain[i]
+    def records(self, i: int) -> tuple:
+        """Finger i's (model, data) as numpy structured scalars that read and write the table in place."""
+        return self._plain[0][i], self._plain[1][i]
 
     @classmethod
     def gather(cls, views: list) -> "FingerRows":
@@ -43,37 +50,50 @@ class FingerRows:
         caller checks that, as `ServoLoop` does), in order; each view is rebound to its new row."""
         table = cls(views[0]._rows.shapes, len(views))
         for i, v in enumerate(views):
-            table.F[i] = v._rows.F[v._i]
+            table.model[i] = v._rows.model[v._i]
+            table.data[i] = v._rows.data[v._i]
             table.near[i] = v._rows.near[v._i]
             v._bind(table, i)
         return table
 
 
 class RecordView:
-    """A view onto record `_i` of a `FingerRows` table `_rows`: its `Field`s read and write
-    that record (`_rec`), and `_bind` moves it to another."""
+    """A view onto finger `_i` of a `FingerRows` table `_rows`: its `Field`s read and write
+    that finger's records (`_recs`: model, data), and `_bind` moves it to another."""
 
     def _bind(self, rows: FingerRows, i: int) -> None:
-        self._rows, self._i, self._rec = rows, i, rows.record(i)
+        self._rows, self._i, self._recs = rows, i, rows.records(i)
 
 
 class Field:
-    """An attribute that is field `name` of its object's record (`obj._rec`), as `kind`."""
+    """An attribute that is field `name` of its object's finger (component `index` of a vector
+    field), as `kind`; the field is looked up in FINGER_MODEL, then FINGER_DATA."""
 
-    __slots__ = ("name", "kind")
+    __slots__ = ("name", "index", "kind", "_which")
 
-    def __init__(self, name: str | None = None, kind=float) -> None:
+    def __init__(self, name: str | None = None, index: int | None = None, kind=float) -> None:
         self.name = name
+        self.index = index
         self.kind = kind
 
     def __set_name__(self, owner, attr: str) -> None:
         if self.name is None:
             self.name = attr
+        if self.name in FINGER_MODEL.names:
+            self._which = 0
+        elif self.name in FINGER_DATA.names:
+            self._which = 1
+        else:
+            raise AttributeError(f"{owner.__name__}.{attr}: no finger field {self.name!r}")
 
     def __get__(self, obj, owner=None):
         if obj is None:
             return self
-        return self.kind(obj._rec[self.name])
+        value = obj._recs[self._which][self.name]
+        return self.kind(value if self.index is None else value[self.index])
 
     def __set__(self, obj, value) -> None:
-        obj._rec[self.name] = value
+        if self.index is None:
+            obj._recs[self._which][self.name] = value
+        else:
+            obj._recs[self._which][self.name][self.index] = value

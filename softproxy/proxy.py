@@ -2,7 +2,7 @@
 
 The solver (sweep, slide on up to three constraint planes, friction cone with a slip state,
 the touched geom's frame carrying the proxy) is `softproxy.compiled.godobject`, whose
-docstring describes it; `GodObject` here reads and writes its finger record
+docstring describes it; `GodObject` here reads and writes its finger's records
 (`softproxy.finger_rows`), usable alone or as part of a `SoftFingerProxy`. Units: m, N,
 N/m, N·s/m.
 """
@@ -30,22 +30,22 @@ class GodObject(RecordView):
     again; 0 re-tests the static cone every tick (the literature's cone as printed).
     """
 
-    x = Field()
-    y = Field()
-    z = Field()
+    x = Field("pos", 0)
+    y = Field("pos", 1)
+    z = Field("pos", 2)
     contact = Field(kind=bool)
-    nx = Field()
-    ny = Field()
-    nz = Field()
+    nx = Field("normal", 0)
+    ny = Field("normal", 1)
+    nz = Field("normal", 2)
     depth = Field()
     sticking = Field(kind=bool)
     squeezed = Field(kind=bool)
     """Caught between a moving and a static shape with no room between them: the proxy rests on
     the static one (never pushed through it), and the moving one overlaps it."""
     squeeze_ticks = Field(kind=int)
-    lx = Field()
-    ly = Field()
-    lz = Field()
+    lx = Field("local", 0)
+    ly = Field("local", 1)
+    lz = Field("local", 2)
     radius = Field()
     mu_s = Field()
     mu_d = Field()
@@ -82,27 +82,28 @@ class GodObject(RecordView):
     @property
     def shape(self) -> Shape | None:
         """The touched shape, or None."""
-        k = int(self._rec["touched"])
+        k = int(self._recs[1]["touched"])
         return self._rows.shapes[k] if k >= 0 else None
 
     @property
     def planes(self) -> list[tuple]:
         """The constraint planes it rests on: (nx, ny, nz, c (m), shape), at most three."""
         shapes = self._rows.shapes
-        return [(*p[:4], shapes[int(p[4])]) for p in self._rec["planes"][:int(self._rec["nplanes"])].tolist()]
+        fd = self._recs[1]
+        return [(*p[:4], shapes[int(p[4])]) for p in fd["planes"][:int(fd["nplanes"])].tolist()]
 
     @property
     def near(self) -> list[Shape]:
         """The shapes the last broad phase gathered."""
         shapes = self._rows.shapes
-        return [shapes[k] for k in self._rows.near[self._i, :int(self._rec["nnear"])].tolist()]
+        return [shapes[k] for k in self._rows.near[self._i, :int(self._recs[1]["nnear"])].tolist()]
 
     def reset(self, x: float, y: float, z: float) -> None:
         """Put the proxy at (x, y, z) with no contact (pushed out of any shape it overlaps).
         ValueError for a position outside the workspace (±WORKSPACE_LIMIT m on each axis)."""
         r = self._rows
         s = r.shapes
-        if not r.run(kernel.reset_row, s.tables, r.F, r.near, self._i, float(x), float(y),
+        if not r.run(kernel.reset_row, s.tables, r.tables, self._i, float(x), float(y),
                      float(z)):
             raise ValueError(f"proxy position must lie within ±{WORKSPACE_LIMIT} m, got {(x, y, z)!r}")
 
@@ -112,12 +113,12 @@ class GodObject(RecordView):
         its body (`follow`)."""
         r = self._rows
         s = r.shapes
-        return r.run(kernel.update_row, s.tables, r.F, r.near, self._i, float(xd), float(yd),
-                     float(zd), float(dt), r.scratch)
+        return r.run(kernel.update_row, s.tables, r.tables, self._i, float(xd), float(yd),
+                     float(zd), float(dt))
 
     def follow(self) -> None:
         """Without a device sample: the proxy stays on the body it touches and out of anything
         that moved into it, so a skipped tick never leaves it inside a moving object."""
         r = self._rows
         s = r.shapes
-        r.run(kernel.follow_row, s.tables, r.F, r.near, self._i)
+        r.run(kernel.follow_row, s.tables, r.tables, self._i)

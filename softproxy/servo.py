@@ -237,8 +237,9 @@ class ServoLoop:
         row = SAMPLE.itemsize
         self._slots = [(j * row // 8, j * row + SAMPLE.fields["valid"][1]) for j in range(device.fingers)]
         # ... and the finger records', for what a Python device is sent: plain item loads
-        self._sent = memoryview(self.rows.F.view(np.ndarray).view(np.uint8)).cast("d")
-        size, at = self.rows.F.dtype.itemsize, self.rows.F.dtype.fields["sent_fx"][1]
+        # (sent_force then sent_torque: six float64 in a row)
+        self._sent = memoryview(self.rows.data.view(np.ndarray).view(np.uint8)).cast("d")
+        size, at = self.rows.data.dtype.itemsize, self.rows.data.dtype.fields["sent_force"][1]
         self._sent_slots = [((i * size + at) // 8, f.params.device_finger) for i, f in enumerate(fingers)]
         self.error = None  # what ended a run_in_thread, if it failed
         self._thread = None  # the thread inside run() (or started to run it), while one is
@@ -295,7 +296,7 @@ class ServoLoop:
         m, d = (np.uintp(a) for a in native.addresses(world.model, data))
         self._mj = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos)
         self._shapes = shapes.tables
-        self._fingers = FingerTables(self.rows.F, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
+        self._fingers = FingerTables(self.rows.model, self.rows.data, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
                                      world.bodies, world.counts, self._coupling)
         stats = self.stats
         self._stats = StatRings(stats.duration, stats.period, stats.counters)

@@ -21,7 +21,7 @@ reverses (the torque along the slip falls below 0.6 μ_d|P|^γ), as in Karnopp's
 gets -M about n. Units: rad, N, N·m, N·m/rad.
 
 The law runs in the compiled kernels (`softproxy.compiled.finger`, `torsion_*`);
-`TorsionalFriction` is a view onto a finger record (`softproxy.finger_rows`).
+`TorsionalFriction` is a view onto a finger's records (`softproxy.finger_rows`).
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ class TorsionalFriction(RecordView):
     `slipping` is the slip state: True from a slip until the contact re-sticks.
     """
 
-    k_tau = Field()
+    k_tau = Field("torsion_stiffness")
     mu_s = Field("torsion_mu_s")
     mu_d = Field("torsion_mu_d")
     gamma = Field()
@@ -65,7 +65,7 @@ class TorsionalFriction(RecordView):
     def __init__(self, model: FingertipModel, k_tau: float, mu_s: float | None = None, mu_d: float | None = None,
                  saturate: bool = False, rows: FingerRows | None = None, i: int = 0,
                  restick_time: float = RESTICK_TIME) -> None:
-        """`rows`, `i`: the finger record to live in (a table of its own by default)."""
+        """`rows`, `i`: the finger to live in (a table of its own by default)."""
         k_tau = check_finite("k_tau", k_tau, positive=True)
         restick_time = check_finite("restick_time", restick_time, non_negative=True)
         mu_s = model.mu_prime if mu_s is None else check_finite("mu_s", mu_s, non_negative=True)
@@ -74,29 +74,29 @@ class TorsionalFriction(RecordView):
             raise ValueError(f"mu_d ({mu_d}) must be <= mu_s ({mu_s})")
         self._bind(rows if rows is not None else FingerRows(None, 1), i)
         self.model = model
-        rec = self._rec
-        rec["has_torsion"] = True
-        rec["k_tau"], rec["torsion_mu_s"], rec["torsion_mu_d"] = k_tau, mu_s, mu_d
-        rec["gamma"], rec["saturate"] = model.gamma, bool(saturate)
-        rec["ratio"] = mu_d / mu_s if mu_s > 0.0 else 0.0
-        rec["mu_prime"], rec["r0"], rec["p_star"] = model.mu_prime, model.r0, model.p_star
-        rec["torsion_restick"] = restick_time
-        rec["slip_events"] = 0
+        fm, fd = self._recs
+        fm["has_torsion"] = True
+        fm["torsion_stiffness"], fm["torsion_mu_s"], fm["torsion_mu_d"] = k_tau, mu_s, mu_d
+        fm["gamma"], fm["saturate"] = model.gamma, bool(saturate)
+        fm["ratio"] = mu_d / mu_s if mu_s > 0.0 else 0.0
+        fm["mu_prime"], fm["r0"], fm["p_star"] = model.mu_prime, model.r0, model.p_star
+        fm["torsion_restick"] = restick_time
+        fd["slip_events"] = 0
         self.release()
 
     def touch(self, alpha_s: float) -> None:
         """Contact made: the proxy twist starts at the finger's current twist α_s (rad)."""
-        self._rows.run(kernel.torsion_touch_row, self._rows.F, self._i, float(alpha_s))
+        self._rows.run(kernel.torsion_touch_row, self._rows.tables, self._i, float(alpha_s))
 
     def release(self) -> None:
         """Contact broken: torsion state cleared, no torque."""
-        self._rows.run(kernel.torsion_release_row, self._rows.F, self._i)
+        self._rows.run(kernel.torsion_release_row, self._rows.tables, self._i)
 
     def step(self, alpha_s: float, P: float, dt: float = 1e-3) -> float:
         """One servo tick of dt s (eqs 38-40, with the slip state): new α_p from device twist
         α_s (rad) and normal force P (N); returns M = k_τ(α_p - α_g) on the finger about n (N·m)."""
-        return self._rows.run(kernel.torsion_step_row, self._rows.F, self._i, float(alpha_s), float(P), float(dt))
+        return self._rows.run(kernel.torsion_step_row, self._rows.tables, self._i, float(alpha_s), float(P), float(dt))
 
     def follow_object(self, omega_n: float, dt: float) -> None:
         """Eqs 41-42: α_p += (ω·n)Δt, the object's signed spin about n (rad/s) over Δt (s)."""
-        self._rows.run(kernel.torsion_follow_row, self._rows.F, self._i, float(omega_n), float(dt))
+        self._rows.run(kernel.torsion_follow_row, self._rows.tables, self._i, float(omega_n), float(dt))

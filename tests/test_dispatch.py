@@ -9,25 +9,25 @@ from numba import njit
 
 from softproxy.compiled import cache
 from softproxy.compiled.dispatch import announced, entry
-from softproxy.compiled.layout import FINGER
+from softproxy.compiled.layout import FINGER_DATA
 
 
 @njit
 def _sum_x(F, k):
     s = 0.0
     for i in range(F.shape[0]):
-        s += F[i].x * k
+        s += F[i].pos[0] * k
     return s
 
 
 def test_entry_point_gives_the_kernels_answer_and_writes_in_place():
     """The entry point computes what the dispatcher does, on the same record array."""
-    F = np.zeros(3, FINGER).view(np.recarray)
-    F.x = [1.0, 2.0, 3.5]
+    F = np.zeros(3, FINGER_DATA).view(np.recarray)
+    F.pos[:, 0] = [1.0, 2.0, 3.5]
     call = entry(_sum_x, (F, 2.0))
     assert call is not _sum_x
     assert call(F, 2.0) == _sum_x(F, 2.0) == 13.0
-    F.x[1] = 10.0  # the same array, changed: the entry point reads it live
+    F.pos[1, 0] = 10.0  # the same array, changed: the entry point reads it live
     assert call(F, 1.0) == 14.5
 
 

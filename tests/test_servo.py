@@ -427,7 +427,18 @@ VIEWED = {
                "placed", "ramp", "xd", "yd", "zd", "max_force_seen", "penetration_max", "slide_events",
                "spikes_rejected"),
 }
-RECORD = {"torsion.torque": "spring_torque"}  # a view's name that differs from its record field's
+RECORD = {"torsion.torque": ("spring_torque", None), "finger.torque": ("torque_n", None)}
+"""Where a view reads when its name is not its data field's: (field, component)."""
+for _i, _axis in enumerate("xyz"):
+    RECORD.update({f"god.{_axis}": ("pos", _i), f"god.n{_axis}": ("normal", _i), f"god.l{_axis}": ("local", _i),
+                   f"finger.f{_axis}": ("force", _i), f"finger.t{_axis}": ("torque", _i),
+                   f"finger.p{_axis}": ("contact_pos", _i), f"finger.{_axis}d": ("device_pos", _i)})
+
+
+def data_field(row, key):
+    """What finger data record `row` holds for the view `key` ("part.name")."""
+    field, index = RECORD.get(key, (key.split(".")[1], None))
+    return row[field] if index is None else row[field][index]
 
 
 def state_of(f) -> dict:
@@ -439,7 +450,7 @@ def state_of(f) -> dict:
 def test_the_finger_views_read_the_loops_table():
     """The fingers are views of the loop's table, never copies that could go stale: after
     every tick, finger.god.x, finger.torsion.alpha_p, finger.fx and every other field read
-    through the views are what loop.rows.F holds (and they move as the tick moves them). A
+    through the views are what loop.rows.data holds (and they move as the tick moves them). A
     finger built and driven alone keeps its whole state when a loop takes it in."""
     world = World(mujoco.MjModel.from_xml_string(BOX_ON_FLOOR))
     top, side = box_fingers(world)
@@ -454,9 +465,9 @@ def test_the_finger_views_read_the_loops_table():
     for _ in range(60):
         loop.tick()
         for i, f in enumerate(loop.fingers):
-            row = loop.rows.F[i]
+            row = loop.rows.data[i]
             for key, value in state_of(f).items():
-                assert value == row[RECORD.get(key, key.split(".")[1])], key
+                assert value == data_field(row, key), key
         seen.add((top.god.x, top.god.z, top.torsion.alpha_p, top.fx, side.god.x, side.fz))
     assert len(seen) > 50  # the tick moved them, and the views moved with it
     assert top.max_force_seen >= alone["finger.max_force_seen"]  # counters carried over from alone

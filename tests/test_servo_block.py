@@ -43,7 +43,7 @@ def test_compiled_blocks_equal_the_python_path_bit_for_bit(faults):
     if faults:
         assert fast.faults["device_error"] > 0 and fast.faults["invalid_sample"] > 0  # the faults were exercised
         assert fast.last_device_error == slow.last_device_error != ""
-    assert fast.rows.F.tobytes() == slow.rows.F.tobytes()
+    assert fast.rows.data.tobytes() == slow.rows.data.tobytes()
     for name in ("qpos", "qvel", "xfrc_applied"):
         assert np.array_equal(getattr(fast.world.data, name), getattr(slow.world.data, name)), name
     assert fast_device.injected == slow_device.injected and fast_device.sends == slow_device.sends
@@ -163,7 +163,7 @@ def test_a_replay_runs_compiled_and_equals_its_python_path(tmp_path):
     fast, slow = loops
     assert fast.compiled_block and not slow.compiled_block
     assert fast.faults == slow.faults and fast.ticks == slow.ticks == 550
-    assert fast.rows.F.tobytes() == slow.rows.F.tobytes()
+    assert fast.rows.data.tobytes() == slow.rows.data.tobytes()
     assert np.array_equal(fast.world.data.qpos, slow.world.data.qpos)
     assert max(f.max_force_seen for f in fast.fingers) > 1.0
 

@@ -289,7 +289,7 @@ def test_a_device_that_derates_mid_run_is_obeyed_on_every_path(path):
         derated.set()
 
     def sent(lp):  # what the loop sent each finger on its last tick (N)
-        return max(math.hypot(f.sent_fx, f.sent_fy, f.sent_fz) for f in lp.rows.F)
+        return max(math.hypot(*f.sent_force) for f in lp.rows.data)
 
     def on_tick(lp):
         if derated.is_set():
@@ -362,7 +362,7 @@ def test_a_limit_that_turns_invalid_renders_zero_and_counts_a_fault(path, bad):
     if isinstance(device, SimulatedDevice):
         assert device.sends == before + 2 * 40 + 2
         assert all(f == (0.0, 0.0, 0.0) for f in device.last_force)
-        assert all(math.hypot(f.sent_fx, f.sent_fy, f.sent_fz) == 0.0 for f in loop.rows.F)
+        assert all(math.hypot(*f.sent_force) == 0.0 for f in loop.rows.data)
     else:
         assert not any(any(s[1:]) for s in device.sends[before:])
     loop.close()

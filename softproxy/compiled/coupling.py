@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.body_response import point_jacobian, response
+from softproxy.compiled.vector import dot3
 
 CHANNELS = 4
 """Per finger: force x, y, z at the contact point (N, world) and torque about its normal (N·m)."""
@@ -93,31 +94,32 @@ def _dot_columns(a, b, nv):
 
 
 @njit(cache=True, error_model="numpy")
-def implicit(m, d, qvel, qacc, F, bodies_fixed, h, ws):
-    """Every finger in contact with a body that moves: its wrench (f.fx..f.tz, f.torque,
-    f.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
+def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws):
+    """Every finger in contact with a body that moves: its wrench (fd.force, fd.torque,
+    fd.torque_n, fd.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
     docstring). Between mj_step1 and mj_step2, after every finger's update. `bodies_fixed`: 1
     for a body welded to the world. Returns how many fingers were coupled."""
     jacs, mijs, G, Q, system, chan, rows = ws
     nv = qvel.shape[0]
     n = 0
     point = chan[0, :3]  # (scratch: the table is filled after the last Jacobian)
-    for i in range(F.shape[0]):
-        f = F[i]
-        body = int(f.body)
-        if not f.valid or body <= 0 or bodies_fixed[body] or n >= rows.shape[0]:
+    for i in range(FD.shape[0]):
+        fd = FD[i]
+        body = int(fd.body)
+        if not fd.valid or body <= 0 or bodies_fixed[body] or n >= rows.shape[0]:
             continue
-        point[0], point[1], point[2] = f.px, f.py, f.pz
+        point[0], point[1], point[2] = fd.contact_pos
         point_jacobian(m, d, body, np.uintp(point.ctypes.data), jacs[n])
         response(m, d, jacs[n], mijs[n])
         # the 4 channels' rows: the point's linear rows, and n·(angular rows)
         J, MJ, g, q = jacs[n], mijs[n], G[n], Q[n]
+        nx, ny, nz = fd.normal
         for k in range(nv):
             for c in range(3):
                 g[c, k] = J[c, k]
                 q[c, k] = MJ[c, k]
-            g[3, k] = f.nx * J[3, k] + f.ny * J[4, k] + f.nz * J[5, k]
-            q[3, k] = f.nx * MJ[3, k] + f.ny * MJ[4, k] + f.nz * MJ[5, k]
+            g[3, k] = nx * J[3, k] + ny * J[4, k] + nz * J[5, k]
+            q[3, k] = nx * MJ[3, k] + ny * MJ[4, k] + nz * MJ[5, k]
         rows[n] = i
         n += 1
     if n == 0:
@@ -126,20 +128,20 @@ def implicit(m, d, qvel, qacc, F, bodies_fixed, h, ws):
     # per channel r: H (h²K + hB; 0 where the channel is not a spring this tick), h K, the
     # finger's wrench last tick on this body (its share of last step's qacc), u, a_free
     for a in range(n):
-        f = F[rows[a]]
-        spring_tau = f.has_torsion and f.in_contact and not f.slipping
-        same = f.push_body == f.body
+        fm, fd = FM[rows[a]], FD[rows[a]]
+        spring_tau = fm.has_torsion and fd.in_contact and not fd.slipping
+        same = fd.push_body == fd.body
         r0 = CHANNELS * a
         for c in range(3):
-            chan[r0 + c, 0] = h * h * f.k + h * f.b
-            chan[r0 + c, 1] = h * f.k
-        chan[r0 + 3, 0] = h * h * f.k_tau + h * f.b_tau if spring_tau else 0.0
-        chan[r0 + 3, 1] = h * f.k_tau if spring_tau else 0.0
+            chan[r0 + c, 0] = h * h * fm.stiffness + h * fm.damping
+            chan[r0 + c, 1] = h * fm.stiffness
+        chan[r0 + 3, 0] = h * h * fm.torsion_stiffness + h * fm.torsion_damping if spring_tau else 0.0
+        chan[r0 + 3, 1] = h * fm.torsion_stiffness if spring_tau else 0.0
         # (sent_ still holds last tick's wrench here: this tick's clamp comes after)
-        chan[r0, 2] = f.sent_fx if same else 0.0
-        chan[r0 + 1, 2] = f.sent_fy if same else 0.0
-        chan[r0 + 2, 2] = f.sent_fz if same else 0.0
-        chan[r0 + 3, 2] = (f.sent_tx * f.nx + f.sent_ty * f.ny + f.sent_tz * f.nz) if same else 0.0
+        chan[r0, 2] = fd.sent_force[0] if same else 0.0
+        chan[r0 + 1, 2] = fd.sent_force[1] if same else 0.0
+        chan[r0 + 2, 2] = fd.sent_force[2] if same else 0.0
+        chan[r0 + 3, 2] = dot3(fd.sent_torque, fd.normal) if same else 0.0
     # A = G M⁻¹ Gᵀ into the system, u = G qvel, a_free = G qacc + A W_prev
     for r in range(size):
         a, c = r // CHANNELS, r % CHANNELS
@@ -153,11 +155,11 @@ def implicit(m, d, qvel, qacc, F, bodies_fixed, h, ws):
     # each finger's rows times its H, and the right-hand side W_exp + h K u + H a_free; the
     # force block's H and K are k·I while the proxy sticks, k·n nᵀ while it slides
     for a in range(n):
-        f = F[rows[a]]
+        fd = FD[rows[a]]
         r0 = CHANNELS * a
-        nx, ny, nz = f.nx, f.ny, f.nz
+        nx, ny, nz = fd.normal
         hb, hk = chan[r0, 0], chan[r0, 1]
-        if f.sticking:
+        if fd.sticking:
             for c in range(3):
                 for e in range(size):
                     system[r0 + c, e] *= hb
@@ -174,58 +176,58 @@ def implicit(m, d, qvel, qacc, F, bodies_fixed, h, ws):
         for e in range(size):
             system[r0 + 3, e] *= hb_tau
         system[r0 + 3, size] = chan[r0 + 3, 1] * chan[r0 + 3, 3] + hb_tau * chan[r0 + 3, 4]
-        system[r0, size] += f.fx
-        system[r0 + 1, size] += f.fy
-        system[r0 + 2, size] += f.fz
-        system[r0 + 3, size] += f.torque
+        system[r0, size] += fd.force[0]
+        system[r0 + 1, size] += fd.force[1]
+        system[r0 + 2, size] += fd.force[2]
+        system[r0 + 3, size] += fd.torque_n
     for r in range(size):
         system[r, r] += 1.0
     if not _solve(system, size):
         return 0
     for a in range(n):
         r0 = CHANNELS * a
-        within_laws(F[rows[a]], system[r0, size], system[r0 + 1, size], system[r0 + 2, size], system[r0 + 3, size])
+        within_laws(FM[rows[a]], FD[rows[a]], system[r0, size], system[r0 + 1, size], system[r0 + 2, size], system[r0 + 3, size])
     return n
 
 
 @njit(cache=True, error_model="numpy")
-def within_laws(f, fx, fy, fz, M):
-    """The solved wrench into the finger's record, within its laws: no pull through the surface,
+def within_laws(fm, fd, fx, fy, fz, M):
+    """The solved wrench into the finger's data, within its laws: no pull through the surface,
     the tangential force within the static cone μ_s·P, the torque within what friction holds
     (the static limit, or the spring where larger), both within the finger's clamps (the soft
     start's ramp included). A wrench that is not finite leaves the finger's own."""
     if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz) and math.isfinite(M)):
         return
-    nx, ny, nz = f.nx, f.ny, f.nz
+    nx, ny, nz = fd.normal
     normal = fx * nx + fy * ny + fz * nz
     P = normal if normal > 0.0 else 0.0
     tx, ty, tz = fx - normal * nx, fy - normal * ny, fz - normal * nz
     t = math.sqrt(tx * tx + ty * ty + tz * tz)
-    cone = f.mu_s * P
+    cone = fm.mu_s * P
     if t > cone:
         s = cone / t
         tx, ty, tz = tx * s, ty * s, tz * s
     fx, fy, fz = P * nx + tx, P * ny + ty, P * nz + tz
-    fmax = f.max_force * f.ramp
+    fmax = fm.max_force * fd.ramp
     f2 = fx * fx + fy * fy + fz * fz
     if f2 > fmax * fmax:
         s = fmax / math.sqrt(f2)
         fx, fy, fz, P = fx * s, fy * s, fz * s, P * s
-    f.fx, f.fy, f.fz = fx, fy, fz
-    f.normal_force = P
-    if f.has_torsion and f.in_contact:
-        torque_within_laws(f, M)
+    fd.force[:] = fx, fy, fz
+    fd.normal_force = P
+    if fm.has_torsion and fd.in_contact:
+        torque_within_laws(fm, fd, M)
 
 
 @njit(cache=True, error_model="numpy")
-def torque_within_laws(f, M):
-    """A torque M about n (N·m) into the finger's record (torque, and M·n): never past what
+def torque_within_laws(fm, fd, M):
+    """A torque M about n (N·m) into the finger's data (torque_n, and M·n in torque): never past what
     friction holds (the static limit, or the spring torque where that is larger), nor past
     the clamp (the soft start's ramp included)."""
-    limit, spring = f.limit, abs(f.spring_torque)
+    limit, spring = fd.limit, abs(fd.spring_torque)
     bound = limit if limit > spring else spring
-    if bound > f.max_torque * f.ramp:
-        bound = f.max_torque * f.ramp
+    if bound > fm.max_torque * fd.ramp:
+        bound = fm.max_torque * fd.ramp
     M = bound if M > bound else -bound if M < -bound else M
-    f.torque = M
-    f.tx, f.ty, f.tz = M * f.nx, M * f.ny, M * f.nz
+    fd.torque_n = M
+    fd.torque[:] = M * fd.normal

@@ -17,7 +17,8 @@ a usable sample), its wrench on the touched body (`push`; `write_wrenches` puts 
 MuJoCo), and what each device finger is sent, through `softproxy.compiled.guard.guard_wrench`.
 
 These kernels are the only implementation: `SoftFingerProxy` and `TorsionalFriction` are
-views of a finger record (`layout.FINGER`, `f` here) that call the `*_row` entries, `World`
+views of a finger's records (`layout.FINGER_MODEL` and `FINGER_DATA`, `fm` and `fd` here) that
+call the `*_row` entries, `World`
 calls `push` and `write_wrenches`, `ServoLoop` calls `tick`. Units: m, N, N·m, rad, s.
 """
 
@@ -53,30 +54,30 @@ SPIKE_PATIENCE = 3
 # μ_d|P|^γ); only then is eq 39's static limit needed to slip again. `torsion_restick` = 0
 # is eq 39 as printed, every tick.
 @njit(cache=True, error_model="numpy")
-def torsion_touch(f, alpha_s):
+def torsion_touch(fd, alpha_s):
     """Contact made: the proxy twist starts at the finger's current twist α_s (rad), so the
     torque starts at zero (a non-finite twist counts as 0); stuck."""
     if not finite(alpha_s):
         alpha_s = 0.0
-    f.in_contact = True
-    f.alpha_0 = f.alpha_p = f.alpha_g = alpha_s
-    f.spring_torque = f.limit = 0.0
-    f.slipping = False
-    f.slip_dir = f.slip_idle = f.slip_travel = 0.0
+    fd.in_contact = True
+    fd.alpha_0 = fd.alpha_p = fd.alpha_g = alpha_s
+    fd.spring_torque = fd.limit = 0.0
+    fd.slipping = False
+    fd.slip_dir = fd.slip_idle = fd.slip_travel = 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def torsion_release(f):
+def torsion_release(fd):
     """Contact broken: torsion state cleared, no torque."""
-    f.in_contact = False
-    f.alpha_0 = f.alpha_p = f.alpha_g = 0.0
-    f.spring_torque = f.limit = 0.0
-    f.slipping = False
-    f.slip_dir = f.slip_idle = f.slip_travel = 0.0
+    fd.in_contact = False
+    fd.alpha_0 = fd.alpha_p = fd.alpha_g = 0.0
+    fd.spring_torque = fd.limit = 0.0
+    fd.slipping = False
+    fd.slip_dir = fd.slip_idle = fd.slip_travel = 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def torsion_step(f, alpha_s, P, dt):
+def torsion_step(fm, fd, alpha_s, P, dt):
     """One servo tick of dt s (eqs 38-40, with the slip state): new α_p from device twist α_s
     (rad) and normal force P (N).
 
@@ -91,126 +92,126 @@ def torsion_step(f, alpha_s, P, dt):
     `torsion_restick` s and the spring torque along the slip is at least RESTICK_FRACTION of
     μ_d|P|^γ: α_p trails the goal by μ_d|P|^γ/k_τ when the goal pulls on, and holds when it
     does not."""
-    if not f.in_contact:
+    if not fd.in_contact:
         return 0.0
     if not finite(alpha_s):
-        f.spring_torque = 0.0
+        fd.spring_torque = 0.0
         return 0.0
     P = abs(P)
     if not P <= P_MAX:
         P = P_MAX if P == P else 0.0
-    if f.saturate:
+    if fm.saturate:
         # the static limit follows the piecewise law of eq 26 (linear above P*, eq 27),
         # scaled from the model's μ'_m to this finger's μ_s
-        mu_prime = f.mu_prime
+        mu_prime = fm.mu_prime
         if mu_prime > 0.0:
-            p_star = f.p_star
+            p_star = fm.p_star
             if P <= p_star:
-                law = mu_prime * P ** f.gamma
+                law = mu_prime * P ** fm.gamma
             else:
-                law = f.r0 * (P - p_star) + mu_prime * p_star ** f.gamma
-            limit = f.torsion_mu_s / mu_prime * law
+                law = fm.r0 * (P - p_star) + mu_prime * p_star ** fm.gamma
+            limit = fm.torsion_mu_s / mu_prime * law
         else:
             limit = 0.0
     else:
-        limit = f.torsion_mu_s * P ** f.gamma
-    f.alpha_g = alpha_s
-    k_tau = f.k_tau
-    stretch = f.alpha_p - alpha_s
-    slack = limit * f.ratio / k_tau  # the dynamic offset μ_d|P|^γ/k_τ (rad)
-    was = f.slipping
+        limit = fm.torsion_mu_s * P ** fm.gamma
+    fd.alpha_g = alpha_s
+    k_tau = fm.torsion_stiffness
+    stretch = fd.alpha_p - alpha_s
+    slack = limit * fm.ratio / k_tau  # the dynamic offset μ_d|P|^γ/k_τ (rad)
+    was = fd.slipping
     # the slip state: still moving (slid RESTICK_TRAVEL of the offset within torsion_restick s)
     # the same way (the spring along the slip at least RESTICK_FRACTION of the dynamic
     # torque): dynamic friction
-    if was and f.slip_idle < f.torsion_restick and stretch * f.slip_dir >= RESTICK_FRACTION * slack:
-        if stretch * f.slip_dir > slack:  # the goal pulls on: trail it at the dynamic offset
-            f.slip_travel += stretch * f.slip_dir - slack
-            f.alpha_p = alpha_s + f.slip_dir * slack
+    if was and fd.slip_idle < fm.torsion_restick and stretch * fd.slip_dir >= RESTICK_FRACTION * slack:
+        if stretch * fd.slip_dir > slack:  # the goal pulls on: trail it at the dynamic offset
+            fd.slip_travel += stretch * fd.slip_dir - slack
+            fd.alpha_p = alpha_s + fd.slip_dir * slack
         # the stop watch: time since α_p last slid RESTICK_TRAVEL of the offset
-        if f.slip_travel >= restick_travel(RESTICK_TRAVEL * slack, RESTICK_SPIN, f.torsion_restick):
-            f.slip_idle = f.slip_travel = 0.0
+        if fd.slip_travel >= restick_travel(RESTICK_TRAVEL * slack, RESTICK_SPIN, fm.torsion_restick):
+            fd.slip_idle = fd.slip_travel = 0.0
         else:
-            f.slip_idle += dt
+            fd.slip_idle += dt
     # eq 39: the proxy sticks while the static limit exceeds the spring torque.
     elif limit > abs(k_tau * stretch):
-        f.slipping = False
+        fd.slipping = False
     else:
         # eq 40 with its missing sign: stay μ_d|P|^γ/k_τ behind the goal, on the side the
         # proxy was on, so the slipping torque keeps the twist's direction.
         if stretch > 0.0:
-            f.alpha_p = alpha_s + slack
-            f.slip_dir = 1.0
+            fd.alpha_p = alpha_s + slack
+            fd.slip_dir = 1.0
         elif stretch < 0.0:
-            f.alpha_p = alpha_s - slack
-            f.slip_dir = -1.0
+            fd.alpha_p = alpha_s - slack
+            fd.slip_dir = -1.0
         else:
-            f.alpha_p = alpha_s
+            fd.alpha_p = alpha_s
         if not was and stretch != 0.0:
-            f.slip_events += 1
-        f.slipping = stretch != 0.0
-        f.slip_idle = f.slip_travel = 0.0
-    f.limit = limit
-    f.spring_torque = k_tau * (f.alpha_p - alpha_s)
-    return f.spring_torque
+            fd.slip_events += 1
+        fd.slipping = stretch != 0.0
+        fd.slip_idle = fd.slip_travel = 0.0
+    fd.limit = limit
+    fd.spring_torque = k_tau * (fd.alpha_p - alpha_s)
+    return fd.spring_torque
 
 
 @njit(cache=True, error_model="numpy")
-def torsion_follow(f, omega_n, dt):
+def torsion_follow(fd, omega_n, dt):
     """Eqs 41-42: α_p += (ω·n)Δt, the touched object's signed spin about n (rad/s) over Δt (s).
     The seed's |ω·n| would drag the proxy forwards whichever way the object turned; the signed
     value makes a stuck proxy turn with the object, in either direction."""
-    if not f.in_contact:
+    if not fd.in_contact:
         return
-    alpha_p = f.alpha_p + omega_n * dt
+    alpha_p = fd.alpha_p + omega_n * dt
     if finite(alpha_p):
-        f.alpha_p = alpha_p
+        fd.alpha_p = alpha_p
 
 
 # -- the finger (softproxy.finger.SoftFingerProxy) -------------------------------------------
 @njit(cache=True, error_model="numpy")
-def clear_output(f):
+def clear_output(fd):
     """Zero force and torque, no contact reported, the sample not used: the safe state."""
-    f.fx = f.fy = f.fz = 0.0
-    f.torque = f.tx = f.ty = f.tz = 0.0
-    f.px = f.py = f.pz = 0.0
-    f.body = -1
-    f.normal_force = 0.0
-    f.valid = False
-    f.twist_prev = math.nan  # the torsional damper starts afresh at the next rendered tick
+    fd.force[:] = 0.0
+    fd.torque_n = fd.torque[:] = 0.0
+    fd.contact_pos[:] = 0.0
+    fd.body = -1
+    fd.normal_force = 0.0
+    fd.valid = False
+    fd.twist_prev = math.nan  # the torsional damper starts afresh at the next rendered tick
 
 
 @njit(cache=True, error_model="numpy")
-def _follow_body(S, cvel, f):
+def _follow_body(S, cvel, fm, fd):
     """Eqs 41-42: the touched body's spin about n (rad/s, world; MuJoCo's cvel after mj_step1)
     drags α_p, signed."""
-    if f.has_torsion and f.in_contact:
-        b = int(S[int(f.touched)].body)
-        omega_n = cvel[b, 0] * f.nx + cvel[b, 1] * f.ny + cvel[b, 2] * f.nz
-        torsion_follow(f, omega_n, f.dt)
-        f.body_turn = omega_n * f.dt
+    if fm.has_torsion and fd.in_contact:
+        b = int(S[int(fd.touched)].body)
+        omega_n = cvel[b, 0] * fd.normal[0] + cvel[b, 1] * fd.normal[1] + cvel[b, 2] * fd.normal[2]
+        torsion_follow(fd, omega_n, fd.dt)
+        fd.body_turn = omega_n * fd.dt
 
 
 @njit(cache=True, error_model="numpy")
-def place(sh, f, near, x, y, z):
+def place(sh, fm, fd, near, x, y, z):
     """Put the proxy at a device position (device frame, m), out of contact and torsion, the
     soft start's ramp back at zero. False, and the finger left unplaced, for a position
     outside the workspace: an unplaced finger places itself at its first good sample and
     renders nothing then."""
-    xd, yd, zd = f.ox + f.scale * x, f.oy + f.scale * y, f.oz + f.scale * z
-    if not godobject.reset(sh, f, near, xd, yd, zd):
-        f.placed = False
+    xd, yd, zd = fm.origin[0] + fm.scale * x, fm.origin[1] + fm.scale * y, fm.origin[2] + fm.scale * z
+    if not godobject.reset(sh, fm, fd, near, xd, yd, zd):
+        fd.placed = False
         return False
-    f.placed = True
-    f.ramp = 0.0 if f.soft_start > 0.0 else 1.0
-    f.energy = 0.0  # the passivity observer starts afresh: nothing stored, nothing owed
-    f.xd, f.yd, f.zd = xd, yd, zd
-    if f.has_torsion:
-        torsion_release(f)
+    fd.placed = True
+    fd.ramp = 0.0 if fm.soft_start > 0.0 else 1.0
+    fd.energy = 0.0  # the passivity observer starts afresh: nothing stored, nothing owed
+    fd.device_pos[:] = xd, yd, zd
+    if fm.has_torsion:
+        torsion_release(fd)
     return True
 
 
 @njit(cache=True, error_model="numpy")
-def hold(sh, f, near):
+def hold(sh, fm, fd, near):
     """No usable device sample this tick: zero force, the proxy only follows its body. The
     soft start's ramp winds down as fast as it winds up, so after an outage of T s (a device
     error, invalid samples) the clamps come back from max·(1 - T/soft_start): a finger that
@@ -219,83 +220,83 @@ def hold(sh, f, near):
     held tick, as the proxy follows it (keyed on the contact, not on `body`: clear_output
     empties that)."""
     S, cvel = sh.S, sh.cvel
-    f.rel_dx = f.rel_dy = f.rel_dz = f.rel_turn = 0.0  # (nothing was sent over a held tick to count)
-    if f.touched >= 0:
-        _follow_body(S, cvel, f)
-    if f.soft_start > 0.0:
-        ramp = f.ramp - f.dt / f.soft_start
-        f.ramp = ramp if ramp > 0.0 else 0.0
-    if f.placed:
-        godobject.follow(sh, f, near)
-    clear_output(f)
+    fd.rel_move[:] = fd.rel_turn = 0.0  # (nothing was sent over a held tick to count)
+    if fd.touched >= 0:
+        _follow_body(S, cvel, fm, fd)
+    if fm.soft_start > 0.0:
+        ramp = fd.ramp - fd.dt / fm.soft_start
+        fd.ramp = ramp if ramp > 0.0 else 0.0
+    if fd.placed:
+        godobject.follow(sh, fm, fd, near)
+    clear_output(fd)
 
 
 @njit(cache=True, error_model="numpy")
-def update(sh, f, near, x, y, z, twist, dt, scratch):
+def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     """One tick from a device sample (device frame, m and rad) over period dt (s): god-object,
     virtual coupling, torsion. False when the sample was not used (a spike held back, a
     position outside the workspace, a non-finite twist): the finger then renders zero force."""
     S, xpos, xmat, cvel = sh.S, sh.xpos, sh.xmat, sh.cvel
-    f.dt = dt
-    f.body_turn = 0.0
-    f.rel_dx = f.rel_dy = f.rel_dz = f.rel_turn = 0.0
-    if f.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
-        _follow_body(S, cvel, f)
-    if not f.placed:
-        ok = place(sh, f, near, x, y, z) and finite(twist)
-        clear_output(f)
+    fd.dt = dt
+    fd.body_turn = 0.0
+    fd.rel_move[:] = fd.rel_turn = 0.0
+    if fd.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
+        _follow_body(S, cvel, fm, fd)
+    if not fd.placed:
+        ok = place(sh, fm, fd, near, x, y, z) and finite(twist)
+        clear_output(fd)
         return ok
-    xd = f.ox + f.scale * x
-    yd = f.oy + f.scale * y
-    zd = f.oz + f.scale * z
+    xd = fm.origin[0] + fm.scale * x
+    yd = fm.origin[1] + fm.scale * y
+    zd = fm.origin[2] + fm.scale * z
     # velocity-spike filter: a jump no hand makes in one period is held back for up to
     # SPIKE_PATIENCE ticks; a device that really moved that far is followed after that
-    ex, ey, ez = xd - f.xd, yd - f.yd, zd - f.zd
-    reach = f.max_speed * dt
-    if ex * ex + ey * ey + ez * ez > reach * reach and f.spike_run < SPIKE_PATIENCE:
-        f.spike_run += 1
-        f.spikes_rejected += 1
-        godobject.follow(sh, f, near)  # zero force; the proxy stays on its body
-        clear_output(f)
+    ex, ey, ez = xd - fd.device_pos[0], yd - fd.device_pos[1], zd - fd.device_pos[2]
+    reach = fm.max_speed * dt
+    if ex * ex + ey * ey + ez * ez > reach * reach and fd.spike_run < SPIKE_PATIENCE:
+        fd.spike_run += 1
+        fd.spikes_rejected += 1
+        godobject.follow(sh, fm, fd, near)  # zero force; the proxy stays on its body
+        clear_output(fd)
         return False
-    f.spike_run = 0
+    fd.spike_run = 0
     if not finite(twist):  # an unusable sample: the proxy stays where it was, on its body
-        godobject.follow(sh, f, near)
-        clear_output(f)
+        godobject.follow(sh, fm, fd, near)
+        clear_output(fd)
         return False
     # for the damper, before the god-object moves the proxy: how far the touched surface
     # under the proxy moved relative to the device over the tick (the proxy is kept in the
     # touched geom's frame: the way that frame carried it; a shape that never moves, none)
-    was_contact = f.contact
-    wx, wy, wz = f.xd - xd, f.yd - yd, f.zd - zd
-    shape = int(f.touched)
+    was_contact = fd.contact
+    wx, wy, wz = fd.device_pos[0] - xd, fd.device_pos[1] - yd, fd.device_pos[2] - zd
+    shape = int(fd.touched)
     if was_contact and shape >= 0 and not S[shape].static:
-        cx, cy, cz = shape_to_world(S, xpos, xmat, shape, f.lx, f.ly, f.lz)
-        wx, wy, wz = wx + cx - f.x, wy + cy - f.y, wz + cz - f.z
-    f.rel_dx, f.rel_dy, f.rel_dz = wx, wy, wz  # (the passivity observer's port motion)
-    if not godobject.update(sh, f, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
-        clear_output(f)
+        cx, cy, cz = shape_to_world(S, xpos, xmat, shape, fd.local[0], fd.local[1], fd.local[2])
+        wx, wy, wz = wx + cx - fd.pos[0], wy + cy - fd.pos[1], wz + cz - fd.pos[2]
+    fd.rel_move[:] = wx, wy, wz  # (the passivity observer's port motion)
+    if not godobject.update(sh, fm, fd, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
+        clear_output(fd)
         return False
-    f.xd, f.yd, f.zd = xd, yd, zd
-    f.valid = True
-    if not f.contact:
-        f.was_sticking = False
-        if f.has_torsion and f.in_contact:
-            torsion_release(f)
-        f.fx = f.fy = f.fz = 0.0
-        f.torque = f.tx = f.ty = f.tz = 0.0
-        f.body = -1
-        f.normal_force = 0.0
+    fd.device_pos[:] = xd, yd, zd
+    fd.valid = True
+    if not fd.contact:
+        fd.was_sticking = False
+        if fm.has_torsion and fd.in_contact:
+            torsion_release(fd)
+        fd.force[:] = 0.0
+        fd.torque_n = fd.torque[:] = 0.0
+        fd.body = -1
+        fd.normal_force = 0.0
         return True
 
-    if f.was_sticking and not f.sticking:
-        f.slide_events += 1
-    f.was_sticking = f.sticking
+    if fd.was_sticking and not fd.sticking:
+        fd.slide_events += 1
+    fd.was_sticking = fd.sticking
     # translational virtual coupling: the spring to the proxy, the damper on the device's
     # velocity relative to the touched surface (docs/coupling.md: never on the proxy's own
     # motion, which jumps when it breaks free or drops off an edge)
-    sx, sy, sz = f.x - xd, f.y - yd, f.z - zd
-    nx, ny, nz = f.nx, f.ny, f.nz
+    sx, sy, sz = fd.pos[0] - xd, fd.pos[1] - yd, fd.pos[2] - zd
+    nx, ny, nz = fd.normal
     if not was_contact:
         # contact made this tick: the proxy stopped on the surface part-way along the device's
         # move, so |s| is at most the device's move, counted from the touch on; and a device
@@ -304,20 +305,20 @@ def update(sh, f, near, x, y, z, twist, dt, scratch):
         s2 = sx * sx + sy * sy + sz * sz
         q = math.sqrt(w2 / s2) if w2 < s2 else 1.0
         wx, wy, wz = sx * q, sy * q, sz * q
-    elif not f.sticking:  # slipping: along the surface friction acts, not the damper
+    elif not fd.sticking:  # slipping: along the surface friction acts, not the damper
         wn = wx * nx + wy * ny + wz * nz
         wx, wy, wz = wn * nx, wn * ny, wn * nz
-    k = f.k
-    c = f.b / dt  # (an unvalidated b of 1e308 makes c Inf and the force NaN: a counted fault)
+    k = fm.stiffness
+    c = fm.damping / dt  # (an unvalidated b of 1e308 makes c Inf and the force NaN: a counted fault)
     fx = k * sx + c * wx
     fy = k * sy + c * wy
     fz = k * sz + c * wz
-    ramp = f.ramp
+    ramp = fd.ramp
     if ramp < 1.0:  # soft start: no kick when a finger starts inside an object
-        v = ramp + dt / f.soft_start
+        v = ramp + dt / fm.soft_start
         ramp = v if v < 1.0 else 1.0
-        f.ramp = ramp
-    fmax = f.max_force * ramp
+        fd.ramp = ramp
+    fmax = fm.max_force * ramp
     f2 = fx * fx + fy * fy + fz * fz
     if f2 > fmax * fmax:
         s = fmax / math.sqrt(f2) if f2 > 0.0 else 0.0
@@ -326,51 +327,51 @@ def update(sh, f, near, x, y, z, twist, dt, scratch):
     if P < 0.0:  # damping pulling the finger into the surface: contact carries no pull
         fx, fy, fz = fx - P * nx, fy - P * ny, fz - P * nz
         P = 0.0
-    f.fx, f.fy, f.fz = fx, fy, fz
-    f.normal_force = P
-    r = f.radius
-    f.px, f.py, f.pz = f.x - r * nx, f.y - r * ny, f.z - r * nz
-    f.body = S[int(f.touched)].body
+    fd.force[:] = fx, fy, fz
+    fd.normal_force = P
+    r = fm.radius
+    fd.contact_pos[:] = fd.pos[0] - r * nx, fd.pos[1] - r * ny, fd.pos[2] - r * nz
+    fd.body = S[int(fd.touched)].body
     fmag = math.sqrt(fx * fx + fy * fy + fz * fz)
-    if fmag > f.max_force_seen:
-        f.max_force_seen = fmag
+    if fmag > fd.max_force_seen:
+        fd.max_force_seen = fmag
 
     # torsional DOF (eqs 38–40)
-    if not f.has_torsion:
+    if not fm.has_torsion:
         return True
-    if not f.in_contact:
-        torsion_touch(f, twist)
-        f.twist_prev = twist
-    M = torsion_step(f, twist, P, dt)
-    if not finite(f.twist_prev):  # the first rendered tick after one that rendered nothing
-        f.twist_prev = twist
-    f.rel_turn = f.body_turn - (twist - f.twist_prev)
+    if not fd.in_contact:
+        torsion_touch(fd, twist)
+        fd.twist_prev = twist
+    M = torsion_step(fm, fd, twist, P, dt)
+    if not finite(fd.twist_prev):  # the first rendered tick after one that rendered nothing
+        fd.twist_prev = twist
+    fd.rel_turn = fd.body_turn - (twist - fd.twist_prev)
     # the torsional damper acts on the finger's twist rate relative to the touched body's spin
     # about n, b_τ(ω_body - α̇_s), as the translational one on the device's velocity relative
     # to the surface: never on the proxy's own jump when it slips (which flipped the torque's
     # sign for a tick at every slip). Slipping, dynamic friction acts, not the damper.
-    if not f.slipping:
-        M += f.b_tau / dt * f.rel_turn
-    f.twist_prev = twist
+    if not fd.slipping:
+        M += fm.torsion_damping / dt * fd.rel_turn
+    fd.twist_prev = twist
     # the damping never takes |M| past what friction holds, nor past the clamp
-    coupling.torque_within_laws(f, M)
+    coupling.torque_within_laws(fm, fd, M)
     return True
 
 
 @njit(cache=True, error_model="numpy")
-def audit(sh, f):
+def audit(sh, fm, fd):
     """Deepest the proxy sits inside any shape now (m, >= 0), kept in penetration_max: the
     check that no finger was let in. An unplaced finger has no proxy in the world yet: 0."""
     S = sh.S
-    if not f.placed:
+    if not fd.placed:
         return 0.0
     worst = 0.0
     for s in range(S.shape[0]):
-        inside = f.radius - shape_distance(sh, s, f.x, f.y, f.z)[0]
+        inside = fm.radius - shape_distance(sh, s, fd.pos[0], fd.pos[1], fd.pos[2])[0]
         if inside > worst:
             worst = inside
-    if worst > f.penetration_max:
-        f.penetration_max = worst
+    if worst > fd.penetration_max:
+        fd.penetration_max = worst
     return worst
 
 
@@ -435,18 +436,19 @@ def write_wrenches(xfrc, xipos, wrench, bodies, counts):
 
 
 @njit(cache=True, error_model="numpy")
-def _clamp_for_device(f, safe, fmax, tmax):
+def _clamp_for_device(fm, fd, safe, fmax, tmax):
     """What the device is sent for this finger, into its sent_ fields: zero on the watchdog's
     zero-force tick (`safe`) or when the sample was not used, otherwise the wrench through
     `guard.guard_wrench` (finite, within the finger's and the device's clamps). False
     when the guard refused the wrench (not finite, or limits that are not numbers)."""
     good = True
-    if safe or not f.valid:
+    if safe or not fd.valid:
         fx = fy = fz = tx = ty = tz = 0.0
     else:
-        good, fx, fy, fz, tx, ty, tz = guard_wrench(f.fx, f.fy, f.fz, f.tx, f.ty, f.tz,
-                                                    f.max_force, f.max_torque, fmax, tmax)
-    f.sent_fx, f.sent_fy, f.sent_fz, f.sent_tx, f.sent_ty, f.sent_tz = fx, fy, fz, tx, ty, tz
+        (fx, fy, fz), (tx, ty, tz) = fd.force, fd.torque
+        good, fx, fy, fz, tx, ty, tz = guard_wrench(fx, fy, fz, tx, ty, tz, fm.max_force, fm.max_torque, fmax, tmax)
+    fd.sent_force[:] = fx, fy, fz
+    fd.sent_torque[:] = tx, ty, tz
     return good
 
 
@@ -455,7 +457,7 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2 (`mj`,
     `sh`, `fingers`: MjViews, Shapes, FingerTables of `softproxy.compiled.layout`).
 
-    Each finger record holds this tick's device sample in its in_ fields; a sample not valid
+    Each finger's data holds this tick's device sample in its in_ fields; a sample not valid
     (or from a failed read) or not finite holds the finger. The fingers' wrenches on moving
     bodies are then solved implicitly with the bodies' answer (`coupling.implicit`, over the
     mjModel/mjData, their qvel and qacc; `fingers.ws` its workspace), and each finger's
@@ -468,87 +470,87 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
     not finite (zeroed before they reached a body or the device). The touched body gets the
     reaction of exactly the wrench the device is sent, after every clamp (the finger's, the
     device's, the soft start's), so both sides of the coupling exchange the same energy."""
-    F, near, scratch, wrench, bodies, counts = (fingers.F, fingers.near, fingers.scratch, fingers.wrench,
-                                                fingers.bodies, fingers.counts)
+    FM, FD, near, scratch = fingers.model, fingers.data, fingers.near, fingers.scratch
+    wrench, bodies, counts = fingers.wrench, fingers.bodies, fingers.counts
     refused = 0
     unsafe = 0
-    for i in range(F.shape[0]):
-        f = F[i]
+    for i in range(FD.shape[0]):
+        fm, fd = FM[i], FD[i]
         row = near[i]
-        if not f.in_valid:
-            hold(sh, f, row)
-        elif not finite(f.in_x + f.in_y + f.in_z + f.in_qw + f.in_qx + f.in_qy + f.in_qz + f.in_twist):
+        if not fd.in_valid:
+            hold(sh, fm, fd, row)
+        elif not finite(fd.in_pos.sum() + fd.in_quat.sum() + fd.in_twist):
             refused += 1
-            hold(sh, f, row)
+            hold(sh, fm, fd, row)
         else:
-            if not update(sh, f, row, f.in_x, f.in_y, f.in_z, f.in_twist, dt, scratch):
+            if not update(sh, fm, fd, row, fd.in_pos[0], fd.in_pos[1], fd.in_pos[2], fd.in_twist, dt, scratch):
                 refused += 1
             if safe:
-                clear_output(f)
-            elif not finite(f.fx + f.fy + f.fz + f.tx + f.ty + f.tz):
+                clear_output(fd)
+            elif not finite(fd.force.sum() + fd.torque.sum()):
                 unsafe += 1
-                clear_output(f)
+                clear_output(fd)
         if check:
-            audit(sh, f)
-        passivity.observe(f)  # last tick's sends times this tick's motion
+            audit(sh, fm, fd)
+        passivity.observe(fm, fd)  # last tick's sends times this tick's motion
     if not safe:
-        coupling.implicit(mj.m, mj.d, mj.qvel, mj.qacc, F, bodies[FIXED], dt, fingers.ws)
-    for i in range(F.shape[0]):
-        f = F[i]
+        coupling.implicit(mj.m, mj.d, mj.qvel, mj.qacc, FM, FD, bodies[FIXED], dt, fingers.ws)
+    for i in range(FD.shape[0]):
+        fm, fd = FM[i], FD[i]
         if control and not safe:
-            passivity.control(f, dt)
-        if not _clamp_for_device(f, safe, fmax, tmax):
+            passivity.control(fm, fd, dt)
+        if not _clamp_for_device(fm, fd, safe, fmax, tmax):
             unsafe += 1
-            clear_output(f)
-        f.push_body = -1
-        if f.body >= 0.0:  # one wrench for both sides: the body gets the reaction of what the device is sent
-            push(wrench, bodies, counts, int(f.body), -f.sent_fx, -f.sent_fy, -f.sent_fz,
-                 f.px, f.py, f.pz, -f.sent_tx, -f.sent_ty, -f.sent_tz)
-            f.push_body = f.body
+            clear_output(fd)
+        fd.push_body = -1
+        if fd.body >= 0.0:  # one wrench for both sides: the body gets the reaction of what the device is sent
+            (fx, fy, fz), (tx, ty, tz), (px, py, pz) = fd.sent_force, fd.sent_torque, fd.contact_pos
+            push(wrench, bodies, counts, int(fd.body), -fx, -fy, -fz, px, py, pz, -tx, -ty, -tz)
+            fd.push_body = fd.body
     return refused, unsafe
 
 
-# -- entries for the views: record i of a table ----------------------------------------------
+# -- entries for the views: finger i of a table (`fg`: a `layout.Fingers`) ----------------------
 @njit(cache=True, error_model="numpy")
-def torsion_touch_row(F, i, alpha_s):
-    torsion_touch(F[i], alpha_s)
-
-
-@njit(cache=True, error_model="numpy")
-def torsion_release_row(F, i):
-    torsion_release(F[i])
+def torsion_touch_row(fg, i, alpha_s):
+    torsion_touch(fg.data[i], alpha_s)
 
 
 @njit(cache=True, error_model="numpy")
-def torsion_step_row(F, i, alpha_s, P, dt):
-    return torsion_step(F[i], alpha_s, P, dt)
+def torsion_release_row(fg, i):
+    torsion_release(fg.data[i])
 
 
 @njit(cache=True, error_model="numpy")
-def torsion_follow_row(F, i, omega_n, dt):
-    torsion_follow(F[i], omega_n, dt)
+def torsion_step_row(fg, i, alpha_s, P, dt):
+    return torsion_step(fg.model[i], fg.data[i], alpha_s, P, dt)
 
 
 @njit(cache=True, error_model="numpy")
-def place_row(sh, F, near, i, x, y, z):
-    return place(sh, F[i], near[i], x, y, z)
+def torsion_follow_row(fg, i, omega_n, dt):
+    torsion_follow(fg.data[i], omega_n, dt)
 
 
 @njit(cache=True, error_model="numpy")
-def hold_row(sh, F, near, i):
-    hold(sh, F[i], near[i])
+def place_row(sh, fg, i, x, y, z):
+    return place(sh, fg.model[i], fg.data[i], fg.near[i], x, y, z)
 
 
 @njit(cache=True, error_model="numpy")
-def update_row(sh, F, near, i, x, y, z, twist, dt, scratch):
-    return update(sh, F[i], near[i], x, y, z, twist, dt, scratch)
+def hold_row(sh, fg, i):
+    hold(sh, fg.model[i], fg.data[i], fg.near[i])
 
 
 @njit(cache=True, error_model="numpy")
-def clear_output_row(F, i):
-    clear_output(F[i])
+def update_row(sh, fg, i, x, y, z, twist, dt):
+    return update(sh, fg.model[i], fg.data[i], fg.near[i], x, y, z, twist, dt, fg.scratch)
 
 
 @njit(cache=True, error_model="numpy")
-def audit_row(sh, F, i):
-    return audit(sh, F[i])
+def clear_output_row(fg, i):
+    clear_output(fg.data[i])
+
+
+@njit(cache=True, error_model="numpy")
+def audit_row(sh, fg, i):
+    return audit(sh, fg.model[i], fg.data[i])

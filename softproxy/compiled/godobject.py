@@ -30,11 +30,12 @@ frame of the geom it touches, so a moving object carries it; an object that move
 pushes it out, never through a static surface: caught in a gap narrower than itself, the
 proxy is `squeezed` and rests on the static side (`push_out`).
 
-These kernels are the only god-object: `softproxy.proxy.GodObject` is a view of a finger
-record that calls the `*_row` entries at the end, and `softproxy.compiled.finger` calls
+These kernels are the only god-object: `softproxy.proxy.GodObject` is a view of a finger's
+records that calls the `*_row` entries at the end, and `softproxy.compiled.finger` calls
 `update` / `follow` / `reset` inside the tick.
 
-State: `g` is the finger's record (`layout.FINGER`), `near` its row of the broad phase's
+State: `fm` and `fd` are the finger's model and data (`layout.FINGER_MODEL`: its radius and
+friction; `FINGER_DATA`: the proxy, its planes and contact), `near` its row of the broad phase's
 shape list; shapes are rows of the table `S` (a mesh's triangles and grid in the tables `T`
 and `C`), posed by MuJoCo's `geom_xpos` / `geom_xmat`. A list of constraint planes is an
 (n, 6) array of rows (nx, ny, nz, c, shape row, triangle) plus a count; a plane keeps the
@@ -155,12 +156,12 @@ def set_plane(pl, i, nx, ny, nz, c, shape, row):
 
 
 @njit(cache=True, error_model="numpy")
-def _load_planes(g, pl):
+def _load_planes(fd, pl):
     """Copy the finger's planes into the scratch list pl; returns their count."""
-    n = int(g.nplanes)
+    n = int(fd.nplanes)
     for j in range(n):
         for k in range(PLANE_WIDTH):
-            pl[j, k] = g.planes[j, k]
+            pl[j, k] = fd.planes[j, k]
     return n
 
 
@@ -175,9 +176,9 @@ def _newest_three(dst, pl, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _store_planes(g, pl, n):
+def _store_planes(fd, pl, n):
     """The finger's planes := the newest three of pl[:n]."""
-    g.nplanes = _newest_three(g.planes, pl, n)
+    fd.nplanes = _newest_three(fd.planes, pl, n)
 
 
 @njit(cache=True, error_model="numpy")
@@ -335,7 +336,7 @@ def _touched(pl, n, nx, ny, nz):
 
 
 @njit(cache=True, error_model="numpy")
-def _touched_at(sh, g, near, x, y, z, nx, ny, nz, rested):
+def _touched_at(sh, fm, fd, near, x, y, z, nx, ny, nz, rested):
     """The shape the proxy at (x, y, z) touches, where it ends the tick (the pushed body is
     its body, the proxy is carried in its frame): among the near shapes whose surface is
     within TOUCH_TOL of the sphere, the one whose outward normal there is most aligned with
@@ -348,14 +349,14 @@ def _touched_at(sh, g, near, x, y, z, nx, ny, nz, rested):
     finger's first `rested` planes are known to rest on their shapes' surfaces at the proxy
     (checked by the solve): their shapes are in touch, their normals the planes', no query."""
     S, xpos = sh.S, sh.xpos
-    r = g.radius
+    r = fm.radius
     best, best_dot, best_gap = -1, -2.0, math.inf
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         s = near[j]
         dot = -2.0
         for i in range(rested):
-            if int(g.planes[i, PLANE_SHAPE]) == s:
-                c = along(g.planes, i, nx, ny, nz)
+            if int(fd.planes[i, PLANE_SHAPE]) == s:
+                c = along(fd.planes, i, nx, ny, nz)
                 if c > dot:
                     dot = c
         if dot > -2.0:  # resting on it (within LIFT_TOL): gap 0
@@ -378,11 +379,11 @@ def _touched_at(sh, g, near, x, y, z, nx, ny, nz, rested):
 
 
 @njit(cache=True, error_model="numpy")
-def _nearest(sh, g, near, x, y, z):
+def _nearest(sh, fd, near, x, y, z):
     """The near shape nearest the point (x, y, z) and its answer there: (row, signed distance
     (m), outward normal); row -1 when no shape is near."""
     best, best_d, bx, by, bz = -1, math.inf, 0.0, 0.0, 0.0
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         s = near[j]
         d, nx, ny, nz = shape_distance(sh, s, x, y, z)
         if d < best_d:
@@ -391,7 +392,7 @@ def _nearest(sh, g, near, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _land(sh, g, near, x, y, z, xd, yd, zd, pl):
+def _land(sh, fm, fd, near, x, y, z, xd, yd, zd, pl):
     """A proxy in contact that touches no shape at (x, y, z), brought onto a surface: a
     slipping proxy's point on the dynamic cone's edge lies on the chord from where it was
     held to the frictionless proxy, and across a convex edge or a step down that chord runs
@@ -399,7 +400,7 @@ def _land(sh, g, near, x, y, z, xd, yd, zd, pl):
     toward the device, which lies inside the constraint, onto the first surface it meets, so
     it ends touching the shape it pushes. pl: a scratch plane list. Returns the position."""
     dx, dy, dz = xd - x, yd - y, zd - z
-    hit, lam, _, _, _, _ = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, 0)
+    hit, lam, _, _, _, _ = _sweep(sh, fm, fd, near, x, y, z, dx, dy, dz, pl, 0)
     if hit:
         return x + lam * dx, y + lam * dy, z + lam * dz
     return x, y, z
@@ -417,14 +418,14 @@ def _on_static_faces(S, xmat, pl, n):
 
 
 @njit(cache=True, error_model="numpy")
-def gather_ball(sh, g, near, cx, cy, cz, room):
+def gather_ball(sh, fm, fd, near, cx, cy, cz, room):
     """near: every shape the proxy can touch while its centre stays within `room` (m) of c,
     the shapes whose bounding sphere meets the ball of radius room + r (a plane: when the
     ball reaches its surface). The ball is kept (bx, by, bz, room): a sub-move that would
     leave it widens it first."""
     S, xpos, xmat = sh.S, sh.xpos, sh.xmat
-    g.bx, g.by, g.bz, g.room = cx, cy, cz, room
-    reach = room + g.radius
+    fd.ball[0], fd.ball[1], fd.ball[2], fd.ball_room = cx, cy, cz, room
+    reach = room + fm.radius
     count = 0
     for s in range(S.shape[0]):
         k = int(S[s].geom)
@@ -438,33 +439,33 @@ def gather_ball(sh, g, near, cx, cy, cz, room):
         if dx * dx + dy * dy + dz * dz <= rb * rb:
             near[count] = s
             count += 1
-    g.nnear = count
+    fd.nnear = count
 
 
 @njit(cache=True, error_model="numpy")
-def _push_out_of(sh, g, near, static):
+def _push_out_of(sh, fm, fd, near, static):
     """One pass: the proxy out of every shape of `near` that is static (or moving) it overlaps,
     to CONTACT_TOL outside. True when it moved."""
     S = sh.S
-    r = g.radius
+    r = fm.radius
     moved = False
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         s = near[j]
         if S[s].static != static:
             continue
-        d, nx, ny, nz = shape_distance(sh, s, g.x, g.y, g.z)
+        d, nx, ny, nz = shape_distance(sh, s, fd.pos[0], fd.pos[1], fd.pos[2])
         gap = d - r
         if gap < 0.0:
             push = -gap + CONTACT_TOL
-            g.x += push * nx
-            g.y += push * ny
-            g.z += push * nz
+            fd.pos[0] += push * nx
+            fd.pos[1] += push * ny
+            fd.pos[2] += push * nz
             moved = True
     return moved
 
 
 @njit(cache=True, error_model="numpy")
-def push_out(sh, g, near):
+def push_out(sh, fm, fd, near):
     """Move the proxy out of any shape of `near` it overlaps (an object moved into it), to
     CONTACT_TOL outside: out of the moving shapes, then out of the static ones, a few rounds
     (a push out of one shape can push into another). The static shapes have the last word: a
@@ -473,117 +474,117 @@ def push_out(sh, g, near):
     is `squeezed`; while it is, the moving shape does not push it at all (out through its far
     side would be a jump of its whole thickness), until it has moved off the proxy."""
     S = sh.S
-    was = g.squeezed
+    was = fd.squeezed
     for _ in range(4):
-        moved = False if was else _push_out_of(sh, g, near, False)
-        moved = _push_out_of(sh, g, near, True) or moved
+        moved = False if was else _push_out_of(sh, fm, fd, near, False)
+        moved = _push_out_of(sh, fm, fd, near, True) or moved
         if not moved:
             break
-    g.squeezed = False
-    for j in range(int(g.nnear)):
+    fd.squeezed = False
+    for j in range(int(fd.nnear)):
         s = near[j]
-        if not S[s].static and shape_distance(sh, s, g.x, g.y, g.z)[0] - g.radius < -SQUEEZE_TOL:
-            g.squeezed = True
-            g.squeeze_ticks += 1
+        if not S[s].static and shape_distance(sh, s, fd.pos[0], fd.pos[1], fd.pos[2])[0] - fm.radius < -SQUEEZE_TOL:
+            fd.squeezed = True
+            fd.squeeze_ticks += 1
             return
 
 
 @njit(cache=True, error_model="numpy")
-def _rest_squeezed(sh, g, near, xd, yd, zd):
+def _rest_squeezed(sh, fd, near, xd, yd, zd):
     """A squeezed proxy (`push_out`) rests where the static surfaces put it, in contact with
     the nearest static shape: the finger renders that surface's spring force (never into it),
     held, no sweep through the moving object that overlaps it."""
     S = sh.S
     best, bd, bnx, bny, bnz = -1, math.inf, 0.0, 0.0, 0.0
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         s = near[j]
         if S[s].static:
-            d, nx, ny, nz = shape_distance(sh, s, g.x, g.y, g.z)
+            d, nx, ny, nz = shape_distance(sh, s, fd.pos[0], fd.pos[1], fd.pos[2])
             if d < bd:
                 best, bd, bnx, bny, bnz = s, d, nx, ny, nz
-    g.free_x, g.free_y, g.free_z = g.x, g.y, g.z
-    g.nfree = 0
+    fd.free_pos[:] = fd.pos
+    fd.nfree = 0
     if best < 0:  # squeezed against no static shape: not expected (only a static one pushes last)
-        g.contact = False
-        g.touched = -1
-        g.nplanes = 0
-        g.depth = 0.0
+        fd.contact = False
+        fd.touched = -1
+        fd.nplanes = 0
+        fd.depth = 0.0
         return
-    g.contact = True
-    g.touched = best
-    g.nx, g.ny, g.nz = bnx, bny, bnz
-    depth = (g.x - xd) * bnx + (g.y - yd) * bny + (g.z - zd) * bnz
-    g.depth = depth if depth > 0.0 else 0.0
-    g.sticking = True
-    g.nplanes = 1
-    set_plane(g.planes, 0, bnx, bny, bnz, bnx * g.x + bny * g.y + bnz * g.z, best, -1.0)
+    fd.contact = True
+    fd.touched = best
+    fd.normal[:] = bnx, bny, bnz
+    depth = (fd.pos[0] - xd) * bnx + (fd.pos[1] - yd) * bny + (fd.pos[2] - zd) * bnz
+    fd.depth = depth if depth > 0.0 else 0.0
+    fd.sticking = True
+    fd.nplanes = 1
+    set_plane(fd.planes, 0, bnx, bny, bnz, bnx * fd.pos[0] + bny * fd.pos[1] + bnz * fd.pos[2], best, -1.0)
 
 
 @njit(cache=True, error_model="numpy")
-def reset(sh, g, near, x, y, z):
+def reset(sh, fm, fd, near, x, y, z):
     """Put the proxy at (x, y, z) with no contact, every shape near, pushed out of any it
     overlaps; False (nothing changed) for a position outside the workspace."""
     S = sh.S
     if not (-WORKSPACE_LIMIT < x < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < y < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < z < WORKSPACE_LIMIT):
         return False
-    g.x, g.y, g.z = x, y, z
-    g.contact = False
-    g.nx = g.ny = g.nz = 0.0
-    g.touched = -1
-    g.depth = 0.0
-    g.sticking = False
-    g.slide_idle = 0.0
-    g.lx = g.ly = g.lz = 0.0
-    g.squeezed = False  # a new place has no past: pushed out of a moving shape as any proxy is
+    fd.pos[:] = x, y, z
+    fd.contact = False
+    fd.normal[:] = 0.0
+    fd.touched = -1
+    fd.depth = 0.0
+    fd.sticking = False
+    fd.slide_idle = 0.0
+    fd.local[:] = 0.0
+    fd.squeezed = False  # a new place has no past: pushed out of a moving shape as any proxy is
     for s in range(S.shape[0]):
         near[s] = s
-    g.nnear = S.shape[0]
-    push_out(sh, g, near)
+    fd.nnear = S.shape[0]
+    push_out(sh, fm, fd, near)
     return True
 
 
 @njit(cache=True, error_model="numpy")
-def _settle(sh, g, near, xd, yd, zd, around_proxy):
+def _settle(sh, fm, fd, near, xd, yd, zd, around_proxy):
     """Carry the proxy with the touched body, gather the shapes near it and the device, push
     it out of any that moved into it. Returns the proxy position before the push."""
     S, xpos, xmat = sh.S, sh.xpos, sh.xmat
-    shape = int(g.touched)
+    shape = int(fd.touched)
     carrier = -1
     if shape >= 0 and not S[shape].static:
         # carried by the touched object (stored in its frame at the end of last tick)
         carrier = shape
-        g.x, g.y, g.z = shape_to_world(S, xpos, xmat, shape, g.lx, g.ly, g.lz)
-    x, y, z = g.x, g.y, g.z
+        fd.pos[:] = shape_to_world(S, xpos, xmat, shape, fd.local[0], fd.local[1], fd.local[2])
+    x, y, z = fd.pos
     # broad phase: the shapes near the ball that holds both the proxy and the device, with a
     # margin of 1 mm (`_move_once` widens it if a sub-move would leave it)
     if around_proxy:
-        gather_ball(sh, g, near, x, y, z, g.radius + 1e-3)
+        gather_ball(sh, fm, fd, near, x, y, z, fm.radius + 1e-3)
     else:
         ex, ey, ez = xd - x, yd - y, zd - z
-        gather_ball(sh, g, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
-                    0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + g.radius + 1e-3)
+        gather_ball(sh, fm, fd, near, 0.5 * (x + xd), 0.5 * (y + yd), 0.5 * (z + zd),
+                    0.5 * math.sqrt(ex * ex + ey * ey + ez * ez) + fm.radius + 1e-3)
     # Only a moving shape can have come into the proxy, or a static one if the proxy itself
     # was carried; the carrier holds the proxy where it was, outside.
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         s = near[j]
         if s != carrier and (carrier >= 0 or not S[s].static):
-            push_out(sh, g, near)
+            push_out(sh, fm, fd, near)
             break
     else:
-        g.squeezed = False
+        fd.squeezed = False
     return x, y, z
 
 
 @njit(cache=True, error_model="numpy")
-def follow(sh, g, near):
+def follow(sh, fm, fd, near):
     """Without a device sample: the proxy stays on the body it touches and out of anything
     that moved into it, so a skipped tick never leaves it inside a moving object."""
-    _settle(sh, g, near, g.x, g.y, g.z, True)
+    _settle(sh, fm, fd, near, fd.pos[0], fd.pos[1], fd.pos[2], True)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, n):
+def _sweep(sh, fm, fd, near, x, y, z, dx, dy, dz, pl, n):
     """Earliest hit over the near shapes of the sphere moving by (dx, dy, dz): (found, lam,
     nx, ny, nz, shape row).
 
@@ -591,10 +592,10 @@ def _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, n):
     shape owning one of them lies behind it, so a move on or above it cannot enter the shape:
     it is not swept (a slide along a face or a tangent plane sweeps only the other shapes)."""
     S = sh.S
-    r = g.radius
+    r = fm.radius
     found = False
     best_lam, bnx, bny, bnz, bs = 1.0, 0.0, 0.0, 0.0, -1
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         s = near[j]
         if S[s].convex:
             behind = False
@@ -612,7 +613,7 @@ def _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _rests_on(sh, g, pl, i, x, y, z, on_surface):
+def _rests_on(sh, fm, fd, pl, i, x, y, z, on_surface):
     """True when the proxy at (x, y, z) still rests on plane pl[i] and on its shape's real
     surface, both within LIFT_TOL (m): a plane runs on past a face's edge, a curved shape
     falls away from its tangent plane, and a point friction held back short of the plane (on
@@ -625,35 +626,35 @@ def _rests_on(sh, g, pl, i, x, y, z, on_surface):
     if on_surface:
         return True
     s, f = int(pl[i, PLANE_SHAPE]), int(pl[i, PLANE_ROW])
-    if f >= 0 and shape_feature_distance(S, T, xpos, xmat, s, f, x, y, z)[0] - g.radius <= LIFT_TOL:
+    if f >= 0 and shape_feature_distance(S, T, xpos, xmat, s, f, x, y, z)[0] - fm.radius <= LIFT_TOL:
         return True
-    return shape_distance(sh, s, x, y, z)[0] - g.radius <= LIFT_TOL
+    return shape_distance(sh, s, x, y, z)[0] - fm.radius <= LIFT_TOL
 
 
 @njit(cache=True, error_model="numpy")
-def _keep_resting(sh, g, resting, nr, pl, n, x, y, z):
+def _keep_resting(sh, fm, fd, resting, nr, pl, n, x, y, z):
     """After friction held the proxy back from the frictionless end: the planes it rests on
     at (x, y, z), resting[:nr] (those a slide itself ran into) plus those of pl[:n] (the
     frictionless solve's) it still touches, on their real surfaces, not past an edge. The
     newest three become the finger's planes: what the next tick's warm start builds on."""
     for i in range(n):
-        if _rests_on(sh, g, pl, i, x, y, z, False) and \
+        if _rests_on(sh, fm, fd, pl, i, x, y, z, False) and \
                 _plane_of(resting, nr, int(pl[i, PLANE_SHAPE]), *normal(pl, i)) < 0:
             for k in range(PLANE_WIDTH):
                 resting[nr, k] = pl[i, k]
             nr += 1
-    _store_planes(g, resting, nr)
+    _store_planes(fd, resting, nr)
 
 
 @njit(cache=True, error_model="numpy")
-def _still_in_corner(sh, g, xd, yd, zd, pl, n):
+def _still_in_corner(sh, fd, xd, yd, zd, pl, n):
     """`_still_stuck` in a corner of three static faces: holds while projecting the device
     onto the three planes gives the corner point, where the proxy is (every plane pushes)."""
     S, xmat = sh.S, sh.xmat
     if not _on_static_faces(S, xmat, pl, n):
         return False
     found, qx, qy, qz = _corner(xd, yd, zd, pl)
-    x, y, z = g.x, g.y, g.z
+    x, y, z = fd.pos
     if not found or abs(qx - x) + abs(qy - y) + abs(qz - z) > 1e-12:
         return False
     ex, ey, ez = x - xd, y - yd, z - zd
@@ -662,14 +663,14 @@ def _still_in_corner(sh, g, xd, yd, zd, pl, n):
         return False
     nx, ny, nz = ex / depth, ey / depth, ez / depth
     best = _touched(pl, n, nx, ny, nz)
-    g.nx, g.ny, g.nz = nx, ny, nz
-    g.depth = depth
-    g.touched = best  # a static face: nothing carries the proxy
+    fd.normal[:] = nx, ny, nz
+    fd.depth = depth
+    fd.touched = best  # a static face: nothing carries the proxy
     return True
 
 
 @njit(cache=True, error_model="numpy")
-def _still_stuck(sh, g, near, xd, yd, zd, pl):
+def _still_stuck(sh, fm, fd, near, xd, yd, zd, pl):
     """Fast path of the hold: a stuck proxy that stays stuck, on one flat face or pinned in a
     corner of three static faces; True when it does (n, depth and planes updated).
 
@@ -679,13 +680,13 @@ def _still_stuck(sh, g, near, xd, yd, zd, pl):
     corner: the device pushes into all three faces, so f is the corner, where the proxy
     already is."""
     S = sh.S
-    n = _load_planes(g, pl)
+    n = _load_planes(fd, pl)
     if n == 3:
-        return _still_in_corner(sh, g, xd, yd, zd, pl, n)
-    shape = int(g.touched)
+        return _still_in_corner(sh, fd, xd, yd, zd, pl, n)
+    shape = int(fd.touched)
     if n != 1 or not S[shape].planar:
         return False
-    x, y, z, r = g.x, g.y, g.z, g.radius
+    x, y, z, r = fd.pos[0], fd.pos[1], fd.pos[2], fm.radius
     d, nx, ny, nz = shape_distance(sh, shape, x, y, z)
     if abs(d - r) > 1e-7:
         return False
@@ -697,21 +698,21 @@ def _still_stuck(sh, g, near, xd, yd, zd, pl):
     if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
         return False
     sx, sy, sz = x - fx, y - fy, z - fz
-    if sx * sx + sy * sy + sz * sz > (g.mu_s * depth) ** 2:
+    if sx * sx + sy * sy + sz * sz > (fm.mu_s * depth) ** 2:
         return False
-    for j in range(int(g.nnear)):  # an obstacle on the face between the proxy and f changes f
+    for j in range(int(fd.nnear)):  # an obstacle on the face between the proxy and f changes f
         s = near[j]
         if s != shape and shape_sweep(sh, s, x, y, z, fx - x, fy - y, fz - z, r)[0] >= 0.0:
             return False
-    set_plane(g.planes, 0, nx, ny, nz, nx * x + ny * y + nz * z, shape, -1.0)
-    g.nplanes = 1
-    g.nx, g.ny, g.nz = nx, ny, nz
-    g.depth = depth
+    set_plane(fd.planes, 0, nx, ny, nz, nx * x + ny * y + nz * z, shape, -1.0)
+    fd.nplanes = 1
+    fd.normal[:] = nx, ny, nz
+    fd.depth = depth
     return True
 
 
 @njit(cache=True, error_model="numpy")
-def _warm_planes(sh, g, x, y, z, warm):
+def _warm_planes(sh, fm, fd, x, y, z, warm):
     """Last tick's planes to start the solve from, into warm; returns their count (0: solve
     cold), when every one belongs to a static shape.
 
@@ -727,30 +728,30 @@ def _warm_planes(sh, g, x, y, z, warm):
     again from no planes (`_move`), so a warm start ends where the cold solve ends. Never
     unsafe either way: every motion is still swept."""
     S, xmat = sh.S, sh.xmat
-    n = int(g.nplanes)
+    n = int(fd.nplanes)
     count = 0
     for j in range(n):
-        p = g.planes[j]
+        p = fd.planes[j]
         s = int(p[PLANE_SHAPE])
         if not S[s].static:
             return 0
-        if shape_on_face(S, xmat, s, *normal(g.planes, j)):
+        if shape_on_face(S, xmat, s, *normal(fd.planes, j)):
             for k in range(PLANE_WIDTH):
                 warm[count, k] = p[k]
             count += 1
             continue
-        if g.rounding:  # sliding round a curve: a warm start would lift
+        if fd.rounding:  # sliding round a curve: a warm start would lift
             return 0
         if not S[s].convex:
             # a static mesh's plane, while the proxy is stuck and still on it
-            if not g.sticking or abs(along(g.planes, j, x, y, z) - g.planes[j, PLANE_OFFSET]) > LIFT_TOL:
+            if not fd.sticking or abs(along(fd.planes, j, x, y, z) - fd.planes[j, PLANE_OFFSET]) > LIFT_TOL:
                 return 0
             for k in range(PLANE_WIDTH):
                 warm[count, k] = p[k]
             count += 1
             continue
         d, nx, ny, nz = shape_distance(sh, s, x, y, z)
-        if d - g.radius > LIFT_TOL:
+        if d - fm.radius > LIFT_TOL:
             return 0
         # (a box's face and its rounded edge at their seam give one plane; its offset is taken
         # through the proxy in _move_once)
@@ -762,7 +763,7 @@ def _warm_planes(sh, g, x, y, z, warm):
 
 
 @njit(cache=True, error_model="numpy")
-def _free_from_last(sh, g, near, xd, yd, zd, warm):
+def _free_from_last(sh, fm, fd, near, xd, yd, zd, warm):
     """Last tick's frictionless proxy's planes, to solve this tick's frictionless proxy from
     there, into warm; returns their count (0: solve from the proxy) and the proxy's gap (m)
     to the surface it touches, within TOUCH_TOL (the chord of a slide back to the dynamic
@@ -778,14 +779,14 @@ def _free_from_last(sh, g, near, xd, yd, zd, warm):
     the surface at the proxy (which is then where the proxy touches first, as a sweep from
     it would find)."""
     S, T, xpos, xmat = sh.S, sh.T, sh.xpos, sh.xmat
-    n = int(g.nfree)
-    if n == 0 or not g.contact or g.touched < 0:
+    n = int(fd.nfree)
+    if n == 0 or not fd.contact or fd.touched < 0:
         return 0, 0.0
     # its own planes first: on a primitive (convex) the first one says no
-    fx, fy, fz, r = g.free_x, g.free_y, g.free_z, g.radius
+    fx, fy, fz, r = fd.free_pos[0], fd.free_pos[1], fd.free_pos[2], fm.radius
     m = 0
     for j in range(n):
-        p = g.free_planes[j]
+        p = fd.free_planes[j]
         s, f = int(p[PLANE_SHAPE]), int(p[PLANE_ROW])
         if S[s].convex:
             return 0, 0.0
@@ -805,29 +806,29 @@ def _free_from_last(sh, g, near, xd, yd, zd, warm):
             m += 1
     if m == 0:
         return 0, 0.0
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         if not S[near[j]].static:
             return 0, 0.0
-    x, y, z = g.x, g.y, g.z
-    d, nx, ny, nz = shape_distance(sh, int(g.touched), x, y, z)
-    if d - g.radius > TOUCH_TOL or nx * (xd - x) + ny * (yd - y) + nz * (zd - z) >= 0.0:
+    x, y, z = fd.pos
+    d, nx, ny, nz = shape_distance(sh, int(fd.touched), x, y, z)
+    if d - fm.radius > TOUCH_TOL or nx * (xd - x) + ny * (yd - y) + nz * (zd - z) >= 0.0:
         return 0, 0.0
-    return m, d - g.radius
+    return m, d - fm.radius
 
 
 @njit(cache=True, error_model="numpy")
-def _arrives(sh, g, near, x, y, z, dx, dy, dz, pl):
+def _arrives(sh, fm, fd, near, x, y, z, dx, dy, dz, pl):
     """True when a sweep by (dx, dy, dz) (m) from (x, y, z) meets nothing before its end,
     where it may arrive touching (within LIFT_TOL); never for a way with NaN or inf in it."""
     length = math.sqrt(dx * dx + dy * dy + dz * dz)
     if not finite(abs(x) + abs(y) + abs(z) + length):
         return False
-    hit, lam, _, _, _, _ = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, 0)
+    hit, lam, _, _, _, _ = _sweep(sh, fm, fd, near, x, y, z, dx, dy, dz, pl, 0)
     return not hit or (1.0 - lam) * length <= LIFT_TOL
 
 
 @njit(cache=True, error_model="numpy")
-def _clear_way(sh, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
+def _clear_way(sh, fm, fd, near, x, y, z, px, py, pz, nx, ny, nz, pl):
     """True when the proxy can move from (x, y, z), on the surface, to (px, py, pz), resting
     on it with outward normal n there, through free space: straight, or over the arc.
 
@@ -837,9 +838,9 @@ def _clear_way(sh, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
     twice that along its normal first, three sweeps: it crosses no rise higher than the
     arc's own, and no surface (every leg is swept)."""
     dx, dy, dz = px - x, py - y, pz - z
-    if _arrives(sh, g, near, x, y, z, dx, dy, dz, pl):
+    if _arrives(sh, fm, fd, near, x, y, z, dx, dy, dz, pl):
         return True
-    s, _, mx, my, mz = _nearest(sh, g, near, x, y, z)
+    s, _, mx, my, mz = _nearest(sh, fd, near, x, y, z)
     c = min(mx * nx + my * ny + mz * nz, 1.0)  # (unit normals: a hair over 1 by rounding)
     if s < 0 or c <= 0.0:
         return False
@@ -848,13 +849,13 @@ def _clear_way(sh, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
     lift = math.sqrt(dx * dx + dy * dy + dz * dz) * t2 / (1.0 + math.sqrt(1.0 + t2 * t2)) + LIFT_TOL
     ux, uy, uz = x + lift * mx, y + lift * my, z + lift * mz
     vx, vy, vz = px + lift * nx, py + lift * ny, pz + lift * nz
-    return _arrives(sh, g, near, x, y, z, ux - x, uy - y, uz - z, pl) \
-        and _arrives(sh, g, near, ux, uy, uz, vx - ux, vy - uy, vz - uz, pl) \
-        and _arrives(sh, g, near, vx, vy, vz, px - vx, py - vy, pz - vz, pl)
+    return _arrives(sh, fm, fd, near, x, y, z, ux - x, uy - y, uz - z, pl) \
+        and _arrives(sh, fm, fd, near, ux, uy, uz, vx - ux, vy - uy, vz - uz, pl) \
+        and _arrives(sh, fm, fd, near, vx, vy, vz, px - vx, py - vy, pz - vz, pl)
 
 
 @njit(cache=True, error_model="numpy")
-def _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl):
+def _rest_nearest(sh, fm, fd, near, x, y, z, gx, gy, gz, pl):
     """The end of a move toward the goal g (m, world) from (x, y, z), when it is the position
     r off the surface point q nearest the goal, along the normal there: (found, the
     position), and the plane it rests on (q's tangent plane) in pl[0] when found.
@@ -867,18 +868,18 @@ def _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl):
     a distance at the goal, one to four sweeps and a distance at the end. A corner (the end
     overlaps another shape) is left to sliding."""
     S = sh.S
-    r = g.radius
-    s, d, nx, ny, nz = _nearest(sh, g, near, gx, gy, gz)
+    r = fm.radius
+    s, d, nx, ny, nz = _nearest(sh, fd, near, gx, gy, gz)
     if s < 0 or d >= r:
         return False, x, y, z
     f = shape_feature(S, s)  # before the sweep below queries s again
     px, py, pz = gx + (r - d) * nx, gy + (r - d) * ny, gz + (r - d) * nz
-    ex, ey, ez = px - g.bx, py - g.by, pz - g.bz
-    if ex * ex + ey * ey + ez * ez > g.room * g.room:  # past the shapes gathered
+    ex, ey, ez = px - fd.ball[0], py - fd.ball[1], pz - fd.ball[2]
+    if ex * ex + ey * ey + ez * ez > fd.ball_room * fd.ball_room:  # past the shapes gathered
         return False, x, y, z
-    if not _clear_way(sh, g, near, x, y, z, px, py, pz, nx, ny, nz, pl):
+    if not _clear_way(sh, fm, fd, near, x, y, z, px, py, pz, nx, ny, nz, pl):
         return False, x, y, z
-    for j in range(int(g.nnear)):
+    for j in range(int(fd.nnear)):
         if shape_distance(sh, near[j], px, py, pz)[0] - r < -LIFT_TOL:
             return False, x, y, z
     set_plane(pl, 0, nx, ny, nz, nx * px + ny * py + nz * pz, s, f)
@@ -886,7 +887,7 @@ def _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl):
 
 
 @njit(cache=True, error_model="numpy")
-def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
+def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """Constrained motion from (x, y, z) toward (gx, gy, gz), starting from the planes
     warm[:nwarm] the proxy rests on (none: cold). Returns (restart, x, y, z, hx, hy, hz,
     straight, n): restart when what a warm start assumed no longer holds (`_move` solves
@@ -902,8 +903,8 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
     hx = hy = hz = 0.0
     straight = True
     on_surfaces = False
-    g.rounding = False
-    r = g.radius
+    fd.rounding = False
+    r = fm.radius
     tx, ty, tz = gx, gy, gz
     if nwarm > 0:
         # through the proxy as it is now: it may sit up to LIFT_TOL off a plane's old offset,
@@ -929,7 +930,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
             tx, ty, tz = qx, qy, qz
     # a warm start saves the sweeps that would have found its planes, one each, not the budget
     # of those that follow: it ends where a cold solve ends, for less
-    bx, by, bz, room2 = g.bx, g.by, g.bz, g.room * g.room
+    bx, by, bz, room2 = fd.ball[0], fd.ball[1], fd.ball[2], fd.ball_room * fd.ball_room
     following = False  # the last sweep slid along a tangent plane that then lifted off
     hits = 0
     for _ in range(MAX_ITERATIONS - n):
@@ -941,11 +942,11 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
         # it (round a curved surface, along a plane's projection) widens it first
         ex, ey, ez = tx - bx, ty - by, tz - bz
         if ex * ex + ey * ey + ez * ez > room2:
-            gather_ball(sh, g, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
-            room2 = g.room * g.room
+            gather_ball(sh, fm, fd, near, bx, by, bz, math.sqrt(ex * ex + ey * ey + ez * ez) + 1e-3)
+            room2 = fd.ball_room * fd.ball_room
         # the proxy and the target are on or above every plane (the target is projected onto
         # them; a hit, a lifted plane's replacement lie below the proxy)
-        hit, lam, nx, ny, nz, s = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, n)
+        hit, lam, nx, ny, nz, s = _sweep(sh, fm, fd, near, x, y, z, dx, dy, dz, pl, n)
         if not hit:
             x, y, z = tx, ty, tz
             if n == 0 or (tx == gx and ty == gy and tz == gz):
@@ -960,7 +961,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
             # the sweep that follows meets any in the way)
             nk = 0
             lifted = False
-            fd = fnx = fny = fnz = 0.0
+            fdist = fnx = fny = fnz = 0.0
             for i in range(n):
                 si, fi = int(pl[i, PLANE_SHAPE]), int(pl[i, PLANE_ROW])
                 if fi >= 0:
@@ -970,7 +971,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
                             kept[nk, k] = pl[i, k]
                         nk += 1
                         continue
-                    fd, fnx, fny, fnz = d, mx, my, mz  # its triangle's distance and normal
+                    fdist, fnx, fny, fnz = d, mx, my, mz  # its triangle's distance and normal
                     d, mx, my, mz, walked = shape_walk_distance(sh, si, fi, x, y, z)
                     f = float(walked)
                 else:
@@ -988,7 +989,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
                         # the facet under the proxy is another than the plane's triangle, and
                         # not in its plane: an edge hit and slid past, beside a facet still
                         # touched. Its triangle's tangent plane replaces it below
-                        d, mx, my, mz, f = fd, fnx, fny, fnz, float(fi)
+                        d, mx, my, mz, f = fdist, fnx, fny, fnz, float(fi)
                 lifted = True
                 dup = False
                 for q in range(nk):
@@ -1003,7 +1004,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
             if not lifted:
                 on_surfaces = True  # every plane's real surface is under the proxy
                 break
-            g.rounding = True
+            fd.rounding = True
             if nwarm > 0 and not follow_lifts:  # what the warm start assumed no longer holds: solve cold
                 return True, x, y, z, hx, hy, hz, straight, 0
             straight = False
@@ -1013,7 +1014,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
             n = nk
             hits += 1  # rolling round an edge creeps: SLIDE_HITS
             if hits == SLIDE_HITS:
-                done, x, y, z = _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl)
+                done, x, y, z = _rest_nearest(sh, fm, fd, near, x, y, z, gx, gy, gz, pl)
                 if done:
                     n = 1
                     break
@@ -1033,7 +1034,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
         if hits == SLIDE_HITS and S[s].type == GEOM_MESH:
             # sliding across a mesh's facets, one sweep each: to where sliding ends, if that
             # is one clear move away
-            done, x, y, z = _rest_nearest(sh, g, near, x, y, z, gx, gy, gz, pl)
+            done, x, y, z = _rest_nearest(sh, fm, fd, near, x, y, z, gx, gy, gz, pl)
             if done:
                 n = 1
                 break
@@ -1047,7 +1048,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
         # (a jump of centimetres a tick deep into it): one sweep straight toward the goal puts
         # it back on the surface, in contact, instead of microns above it with no force for a tick
         dx, dy, dz = gx - x, gy - y, gz - z
-        hit, lam, nx, ny, nz, s = _sweep(sh, g, near, x, y, z, dx, dy, dz, pl, 0)
+        hit, lam, nx, ny, nz, s = _sweep(sh, fm, fd, near, x, y, z, dx, dy, dz, pl, 0)
         if not hit:
             x, y, z = gx, gy, gz
         else:
@@ -1058,7 +1059,7 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
             n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(S, s))
     nr = 0  # keep only the planes the proxy still rests on (the loop may end before it checked)
     for i in range(n):
-        if _rests_on(sh, g, pl, i, x, y, z, on_surfaces):
+        if _rests_on(sh, fm, fd, pl, i, x, y, z, on_surfaces):
             for k in range(PLANE_WIDTH):
                 pl[nr, k] = pl[i, k]
             nr += 1
@@ -1071,19 +1072,19 @@ def _move_once(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
 
 
 @njit(cache=True, error_model="numpy")
-def _move(sh, g, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
+def _move(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """`_move_once`, warm-started, and solved again cold when the warm start's planes did not
     hold: (x, y, z, hx, hy, hz, straight, n), the resting planes in pl[:n]."""
-    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, g, near, x, y, z, gx, gy, gz,
+    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz,
                                                               warm, nwarm, pl, kept, follow_lifts)
     if restart:  # what the warm start assumed no longer holds: solve again from no planes
-        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, g, near, x, y, z, gx, gy, gz,
+        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz,
                                                                   warm, 0, pl, kept, False)
     return ex, ey, ez, hx, hy, hz, straight, n
 
 
 @njit(cache=True, error_model="numpy")
-def _slips(g, sx, sy, sz, slide, depth):
+def _slips(fm, fd, sx, sy, sz, slide, depth):
     """The friction cone's state this tick, from the offset s = h - f (m) of the proxy's first
     surface point h from the frictionless proxy f, |s| = slide, and the depth (m): True for
     slipping (dynamic cone), False for stuck (static cone).
@@ -1094,15 +1095,15 @@ def _slips(g, sx, sy, sz, slide, depth):
     RESTICK_FRACTION × μ_d·depth (the motion has not reversed). Otherwise, stuck or
     re-stuck, it slips when s leaves the static cone, |s| > μ_s·depth: with `slide_restick`
     0 that is the only test, every tick."""
-    if g.contact and not g.sticking and g.slide_idle < g.slide_restick:
-        along = sx * g.slide_ux + sy * g.slide_uy + sz * g.slide_uz
-        if along >= RESTICK_FRACTION * g.mu_d * depth:
+    if fd.contact and not fd.sticking and fd.slide_idle < fm.slide_restick:
+        along = sx * fd.slide_dir[0] + sy * fd.slide_dir[1] + sz * fd.slide_dir[2]
+        if along >= RESTICK_FRACTION * fm.mu_d * depth:
             return True
-    return slide > g.mu_s * depth
+    return slide > fm.mu_s * depth
 
 
 @njit(cache=True, error_model="numpy")
-def update(sh, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
+def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
     """Move the proxy toward the device position (m, world) over a tick of dt s (the friction
     cone's re-stick time counts in it): the tick's god-object.
 
@@ -1111,47 +1112,47 @@ def update(sh, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
     S, xpos, xmat = sh.S, sh.xpos, sh.xmat
     if not (-WORKSPACE_LIMIT < xd < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < yd < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < zd < WORKSPACE_LIMIT):
-        follow(sh, g, near)
+        follow(sh, fm, fd, near)
         return False
-    x, y, z = _settle(sh, g, near, xd, yd, zd, False)
-    if g.squeezed:
-        _rest_squeezed(sh, g, near, xd, yd, zd)
+    x, y, z = _settle(sh, fm, fd, near, xd, yd, zd, False)
+    if fd.squeezed:
+        _rest_squeezed(sh, fd, near, xd, yd, zd)
         return True
-    if g.sticking and g.x == x and g.y == y and g.z == z \
-            and _still_stuck(sh, g, near, xd, yd, zd, pl):
+    if fd.sticking and fd.pos[0] == x and fd.pos[1] == y and fd.pos[2] == z \
+            and _still_stuck(sh, fm, fd, near, xd, yd, zd, pl):
         return True
-    x, y, z = g.x, g.y, g.z
+    x, y, z = fd.pos
     n = 0
-    nfree, gap = _free_from_last(sh, g, near, xd, yd, zd, warm)
+    nfree, gap = _free_from_last(sh, fm, fd, near, xd, yd, zd, warm)
     hx, hy, hz = x, y, z
     if nfree > 0 and gap > LIFT_TOL:
         # the proxy ended last tick on the chord of its slide back to the dynamic cone, which
         # floats up to TOUCH_TOL over a concave patch: where it touches first is where a
         # sweep from it toward the device touches, as the solve from it would find
-        hit, lam, _, _, _, _ = _sweep(sh, g, near, x, y, z, xd - x, yd - y, zd - z, pl, 0)
+        hit, lam, _, _, _, _ = _sweep(sh, fm, fd, near, x, y, z, xd - x, yd - y, zd - z, pl, 0)
         if hit:
             hx, hy, hz = x + lam * (xd - x), y + lam * (yd - y), z + lam * (zd - z)
         else:
             nfree = 0
     if nfree > 0:
         # a plane lifting on the way is followed on: both ends are reached through free space
-        fx, fy, fz, _, _, _, _, n = _move(sh, g, near, g.free_x, g.free_y, g.free_z, xd, yd, zd,
+        fx, fy, fz, _, _, _, _, n = _move(sh, fm, fd, near, fd.free_pos[0], fd.free_pos[1], fd.free_pos[2], xd, yd, zd,
                                           warm, nfree, pl, kept, True)
         straight = False  # the proxy is where it touches first (h)
     if n == 0:
-        nwarm = _warm_planes(sh, g, x, y, z, warm)
-        fx, fy, fz, hx, hy, hz, straight, n = _move(sh, g, near, x, y, z, xd, yd, zd, warm, nwarm,
+        nwarm = _warm_planes(sh, fm, fd, x, y, z, warm)
+        fx, fy, fz, hx, hy, hz, straight, n = _move(sh, fm, fd, near, x, y, z, xd, yd, zd, warm, nwarm,
                                                     pl, kept, False)
     # the frictionless proxy and its planes, for the next tick
-    g.free_x, g.free_y, g.free_z = fx, fy, fz
-    g.nfree = _newest_three(g.free_planes, pl, n)
+    fd.free_pos[:] = fx, fy, fz
+    fd.nfree = _newest_three(fd.free_planes, pl, n)
     if n == 0:
-        g.nplanes = 0
-        g.x, g.y, g.z = fx, fy, fz
-        g.contact = False
-        g.touched = -1
-        g.depth = 0.0
-        g.sticking = False
+        fd.nplanes = 0
+        fd.pos[:] = fx, fy, fz
+        fd.contact = False
+        fd.touched = -1
+        fd.depth = 0.0
+        fd.sticking = False
         return True
 
     # constraint direction: from the device to the frictionless proxy
@@ -1165,29 +1166,29 @@ def update(sh, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
     # friction cone, tested from the first surface point the proxy reached this tick
     sx, sy, sz = hx - fx, hy - fy, hz - fz
     slide = math.sqrt(sx * sx + sy * sy + sz * sz)
-    slipping = _slips(g, sx, sy, sz, slide, depth)
+    slipping = _slips(fm, fd, sx, sy, sz, slide, depth)
     # held at h: stuck, or slipping with the device inside the dynamic cone (not pulling on)
-    held = not slipping or slide <= g.mu_d * depth
-    _store_planes(g, pl, n)
+    held = not slipping or slide <= fm.mu_d * depth
+    _store_planes(fd, pl, n)
     if held:
         fx, fy, fz = hx, hy, hz
         if slide > 0.0:  # held back: keep the planes that reach back to h
-            _keep_resting(sh, g, saved, 0, pl, n, hx, hy, hz)
+            _keep_resting(sh, fm, fd, saved, 0, pl, n, hx, hy, hz)
     else:
         # slides: remember which way, for the reversal test of the next ticks
-        g.slide_ux, g.slide_uy, g.slide_uz = sx / slide, sy / slide, sz / slide
-        if g.sticking or not g.contact:  # a new slip
-            g.slide_idle = g.slide_travel = 0.0
-        g.slide_travel += slide - g.mu_d * depth
+        fd.slide_dir[:] = sx / slide, sy / slide, sz / slide
+        if fd.sticking or not fd.contact:  # a new slip
+            fd.slide_idle = fd.slide_travel = 0.0
+        fd.slide_travel += slide - fm.mu_d * depth
     if slipping:  # the stop watch: time since the proxy last slid RESTICK_TRAVEL of its offset
-        if g.slide_travel >= restick_travel(RESTICK_TRAVEL * g.mu_d * depth, RESTICK_SPEED, g.slide_restick):
-            g.slide_idle = g.slide_travel = 0.0
+        if fd.slide_travel >= restick_travel(RESTICK_TRAVEL * fm.mu_d * depth, RESTICK_SPEED, fm.slide_restick):
+            fd.slide_idle = fd.slide_travel = 0.0
         else:
-            g.slide_idle += dt
-    if not held and g.mu_d > 0.0:
+            fd.slide_idle += dt
+    if not held and fm.mu_d > 0.0:
         # back to the dynamic cone's edge: a point on the way from h to the frictionless proxy
         # (back < 1 since slide > μ_d·depth)
-        back = g.mu_d * depth / slide
+        back = fm.mu_d * depth / slide
         tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
         if straight:  # h to f was one swept, clear segment: t lies on it, nothing to sweep
             fx, fy, fz = tx, ty, tz
@@ -1195,26 +1196,26 @@ def update(sh, g, near, xd, yd, zd, dt, pl, saved, warm, kept):
             for j in range(n):  # the frictionless solve's planes, kept aside
                 for k in range(PLANE_WIDTH):
                     saved[j, k] = pl[j, k]
-            fx, fy, fz, _, _, _, _, m = _move(sh, g, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept,
+            fx, fy, fz, _, _, _, _, m = _move(sh, fm, fd, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept,
                                               False)
-            _keep_resting(sh, g, pl, m, saved, n, fx, fy, fz)
-    g.contact = True
-    g.nx, g.ny, g.nz = nx, ny, nz
-    g.depth = depth
-    g.sticking = not slipping
+            _keep_resting(sh, fm, fd, pl, m, saved, n, fx, fy, fz)
+    fd.contact = True
+    fd.normal[:] = nx, ny, nz
+    fd.depth = depth
+    fd.sticking = not slipping
     # the finger's planes rest on their shapes at the proxy (checked by the solve or by
     # _keep_resting), except those of the frictionless proxy kept for a point on the chord
-    rested = 0 if (not held and g.mu_d > 0.0 and straight) else int(g.nplanes)
-    best = _touched_at(sh, g, near, fx, fy, fz, nx, ny, nz, rested)
+    rested = 0 if (not held and fm.mu_d > 0.0 and straight) else int(fd.nplanes)
+    best = _touched_at(sh, fm, fd, near, fx, fy, fz, nx, ny, nz, rested)
     if best < 0:  # floating on the chord across an edge: down onto the surface it pushes
-        fx, fy, fz = _land(sh, g, near, fx, fy, fz, xd, yd, zd, saved)
-        best = _touched_at(sh, g, near, fx, fy, fz, nx, ny, nz, 0)
+        fx, fy, fz = _land(sh, fm, fd, near, fx, fy, fz, xd, yd, zd, saved)
+        best = _touched_at(sh, fm, fd, near, fx, fy, fz, nx, ny, nz, 0)
         if best < 0:  # not expected: a proxy in contact ends on a surface
-            best = _nearest(sh, g, near, fx, fy, fz)[0]
-    g.x, g.y, g.z = fx, fy, fz
-    g.touched = best
+            best = _nearest(sh, fd, near, fx, fy, fz)[0]
+    fd.pos[:] = fx, fy, fz
+    fd.touched = best
     if not S[best].static:  # remember the proxy in the touched geom's frame: it carries it
-        g.lx, g.ly, g.lz = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
+        fd.local[:] = shape_to_local(S, xpos, xmat, best, fx, fy, fz)
     return True
 
 
@@ -1225,15 +1226,16 @@ def scratch() -> np.ndarray:
 
 # -- entries for the views (`softproxy.proxy.GodObject`): finger i of a table ------------------
 @njit(cache=True, error_model="numpy")
-def reset_row(sh, F, near, i, x, y, z):
-    return reset(sh, F[i], near[i], x, y, z)
+def reset_row(sh, fg, i, x, y, z):
+    return reset(sh, fg.model[i], fg.data[i], fg.near[i], x, y, z)
 
 
 @njit(cache=True, error_model="numpy")
-def update_row(sh, F, near, i, xd, yd, zd, dt, scratch):
-    return update(sh, F[i], near[i], xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3])
+def update_row(sh, fg, i, xd, yd, zd, dt):
+    sc = fg.scratch
+    return update(sh, fg.model[i], fg.data[i], fg.near[i], xd, yd, zd, dt, sc[0], sc[1], sc[2], sc[3])
 
 
 @njit(cache=True, error_model="numpy")
-def follow_row(sh, F, near, i):
-    follow(sh, F[i], near[i])
+def follow_row(sh, fg, i):
+    follow(sh, fg.model[i], fg.data[i], fg.near[i])

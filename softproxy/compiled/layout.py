@@ -1,9 +1,13 @@
 """Where each number of the engine lives: record dtypes for shapes and fingers, columns of the mesh tables.
 
-The engine keeps every shape and every finger as a record of a numpy array (named, typed
-fields), so that one compiled call runs the fingers of a tick with no Python objects, and the
-Python classes users see (`SoftFingerProxy`, `GodObject`, `TorsionalFriction`, the shapes)
-are views onto those records: nothing to copy back and forth. Poses are read straight from
+The engine keeps every shape and every finger as records of numpy arrays (named, typed
+fields; a vector is a sub-array, `("pos", f8, 3)`), so that one compiled call runs the
+fingers of a tick with no Python objects, and the Python classes users see
+(`SoftFingerProxy`, `GodObject`, `TorsionalFriction`, the shapes) are views onto those
+records: nothing to copy back and forth. As MuJoCo keeps mjModel apart from mjData, a
+finger is two records: its model (`FINGER_MODEL`, what a run holds constant: radius,
+friction, stiffness, clamps, the torsion law) and its data (`FINGER_DATA`, what a tick
+changes); the kernels name them `fm` and `fd`. Poses are read straight from
 MuJoCo's `geom_xpos` (ngeom × 3) and `geom_xmat` (ngeom × 9, row-major: r00 r01 r02 r10 … r22).
 A mesh's triangles and grid are flat float tables (T, C) with named column offsets.
 """
@@ -22,8 +26,12 @@ Shapes = namedtuple("Shapes", "S T C xpos xmat cvel")
 triangle table T and the mesh grids C (None in a world without meshes), and their poses,
 views of mjData: geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9), cvel (nbody × 6: the
 touched body's spin drags the torsion). `softproxy.geometry.ShapeSet.tables` holds one."""
-FingerTables = namedtuple("FingerTables", "F near device_of scratch wrench bodies counts ws")
-"""The fingers: their FINGER records, each one's near shapes, the device sample row each
+Fingers = namedtuple("Fingers", "model data near scratch")
+"""A table of fingers as the kernels take it (`fg`): their FINGER_MODEL and FINGER_DATA records,
+each one's near shapes (rows of the shape table) and the god-object's scratch.
+`softproxy.finger_rows.FingerRows.tables` holds one."""
+FingerTables = namedtuple("FingerTables", "model data near device_of scratch wrench bodies counts ws")
+"""The fingers: their FINGER_MODEL and FINGER_DATA records, each one's near shapes, the device sample row each
 reads, the god-object's scratch, the body wrenches with their body lists and counts, and the
 implicit coupling's workspace (`softproxy.compiled.coupling`)."""
 DeviceIO = namedtuple("DeviceIO", "io samples samples_at limits")
@@ -171,82 +179,94 @@ PATCH_RECORDS = 128
 P_RECORDS = P_KEYS + PATCH_RECORDS
 PATCH_WIDTH = P_RECORDS + PATCH_RECORDS * RECORD_WIDTH
 
-# -- finger state: one record per finger ----------------------------------------------------
-FINGER = np.dtype([
+# -- a finger: its model (what a run holds constant) and its data (what a tick changes) ------
+FINGER_MODEL = np.dtype([
+    ("radius", np.float64),                 # proxy radius (m)
+    ("mu_s", np.float64), ("mu_d", np.float64),  # the god-object's friction cone, static and dynamic
+    ("slide_restick", np.float64),          # a slide re-sticks after this long still (s); 0: per tick
+    ("stiffness", np.float64),              # k, the coupling spring (N/m)
+    ("damping", np.float64),                # b, the coupling damper (N·s/m)
+    ("max_force", np.float64), ("max_torque", np.float64),  # the finger's clamps (N, N·m)
+    ("origin", np.float64, 3),              # device to world: world = origin + scale × device (m)
+    ("scale", np.float64),
+    ("max_speed", np.float64),              # the spike filter's speed (m/s)
+    ("soft_start", np.float64),             # s for the clamps to ramp up after placement
+    # torsion (`softproxy.torsion.TorsionalFriction`): the fingertip law, eqs 26-27 and 38-40
+    ("has_torsion", np.bool_),              # a soft finger; False: a point contact
+    ("torsion_stiffness", np.float64),      # k_τ (N·m/rad)
+    ("torsion_damping", np.float64),        # b_τ (N·m·s/rad)
+    ("torsion_mu_s", np.float64), ("torsion_mu_d", np.float64), ("gamma", np.float64),
+    ("saturate", np.bool_),                 # the limit follows eq 26 above P*
+    ("ratio", np.float64),                  # μ_d / μ_s
+    ("mu_prime", np.float64), ("r0", np.float64), ("p_star", np.float64),  # the model's law (eqs 26-27)
+    ("torsion_restick", np.float64),        # a twist slip re-sticks after this long still (s); 0: per tick
+], align=True)
+"""A finger's model: its parameters, set when it is built (`SoftFingerProxy`, `GodObject`,
+`TorsionalFriction`) and read by every tick. `fm` in the kernels."""
+
+FINGER_DATA = np.dtype([
     # the god-object (`softproxy.proxy.GodObject` is its view)
-    ("x", np.float64), ("y", np.float64), ("z", np.float64),      # proxy centre (m, world)
+    ("pos", np.float64, 3),                 # proxy centre (m, world)
     ("contact", np.bool_),
-    ("nx", np.float64), ("ny", np.float64), ("nz", np.float64),   # contact normal, out of the object
-    ("touched", np.int64),                                        # touched shape (row of the shape table) or -1
-    ("depth", np.float64),                                        # how far the device is inside the constraint (m)
+    ("normal", np.float64, 3),              # contact normal, unit, out of the object
+    ("touched", np.int64),                  # touched shape (row of the shape table) or -1
+    ("depth", np.float64),                  # how far the device is inside the constraint (m)
     ("sticking", np.bool_),
-    ("lx", np.float64), ("ly", np.float64), ("lz", np.float64),   # proxy in the touched geom's frame (m)
-    ("bx", np.float64), ("by", np.float64), ("bz", np.float64), ("room", np.float64),  # the broad phase's ball (m)
-    ("rounding", np.bool_),                                       # the last solve followed a surface round
+    ("local", np.float64, 3),               # the proxy in the touched geom's frame (m)
+    ("ball", np.float64, 3), ("ball_room", np.float64),  # the broad phase's ball: centre, room (m)
+    ("rounding", np.bool_),                 # the last solve followed a surface round
     ("nplanes", np.int64),
-    ("planes", np.float64, (3, PLANE_WIDTH)),                     # constraint planes: nx, ny, nz, c, shape row, triangle
-    ("free_x", np.float64), ("free_y", np.float64), ("free_z", np.float64),  # last tick's frictionless proxy (m)
+    ("planes", np.float64, (3, PLANE_WIDTH)),  # constraint planes (PLANE_NORMAL, PLANE_OFFSET, …)
+    ("free_pos", np.float64, 3),            # last tick's frictionless proxy (m)
     ("nfree", np.int64),
-    ("free_planes", np.float64, (3, PLANE_WIDTH)),                # the planes it rested on
-    ("radius", np.float64), ("mu_s", np.float64), ("mu_d", np.float64),
+    ("free_planes", np.float64, (3, PLANE_WIDTH)),  # the planes it rested on
     # the friction cone's slip state (sticking False while in contact: slipping, dynamic cone)
-    ("slide_ux", np.float64), ("slide_uy", np.float64), ("slide_uz", np.float64),  # unit offset of the last slide
-    ("slide_idle", np.float64),                                   # s since it last slid RESTICK_TRAVEL of its offset
-    ("slide_travel", np.float64),                                 # m slid since then
-    ("slide_restick", np.float64),                                # re-stick after this long still (s); 0: per tick
-    ("nnear", np.int64),                                          # how many shape rows `near` holds
-    ("squeezed", np.bool_),                                       # caught between a moving and a static shape
-    ("squeeze_ticks", np.int64),                                  # ticks it was
-    # the finger (`softproxy.finger.SoftFingerProxy`)
+    ("slide_dir", np.float64, 3),           # unit offset of the last slide
+    ("slide_idle", np.float64),             # s since it last slid RESTICK_TRAVEL of its offset
+    ("slide_travel", np.float64),           # m slid since then
+    ("nnear", np.int64),                    # how many shape rows `near` holds
+    ("squeezed", np.bool_),                 # caught between a moving and a static shape
+    ("squeeze_ticks", np.int64),            # ticks it was
+    # the coupling (`softproxy.finger.SoftFingerProxy`)
     ("placed", np.bool_),
-    ("k", np.float64), ("b", np.float64), ("b_tau", np.float64),  # N/m, N·s/m, N·m·s/rad
-    ("max_force", np.float64), ("max_torque", np.float64),        # N, N·m
-    ("ox", np.float64), ("oy", np.float64), ("oz", np.float64), ("scale", np.float64),  # device to world
-    ("max_speed", np.float64), ("soft_start", np.float64),        # m/s, s
-    ("dt", np.float64),                                           # the last tick's period (s)
-    ("ramp", np.float64),                                         # soft start: fraction of the clamps in force
-    ("xd", np.float64), ("yd", np.float64), ("zd", np.float64),   # device position (m, world)
-    ("twist_prev", np.float64),                                   # last tick's device twist (rad), for the damper
-    ("body_turn", np.float64),                                    # the touched body's turn about n this tick (rad)
-    ("fx", np.float64), ("fy", np.float64), ("fz", np.float64),   # force on the finger (N, world)
-    ("torque", np.float64),                                       # M about n (N·m)
-    ("tx", np.float64), ("ty", np.float64), ("tz", np.float64),   # M·n (N·m)
-    ("px", np.float64), ("py", np.float64), ("pz", np.float64),   # contact point on the object (m)
-    ("body", np.int64),                                           # touched body or -1
-    ("push_body", np.int64),                                      # the body it pushed last tick, or -1
-    ("normal_force", np.float64),                                 # P = F·n (N)
-    ("valid", np.bool_),                                          # this tick's sample was used
+    ("dt", np.float64),                     # the last tick's period (s)
+    ("ramp", np.float64),                   # soft start: fraction of the clamps in force
+    ("device_pos", np.float64, 3),          # the device (m, world)
+    ("twist_prev", np.float64),             # last tick's device twist (rad), for the damper
+    ("body_turn", np.float64),              # the touched body's turn about n this tick (rad)
+    ("force", np.float64, 3),               # F on the finger (N, world)
+    ("torque_n", np.float64),               # M about n (N·m)
+    ("torque", np.float64, 3),              # M·n (N·m, world)
+    ("contact_pos", np.float64, 3),         # contact point on the object (m)
+    ("body", np.int64),                     # touched body or -1
+    ("push_body", np.int64),                # the body it pushed last tick, or -1
+    ("normal_force", np.float64),           # P = F·n (N)
+    ("valid", np.bool_),                    # this tick's sample was used
     # what the device is sent this tick (clamped to the device, zero when not valid or safe)
-    ("sent_fx", np.float64), ("sent_fy", np.float64), ("sent_fz", np.float64),
-    ("sent_tx", np.float64), ("sent_ty", np.float64), ("sent_tz", np.float64),
+    ("sent_force", np.float64, 3), ("sent_torque", np.float64, 3),  # N, N·m
     ("max_force_seen", np.float64), ("penetration_max", np.float64),
     # the coupling's passivity (`softproxy.compiled.passivity`)
-    ("rel_dx", np.float64), ("rel_dy", np.float64), ("rel_dz", np.float64),  # Δx_b - Δx_d over the last tick (m)
-    ("rel_turn", np.float64),                                     # Δθ_b - Δα_s over the last tick (rad)
-    ("energy", np.float64),                                       # the observer E (J; < 0: energy owed)
-    ("energy_in", np.float64), ("energy_min", np.float64),        # all the coupling took in; E's lowest (J)
-    ("pc_energy", np.float64), ("pc_ticks", np.int64),            # the controller: planned dissipation (J), ticks
+    ("rel_move", np.float64, 3),            # Δx_b - Δx_d over the last tick (m)
+    ("rel_turn", np.float64),               # Δθ_b - Δα_s over the last tick (rad)
+    ("energy", np.float64),                 # the observer E (J; < 0: energy owed)
+    ("energy_in", np.float64), ("energy_min", np.float64),  # all the coupling took in; E's lowest (J)
+    ("pc_energy", np.float64), ("pc_ticks", np.int64),  # the controller: planned dissipation (J), ticks
     ("slide_events", np.int64), ("spikes_rejected", np.int64), ("spike_run", np.int64),
     ("was_sticking", np.bool_),
-    ("has_torsion", np.bool_),
     # torsion (`softproxy.torsion.TorsionalFriction` is its view)
     ("in_contact", np.bool_),
     ("alpha_0", np.float64), ("alpha_p", np.float64), ("alpha_g", np.float64),  # rad
-    ("spring_torque", np.float64),                                # k_τ(α_p - α_g) (N·m)
-    ("limit", np.float64),                                        # the static limit this tick (N·m)
+    ("spring_torque", np.float64),          # k_τ(α_p - α_g) (N·m)
+    ("limit", np.float64),                  # the static limit this tick (N·m)
     ("slipping", np.bool_),
-    ("slip_dir", np.float64),                                     # sign of α_p - α_g while slipping
-    ("slip_idle", np.float64),                                    # s since it last slid RESTICK_TRAVEL of its offset
-    ("slip_travel", np.float64),                                  # rad slid since then
-    ("torsion_restick", np.float64),                              # re-stick after this long still (s); 0: per tick
+    ("slip_dir", np.float64),               # sign of α_p - α_g while slipping
+    ("slip_idle", np.float64),              # s since it last slid RESTICK_TRAVEL of its offset
+    ("slip_travel", np.float64),            # rad slid since then
     ("slip_events", np.int64),
-    ("k_tau", np.float64), ("torsion_mu_s", np.float64), ("torsion_mu_d", np.float64), ("gamma", np.float64),
-    ("saturate", np.bool_),                                       # the limit follows eq 26 above P*
-    ("ratio", np.float64),                                        # μ_d / μ_s
-    ("mu_prime", np.float64), ("r0", np.float64), ("p_star", np.float64),  # the model's law (eqs 26-27)
     # this tick's device sample (DeviceSample's fields), written by the engine before the tick
-    ("in_x", np.float64), ("in_y", np.float64), ("in_z", np.float64), ("in_twist", np.float64),
-    ("in_qw", np.float64), ("in_qx", np.float64), ("in_qy", np.float64), ("in_qz", np.float64),
+    ("in_pos", np.float64, 3), ("in_twist", np.float64),  # device frame (m, rad)
+    ("in_quat", np.float64, 4),             # w, x, y, z
     ("in_valid", np.bool_),
 ], align=True)
-"""A finger's record: its god-object, coupling, torsion, counters and this tick's sample."""
+"""A finger's data: its god-object, coupling, torsion, counters and this tick's sample, which
+every tick reads and writes. `fd` in the kernels."""

@@ -26,6 +26,7 @@ import math
 from numba import njit
 
 from softproxy.compiled.coupling import within_laws
+from softproxy.compiled.vector import dist2, dot3
 
 TOLERANCE_J = 1e-9
 """A deficit the controller leaves alone (J): rounding in the energy sums of a held grasp is
@@ -39,35 +40,33 @@ a fraction of a newton at a time, not by dropping the grip."""
 
 
 @njit(cache=True, error_model="numpy")
-def observe(f):
+def observe(fm, fd):
     """After the finger's update: the energy the coupling took in over the last tick (what
     the device was sent then, `sent_`, times this tick's relative motion, `rel_`) into the
     observer E; E capped at what the springs could give back now, ½k|x_p - x_d|² +
     ½k_τ(α_p - α_s)² (an upper bound: clamps, the controller and friction only lower what a
     spring returns); the lowest E kept."""
-    tn = f.sent_tx * f.nx + f.sent_ty * f.ny + f.sent_tz * f.nz
-    dE = f.sent_fx * f.rel_dx + f.sent_fy * f.rel_dy + f.sent_fz * f.rel_dz + tn * f.rel_turn
+    dE = dot3(fd.sent_force, fd.rel_move) + dot3(fd.sent_torque, fd.normal) * fd.rel_turn
     if not math.isfinite(dE):
         return
-    f.energy_in += dE
+    fd.energy_in += dE
     stored = 0.0
-    if f.contact and f.valid:
-        sx, sy, sz = f.x - f.xd, f.y - f.yd, f.z - f.zd
-        stored = 0.5 * f.k * (sx * sx + sy * sy + sz * sz)
-        if f.has_torsion and f.in_contact and f.k_tau > 0.0:
-            stored += 0.5 * f.spring_torque * f.spring_torque / f.k_tau
-    E = f.energy + dE
+    if fd.contact and fd.valid:
+        stored = 0.5 * fm.stiffness * dist2(fd.pos, fd.device_pos)
+        if fm.has_torsion and fd.in_contact and fm.torsion_stiffness > 0.0:
+            stored += 0.5 * fd.spring_torque * fd.spring_torque / fm.torsion_stiffness
+    E = fd.energy + dE
     if not math.isfinite(E):
         return
     if E > stored:
         E = stored
-    if f.ramp < 1.0 and E < 0.0:
+    if fd.ramp < 1.0 and E < 0.0:
         # during the soft start the ramp bounds what a finger placed inside an object releases
         # (its stretch was never put in by the hand): no debt is counted until it is done
         E = 0.0
-    f.energy = E
-    if E < f.energy_min:
-        f.energy_min = E
+    fd.energy = E
+    if E < fd.energy_min:
+        fd.energy_min = E
 
 
 @njit(cache=True, error_model="numpy")
@@ -83,7 +82,7 @@ def _gain_cap(along, square, cap):
 
 
 @njit(cache=True, error_model="numpy")
-def control(f, dt):
+def control(fm, fd, dt):
     """While E < 0: a damper on the relative motion for the next tick of dt s, the wrench the
     same on the device and the body, sized to dissipate the deficit at the last tick's relative
     speed, once the deficit is past TOLERANCE_J. Where it raises the wrench (the motion takes
@@ -91,27 +90,28 @@ def control(f, dt):
     lowers it (the motion gives energy back: a release) at CUT times that, and never past zero;
     the rest is left for the ticks after.
     The wrench is kept within the finger's laws. Returns the energy it plans to dissipate (J)."""
-    if f.energy >= -TOLERANCE_J or not f.valid or not f.contact or f.ramp < 1.0:
+    if fd.energy >= -TOLERANCE_J or not fd.valid or not fd.contact or fd.ramp < 1.0:
         return 0.0
-    wx, wy, wz, turn = f.rel_dx, f.rel_dy, f.rel_dz, f.rel_turn
-    cap = f.k * dt + f.b  # N·s/m
-    cap_tau = f.k_tau * dt + f.b_tau if f.has_torsion and f.in_contact else 0.0
+    (wx, wy, wz), turn = fd.rel_move, fd.rel_turn
+    cap = fm.stiffness * dt + fm.damping  # N·s/m
+    cap_tau = fm.torsion_stiffness * dt + fm.torsion_damping if fm.has_torsion and fd.in_contact else 0.0
     ratio = cap_tau / cap if cap > 0.0 else 0.0  # the torsion's share, as the two caps stand
     w2 = wx * wx + wy * wy + wz * wz
     room = w2 + ratio * turn * turn
     if not room > 0.0:
         return 0.0
-    c = -f.energy / room  # N/m of relative motion: dissipates the deficit in one tick at this speed
+    c = -fd.energy / room  # N/m of relative motion: dissipates the deficit in one tick at this speed
     c_tau = ratio * c
     # (the wrench times the motion < 0: it gives energy back over this motion)
-    most = _gain_cap(f.fx * wx + f.fy * wy + f.fz * wz, f.fx * f.fx + f.fy * f.fy + f.fz * f.fz, cap / dt)
+    fx, fy, fz = fd.force
+    most = _gain_cap(fx * wx + fy * wy + fz * wz, fx * fx + fy * fy + fz * fz, cap / dt)
     c = c if c < most else most
-    most = _gain_cap(f.torque * turn, f.torque * f.torque, cap_tau / dt)
+    most = _gain_cap(fd.torque_n * turn, fd.torque_n * fd.torque_n, cap_tau / dt)
     c_tau = c_tau if c_tau < most else most
     planned = c * w2 + c_tau * turn * turn
     if not planned > 0.0:
         return 0.0
-    within_laws(f, f.fx + c * wx, f.fy + c * wy, f.fz + c * wz, f.torque + c_tau * turn)
-    f.pc_ticks += 1
-    f.pc_energy += planned
+    within_laws(fm, fd, fx + c * wx, fy + c * wy, fz + c * wz, fd.torque_n + c_tau * turn)
+    fd.pc_ticks += 1
+    fd.pc_energy += planned
     return planned

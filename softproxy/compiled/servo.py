@@ -97,20 +97,21 @@ def begin_tick(loop, samples, ok, mj, sh, fingers):
     L = loop[0]
     safe = L.safe_next
     L.safe_next = False
-    F, device_of = fingers.F, fingers.device_of
-    for i in range(F.shape[0]):
-        f = F[i]
+    FD, device_of = fingers.data, fingers.device_of
+    for i in range(FD.shape[0]):
+        fd = FD[i]
         if not ok:
-            f.in_valid = False
+            fd.in_valid = False
             continue
         s = samples[device_of[i]]
         if not s.valid:
-            f.in_valid = False
+            fd.in_valid = False
             L.invalid_sample += 1
             continue
-        f.in_x, f.in_y, f.in_z, f.in_twist = s.x, s.y, s.z, s.twist
-        f.in_qw, f.in_qx, f.in_qy, f.in_qz = s.qw, s.qx, s.qy, s.qz
-        f.in_valid = True
+        fd.in_pos[:] = s.x, s.y, s.z
+        fd.in_quat[:] = s.qw, s.qx, s.qy, s.qz
+        fd.in_twist = s.twist
+        fd.in_valid = True
     mj_step1(mj.m, mj.d)
     _stage(L, STEP1_STAGE)
     refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity)
@@ -149,7 +150,7 @@ def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced):
     counts a device_error; one that stalled waits the device's stall time first."""
     L = loop[0]
     samples, limits, io = device.samples, device.limits, device.io
-    F, device_of = fingers.F, fingers.device_of
+    FD, device_of = fingers.data, fingers.device_of
     rows = samples.shape[0]
     done = 0
     while done < n and not L.stop and not L.halt:
@@ -167,12 +168,13 @@ def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced):
             if code == L.stall_code:
                 sleep_until_ns(start + L.stall_ns)
         begin_tick(loop, samples, code == 0, mj, sh, fingers)
-        for i in range(F.shape[0]):
-            f = F[i]
+        for i in range(FD.shape[0]):
+            fd = FD[i]
             if L.halt:  # closing from another thread: this block may send nothing but zero
                 code = send(io, device_of[i], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
             else:
-                code = send(io, device_of[i], f.sent_fx, f.sent_fy, f.sent_fz, f.sent_tx, f.sent_ty, f.sent_tz)
+                (fx, fy, fz), (tx, ty, tz) = fd.sent_force, fd.sent_torque
+                code = send(io, device_of[i], fx, fy, fz, tx, ty, tz)
             if code != 0:
                 L.send_error += 1
                 L.send_code = code
