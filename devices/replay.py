@@ -95,12 +95,11 @@ def _send(ints, finger):
 
 def _read_c(state, t, samples, n):
     """`_read` on the arrays whose [address, size] pairs `state` holds (device_kernel.READ)."""
-    if state == 0 or samples == 0:
-        return dk.NULL
+    refused = dk.read_refused(state, samples, n, I_FINGERS)
+    if refused:
+        return refused
     block = dk.state_at(state)
     ints = dk.i64_at(block[0], block[1])
-    if n != ints[I_FINGERS]:
-        return dk.ROWS
     table = dk.sample_table_at(block[6], ints[I_RECORDS], ints[I_FINGERS])
     return _read(t, ints, dk.i64_at(block[2], block[3]), dk.u8_at(block[4], block[5]), table,
                  dk.samples_at(samples, n))

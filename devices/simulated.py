@@ -220,12 +220,11 @@ def _send(ints, floats, finger, fx, fy, fz, tx, ty, tz):
 
 def _read_c(state, t, samples, n):
     """`_read` on the arrays whose [address, size] pairs `state` holds (device_kernel.READ)."""
-    if state == 0 or samples == 0:
-        return dk.NULL
+    refused = dk.read_refused(state, samples, n, I_FINGERS)
+    if refused:
+        return refused
     block = dk.state_at(state)
     ints = dk.i64_at(block[0], block[1])
-    if n != ints[I_FINGERS]:
-        return dk.ROWS
     track = dk.f64_at(block[6], block[7]).reshape((block[7] // TRACK_COLUMNS, TRACK_COLUMNS))
     return _read(t, ints, dk.u64_at(block[2], block[3]), dk.f64_at(block[4], block[5]), track,
                  dk.samples_at(samples, n))

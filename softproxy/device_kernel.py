@@ -189,6 +189,19 @@ def state_at(address):
     return i64_at(address, 2 * STATE_ARRAYS)
 
 
+@njit(inline="always")
+def read_refused(state, samples, n, fingers_at):
+    """A compiled read's first checks, before it touches its arrays: NULL for a null state or
+    samples address, ROWS when the device's finger count (int64 `fingers_at` of the first
+    array of its state block) is not n; 0 to go on."""
+    if state == 0 or samples == 0:
+        return NULL
+    block = state_at(state)
+    if n != i64_at(block[0], block[1])[fingers_at]:
+        return ROWS
+    return 0
+
+
 def pack_state(*arrays: np.ndarray) -> np.ndarray:
     """The state block a cfunc gets the address of: [address, size] of each array, int64.
     The arrays must be C-contiguous and outlive every call (keep them with the block)."""
