@@ -45,7 +45,7 @@ class Shape:
     flat = False
     convex = False
 
-    __slots__ = ("geom", "body", "name", "static", "rbound", "data", "set", "row")
+    __slots__ = ("geom", "body", "name", "static", "rbound", "size", "data", "set", "row")
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool) -> None:
         self.geom = geom
@@ -54,6 +54,7 @@ class Shape:
         self.static = static
         plane = int(model.geom_type[geom]) == int(mujoco.mjtGeom.mjGEOM_PLANE)
         self.rbound = math.inf if plane else float(model.geom_rbound[geom])
+        self.size = tuple(float(v) for v in model.geom_size[geom])  # MuJoCo's geom_size (m)
         self.data = data
         self.set: ShapeSet | None = None  # the first set made of it answers its queries
         self.row = -1
@@ -92,9 +93,6 @@ class Shape:
                     float(dx), float(dy), float(dz), float(r))
         return None if hit[0] < 0.0 else hit
 
-    def record(self, r) -> None:
-        """Fill its `SHAPE` record's sizes (the rest is common)."""
-
 
 class PlaneShape(Shape):
     """MuJoCo plane: infinite for collision, outward normal +z of the geom frame."""
@@ -114,9 +112,6 @@ class SphereShape(Shape):
         self.radius = float(model.geom_size[geom][0])
         super().__init__(model, data, geom, static)
 
-    def record(self, r) -> None:
-        r.a = self.radius
-
 
 class _AxialShape(Shape):
     """A shape round about the geom's z axis: radius and half-length (m), MuJoCo's geom_size[:2]."""
@@ -127,9 +122,6 @@ class _AxialShape(Shape):
     def __init__(self, model, data, geom, static):
         self.radius, self.half = (float(v) for v in model.geom_size[geom][:2])
         super().__init__(model, data, geom, static)
-
-    def record(self, r) -> None:
-        r.a, r.b = self.radius, self.half
 
 
 class CapsuleShape(_AxialShape):
@@ -158,9 +150,6 @@ class BoxShape(Shape):
         self.hx, self.hy, self.hz = (float(v) for v in model.geom_size[geom][:3])
         super().__init__(model, data, geom, static)
 
-    def record(self, r) -> None:
-        r.a, r.b, r.c = self.hx, self.hy, self.hz
-
 
 class EllipsoidShape(Shape):
     """Ellipsoid: semi-axes along the geom axes (exact distance by a 1-D root find)."""
@@ -172,9 +161,6 @@ class EllipsoidShape(Shape):
     def __init__(self, model, data, geom, static):
         self.a, self.b, self.c = (float(v) for v in model.geom_size[geom][:3])
         super().__init__(model, data, geom, static)
-
-    def record(self, r) -> None:
-        r.a, r.b, r.c = self.a, self.b, self.c
 
 
 class ShapeSet(list):
@@ -217,8 +203,8 @@ class ShapeSet(list):
             r.type, r.geom, r.body = s.gtype, s.geom, s.body
             r.static, r.convex, r.planar = s.static, s.convex, s.flat
             r.rbound = s.rbound
+            r.geom_size[:] = s.size
             r.hint = r.feature = -1
-            s.record(r)
         self.S = S
         self.T = self.C = None
         if any(s.gtype == GEOM_MESH for s in self):

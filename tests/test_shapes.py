@@ -1035,7 +1035,7 @@ def test_nan_inputs_never_crash(scene, kind):
 
 def test_shape_table_holds_what_mujoco_says(scene):
     """Each SHAPE record holds the geom's MuJoCo type, id, body, static flag (no joint, not
-    mocap), convexity, flatness (plane, box), bound (inf for a plane) and sizes."""
+    mocap), convexity, flatness (plane, box), bound (inf for a plane) and sizes (its geom_size row)."""
     m, _, shapes = scene
     S = shapes.S
     assert len(S) == len(shapes) == m.ngeom
@@ -1045,9 +1045,7 @@ def test_shape_table_holds_what_mujoco_says(scene):
         assert bool(S[k].convex) is True
         assert bool(S[k].planar) is (int(m.geom_type[g]) in (GEOM_PLANE, GEOM_BOX))
         assert S[k].rbound == (math.inf if m.geom_type[g] == GEOM_PLANE else m.geom_rbound[g])
-        size = m.geom_size[g]
-        used = {GEOM_PLANE: 0, GEOM_SPHERE: 1, GEOM_CAPSULE: 2, GEOM_CYLINDER: 2}.get(int(m.geom_type[g]), 3)
-        assert (S[k].a, S[k].b, S[k].c) == tuple(list(size[:used]) + [0.0] * (3 - used))
+        assert tuple(S[k].geom_size) == tuple(m.geom_size[g])
         assert bool(S[k].static) is bool(m.body_jntnum[s.body] == 0 and m.body_mocapid[s.body] < 0)
     assert int(S.static.sum()) == 3 + len(PRIMITIVES)
 

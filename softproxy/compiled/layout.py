@@ -71,9 +71,8 @@ SHAPE = np.dtype([
     ("convex", np.bool_),     # every primitive; not a mesh
     ("planar", np.bool_),     # plane and box: every face flat
     ("rbound", np.float64),   # bounding radius (m), inf for a plane
-    ("a", np.float64),        # sphere/capsule/cylinder radius, box hx, ellipsoid a (m)
-    ("b", np.float64),        # capsule/cylinder half-length, box hy, ellipsoid b (m)
-    ("c", np.float64),        # box hz, ellipsoid c (m)
+    ("geom_size", np.float64, 3),  # MuJoCo's geom_size row (m): sphere radius; capsule and cylinder radius,
+                                   # half-length; box half-sizes; ellipsoid semi-axes
     # a mesh: where its triangles and its box tree live in the mesh tables T and C
     # (`softproxy.compiled.mesh`), the tree in the geom frame; then what its queries keep
     ("t0", np.int64),         # its first row of T

@@ -234,7 +234,7 @@ def shape_distance(sh, k, x, y, z):
     if t == GEOM_PLANE:
         return (r02 * (x - px) + r12 * (y - py) + r22 * (z - pz), r02, r12, r22)
     if t == GEOM_SPHERE:
-        radius = S[k].a
+        radius = S[k].geom_size[0]
         dx, dy, dz = x - px, y - py, z - pz
         n = math.sqrt(dx * dx + dy * dy + dz * dz)
         if n == 0.0:
@@ -248,7 +248,8 @@ def shape_distance(sh, k, x, y, z):
         sx = 1.0 if lx >= 0.0 else -1.0
         sy = 1.0 if ly >= 0.0 else -1.0
         sz = 1.0 if lz >= 0.0 else -1.0
-        qx, qy, qz = sx * lx - S[k].a, sy * ly - S[k].b, sz * lz - S[k].c
+        hx, hy, hz = S[k].geom_size
+        qx, qy, qz = sx * lx - hx, sy * ly - hy, sz * lz - hz
         if qx <= 0.0 and qy <= 0.0 and qz <= 0.0:
             if qx >= qy and qx >= qz:
                 return (qx, sx * r00, sx * r10, sx * r20)
@@ -263,11 +264,12 @@ def shape_distance(sh, k, x, y, z):
         return (n, r00 * ox + r01 * oy + r02 * oz, r10 * ox + r11 * oy + r12 * oz,
                 r20 * ox + r21 * oy + r22 * oz)
     if t == GEOM_CAPSULE:
-        d, nx, ny, nz = _capsule_local(S[k].a, S[k].b, lx, ly, lz)
+        d, nx, ny, nz = _capsule_local(S[k].geom_size[0], S[k].geom_size[1], lx, ly, lz)
     elif t == GEOM_CYLINDER:
-        d, nx, ny, nz = _cylinder_local(S[k].a, S[k].b, lx, ly, lz)
+        d, nx, ny, nz = _cylinder_local(S[k].geom_size[0], S[k].geom_size[1], lx, ly, lz)
     elif t == GEOM_ELLIPSOID:
-        d, nx, ny, nz = _ellipsoid_local(S[k].a, S[k].b, S[k].c, lx, ly, lz)
+        a, b, c = S[k].geom_size
+        d, nx, ny, nz = _ellipsoid_local(a, b, c, lx, ly, lz)
     else:
         raise ValueError("shape_distance: unsupported shape type")
     return (d,
