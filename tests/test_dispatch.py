@@ -31,17 +31,39 @@ def test_entry_point_gives_the_kernels_answer_and_writes_in_place():
     assert call(F, 1.0) == 14.5
 
 
+def _fresh_kernel():
+    """A kernel numba has never compiled (a new function object each call; not cached)."""
+    @njit
+    def kernel(a):
+        return a * 2.0 + 1.0
+    return kernel
+
+
 def test_a_slow_compile_is_announced_and_a_quick_one_is_not():
-    """Longer than `after_s`: a line saying what compiles, and how long it took; quicker: nothing."""
+    """A compile longer than `after_s`: a line saying what compiles, and how long it took; a
+    compile quicker than that: nothing."""
     out = io.StringIO()
     with announced("the test kernel", stream=out, after_s=0.05):
-        time.sleep(0.3)
+        _fresh_kernel()(1.0)
+        time.sleep(0.2)  # (however quick the compile was, the block outlasts after_s)
     text = out.getvalue()
     assert "compiling the test kernel" in text and "compiled the test kernel in" in text
     quiet = io.StringIO()
-    with announced("the test kernel", stream=quiet, after_s=5.0):
-        pass
+    with announced("the test kernel", stream=quiet, after_s=60.0):
+        _fresh_kernel()(1.0)
     assert quiet.getvalue() == ""
+
+
+def test_a_slow_block_that_compiles_nothing_is_not_announced():
+    """A load from the cache that a busy machine makes slow is no compile: nothing is said
+    (the block here compiles nothing and outlasts `after_s`)."""
+    kernel = _fresh_kernel()
+    kernel(1.0)  # compiled before the block
+    out = io.StringIO()
+    with announced("the test kernel", stream=out, after_s=0.05):
+        kernel(2.0)
+        time.sleep(0.3)
+    assert out.getvalue() == ""
 
 
 def test_the_cache_is_keyed_on_every_module_the_kernels_import():

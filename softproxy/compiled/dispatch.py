@@ -9,7 +9,9 @@ same arrays every tick): the entry point does not check them.
 The first run after an install or an update compiles the kernels (~20 s for a world of
 primitives, ~1 min with meshes, on a 2-core machine); later runs load them from numba's
 on-disk cache in about a second. `announced` says so while it happens, so a first run is
-never silent for a minute.
+never silent for a minute; a load from the cache is never announced, however long a busy
+machine takes over it (numba's "numba:compile" event marks a real compile, a cache hit
+raises none).
 """
 
 from __future__ import annotations
@@ -19,22 +21,42 @@ import threading
 import time
 from contextlib import contextmanager
 
+from numba.core import event
+
 ANNOUNCE_AFTER_S = 1.5
-"""A compile that takes longer than this is announced (loading from the cache takes less)."""
+"""A compile that takes longer than this is announced."""
+
+
+class _Compiles(event.Listener):
+    """Sets `seen` when numba starts a compile (not on a load from its cache)."""
+
+    def __init__(self) -> None:
+        self.seen = threading.Event()
+
+    def on_start(self, ev) -> None:
+        self.seen.set()
+
+    def on_end(self, ev) -> None:
+        pass
 
 
 @contextmanager
 def announced(what: str, stream=None, after_s: float = ANNOUNCE_AFTER_S):
-    """While the block runs: if it takes longer than `after_s`, say on `stream` (stderr) that
-    `what` is compiling, with the seconds elapsed every few seconds, and how long it took."""
+    """While the block runs: if numba compiles in it and the block takes longer than
+    `after_s`, say on `stream` (stderr) that `what` is compiling, with the seconds elapsed
+    every few seconds, and how long it took. Loading from the cache is said nothing of."""
     stream = sys.stderr if stream is None else stream
     done = threading.Event()
     start = time.monotonic()
     said = []
+    compiles = _Compiles()
 
     def watch() -> None:
         if done.wait(after_s):
             return
+        while not compiles.seen.is_set():  # (a long load from the cache: nothing to say yet)
+            if done.wait(0.1):
+                return
         live = getattr(stream, "isatty", lambda: False)()
         print(f"softproxy: compiling {what} (first run after an install or an update; cached after)"
               + ("" if live else " ..."), file=stream, end="" if live else "\n", flush=True)
@@ -49,7 +71,8 @@ def announced(what: str, stream=None, after_s: float = ANNOUNCE_AFTER_S):
     thread = threading.Thread(target=watch, name="softproxy-compile-progress", daemon=True)
     thread.start()
     try:
-        yield
+        with event.install_listener("numba:compile", compiles):
+            yield
     finally:
         done.set()
         thread.join()
