@@ -109,7 +109,7 @@ class SoftproxySetup:
     def options(self) -> str:
         if self.model == "point":
             return "point contact (no torsion)"
-        return f"{self.model}, {'eq 26 (saturate=true)' if self.saturate else 'power law (saturate=false)'}"
+        return f"{self.model}, {'saturating law (saturate=true)' if self.saturate else 'power law (saturate=false)'}"
 
 
 MUJOCO_NEWCOMER = MujocoSetup()
@@ -126,11 +126,11 @@ SETUPS = {
     "pybullet newcomer": PYBULLET_NEWCOMER,
     "pybullet best": PYBULLET_BEST,
     "softproxy power law": SoftproxySetup("CH", False),
-    "softproxy eq 26": SoftproxySetup("CH", True),
+    "softproxy saturating law": SoftproxySetup("CH", True),
     "softproxy point": SoftproxySetup("point"),
 }
 LIMIT_RUNS = ("mujoco newcomer", "mujoco best condim 4", "mujoco best condim 6", "pybullet best",
-              "softproxy power law", "softproxy eq 26")
+              "softproxy power law", "softproxy saturating law")
 """Whose torsional limit is measured against grip (point contacts have none)."""
 
 
@@ -610,7 +610,7 @@ def fidelity(limits: dict, grips, progress=None) -> dict:
     for name, vals in limits.items():
         v = [x for x, g in zip(vals, grips) if lo <= g <= hi]
         if isinstance(SETUPS[name], SoftproxySetup):
-            rows[name] = {**relative_errors(v, inside), "coefficient": "seed 002 Table 1", "limit_Nm": v}
+            rows[name] = {**relative_errors(v, inside), "coefficient": "Simulating human fingers, Table 1", "limit_Nm": v}
             continue
         c = peer_coefficient() * best_scale(v, inside)
         if progress:
@@ -620,7 +620,7 @@ def fidelity(limits: dict, grips, progress=None) -> dict:
     law = default_law()  # the laws themselves, on the same grips
     slope = best_scale(list(inside), inside)
     rows["law: power (μ'P^γ)"] = relative_errors([law.torque_limit(g) for g in inside], inside)
-    rows["law: eq 26"] = relative_errors([law.piecewise_torque(g) for g in inside], inside)
+    rows["law: saturating"] = relative_errors([law.piecewise_torque(g) for g in inside], inside)
     rows["law: best linear (cP)"] = {**relative_errors([slope * g for g in inside], inside), "coefficient_m": slope}
     return {"range_N": [lo, hi], "grips_N": inside, "rows": rows}
 
@@ -631,7 +631,7 @@ def fidelity(limits: dict, grips, progress=None) -> dict:
 COLOURS = {"mujoco newcomer": "tab:red", "mujoco elliptic, no noslip": "tab:orange",
            "mujoco best condim 4": "tab:blue", "mujoco best condim 6": "tab:cyan",
            "pybullet newcomer": "tab:brown", "pybullet best": "tab:purple",
-           "softproxy power law": "tab:olive", "softproxy eq 26": "tab:green", "softproxy point": "tab:gray"}
+           "softproxy power law": "tab:olive", "softproxy saturating law": "tab:green", "softproxy point": "tab:gray"}
 
 
 DASHED = {"mujoco best condim 6", "pybullet newcomer", "softproxy power law"}
@@ -653,7 +653,7 @@ def chart(result: dict):
     lim = result["limit_per_contact_Nm"]
     grips = np.array(lim["grip_N"])
     dense = np.geomspace(grips.min(), grips.max(), 100)
-    b.loglog(dense, [fingertip.e3_torque(g) for g in dense], "k-", lw=3, alpha=0.35, label="measured fingertip (E3)")
+    b.loglog(dense, [fingertip.e3_torque(g) for g in dense], "k-", lw=3, alpha=0.35, label="measured fingertip")
     for name in (n for n in lim if n != "grip_N"):
         b.loglog(grips, lim[name], "o", ms=4, color=COLOURS.get(name), ls="--" if name in DASHED else "-")
     b.set_xlabel("grip per finger (N)")
@@ -667,8 +667,8 @@ def chart(result: dict):
             c.semilogy(inside, [v / fingertip.e3_torque(g) for v, g in zip(row["limit_Nm"], inside)], "o", ms=4,
                        color=COLOURS.get(name), ls="--" if name in DASHED else "-")
     c.set_xlabel("grip per finger (N)")
-    c.set_ylabel("limit / measured fingertip (E3)")
-    c.set_title(f"fidelity to E3, {fid['range_N'][0]:g}–{fid['range_N'][1]:g} N\n"
+    c.set_ylabel("limit / measured fingertip")
+    c.set_title(f"fidelity to the measured fingertip, {fid['range_N'][0]:g}–{fid['range_N'][1]:g} N\n"
                 "(peers at their best single coefficient)", fontsize=10)
     for ax in (a, b, c):
         ax.grid(True, which="major", alpha=0.3)
@@ -709,7 +709,7 @@ def print_report(result: dict) -> None:
           "cost: step p50 / MuJoCo default step p50, this run)")
     fid = result["fidelity"]
     lo, hi = fid["range_N"]
-    print(f"  torsional limit per contact vs the measured fingertip (seed 002 E3), {lo:g}-{hi:g} N, relative error:")
+    print(f"  torsional limit per contact vs the measured fingertip, {lo:g}-{hi:g} N, relative error:")
     print(f"  {'':27s}{'RMS':>8s}{'max':>8s}  coefficient")
     for name, r in fid["rows"].items():
         coef = r.get("coefficient") or (f"best single coefficient {r['coefficient_m'] * 1e3:.2f} mm"

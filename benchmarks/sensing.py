@@ -335,7 +335,7 @@ def chart(result: dict, path: Path) -> None:
     b.set_xticklabels(labels, fontsize=7)
     b.set_ylabel("mean error / paper's mean error")
     b.legend(fontsize=8)
-    b.set_title("accuracy vs seed 003 Table 1 (upper half)")
+    b.set_title("accuracy vs the contact-sensing paper's Table 1 (upper half)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -363,7 +363,7 @@ def main(args) -> int:
         print(json.dumps(result, indent=2))
         return 0
     sp = result["speed"]
-    print(f"contact sensing (seed 003): time per solve, {sp['contacts']} distinct upper-half contacts")
+    print(f"contact sensing (Liu et al.): time per solve, {sp['contacts']} distinct upper-half contacts")
     print(f"  {'':52s}{'mean':>9s}{'p50':>9s}{'p99':>9s}{'rate':>10s}{'iter':>7s}")
     for name, r in sp["rows"].items():
         it = r.get("iterations_mean")

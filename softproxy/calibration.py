@@ -392,14 +392,14 @@ def calibrate(path: str | Path | None = None) -> dict:
         "source": table.source,
         "parameters": {
             "e1": {
-                "law": "P = b/m (e^(m delta) - 1)  (seed 002 eq 22)",
+                "law": "P = b/m (e^(m delta) - 1)  (Simulating human fingers, eq 22)",
                 "b_N_per_m": e1["b"], "m_per_m": e1["m"], "b_N_per_mm": b_mm, "m_per_mm": m_mm,
                 "b_stderr_N_per_mm": _none(e1["b_stderr"] * units.MM),
                 "m_stderr_per_mm": _none(e1["m_stderr"] * units.MM),
                 "stiffening": bool(e1["m"] > 0.0),
             },
             "e2": {
-                "law": "a/a_max = 1 - e^(-P/P'_0), a = sqrt(A/pi)  (seed 002 eq 23)",
+                "law": "a/a_max = 1 - e^(-P/P'_0), a = sqrt(A/pi)  (Simulating human fingers, eq 23)",
                 "a_max_m": e2["a_max"], "a_max_mm": units.to_mm(e2["a_max"]),
                 "area_max_mm2": math.pi * units.to_mm(e2["a_max"]) ** 2, "p0_N": e2["p0"],
                 "a_max_stderr_mm": _none(units.to_mm(e2["a_max_stderr"])), "p0_stderr_N": _none(e2["p0_stderr"]),
@@ -438,7 +438,7 @@ def write_png(result: dict, path: str | Path) -> Path:
     if any(r.get("force_N_fe") is not None for r in rows):
         a.plot(depth, [r.get("force_N_fe") for r in rows], "C3s", label="004 FE model (Table 6)")
     s = result["parameters"]["seed_002"]
-    a.plot(dd, e1_law(dd, s["b_N_per_mm"], s["m_per_mm"]), "C7:", label="E1 of seed 002 (engine default)")
+    a.plot(dd, e1_law(dd, s["b_N_per_mm"], s["m_per_mm"]), "C7:", label="the engine's default law (Simulating human fingers, eq 22)")
     a.set_ylim(0.0, max(force.max(), max((r.get("force_N_fe") or 0.0) for r in rows)) * 1.4)
     a.set_xlabel("indentation (mm)")
     a.set_ylabel("force (N)")
@@ -499,7 +499,7 @@ def calibrate_main(data: str | None, as_json: bool, out_dir: str) -> int:
           f"m = {e1['m_per_mm']:+.4f} /mm ({e1['m_per_m']:+.1f} /m)"
           + ("" if e1["stiffening"] else "  (m < 0: saturating)"))
     print(f"  E2  a/a_max = 1 - e^(-P/P'0):  a_max = {e2['a_max_mm']:.3f} mm, P'0 = {e2['p0_N']:.4f} N "
-          f"(seed 002: P'0 = {result['parameters']['seed_002']['p0_N']} N)")
+          f"(the engine's default: P'0 = {result['parameters']['seed_002']['p0_N']} N)")
     print(f"  {'depth':>6s}{'F meas':>9s}{'F fit':>9s}{'err%':>7s}{'F FE':>8s}{'err%':>7s}"
           f"{'A meas':>9s}{'A fit':>9s}{'err%':>7s}{'A FE':>8s}{'err%':>7s}   (N, mm²)")
 

@@ -53,7 +53,7 @@ def cmd_models(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"models": rows}, indent=2))
         return 0
-    print("Fingertip models (seed 002, Table 1; torque limit M = mu' |P|^gamma)")
+    print("Fingertip models (Simulating human fingers, Table 1; torque limit M = mu' |P|^gamma)")
     _print_table(
         rows,
         [
@@ -330,7 +330,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_sense(args: argparse.Namespace) -> int:
-    """Contact sensing (seed 003): where and how a wrench on the fingertip was applied."""
+    """Contact sensing (Liu et al., Finger contact sensing): where and how a wrench on the fingertip was applied."""
     from softproxy.sensing import sense_main
 
     try:
@@ -356,7 +356,7 @@ def cmd_tactile(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    """Fit the fingertip laws to seed 004's measurements or to a table of your own."""
+    """Fit the fingertip laws to the measured fingertip's force and contact area, or to a table of your own."""
     from softproxy.calibration import calibrate_main
 
     if not _check_out_folder("calibrate", args.out):
@@ -588,7 +588,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("sense", help="contact sensing: recover the contact from a fingertip wrench (seed 003)")
+    p = sub.add_parser("sense", help="contact sensing: recover the contact from a fingertip wrench (Liu et al.)")
     p.add_argument("--wrench", nargs=6, type=float, required=True, metavar=("FX", "FY", "FZ", "MX", "MY", "MZ"),
                    help="wrench the contact exerts on the fingertip, N and N·m, ellipsoid frame")
     p.add_argument("--sensor-frame", action="store_true", help="the wrench (and the answer) in the paper's sensor frame")
@@ -602,7 +602,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_tactile)
 
     p = sub.add_parser("calibrate", help="fit the fingertip laws to measured force and contact area")
-    p.add_argument("--data", default=None, help="CSV with depth_mm, force_N, contact_area_mm2 (default: seed 004's)")
+    p.add_argument("--data", default=None, help="CSV with depth_mm, force_N, contact_area_mm2 (default: the measured fingertip's)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.add_argument("--out", default="bench-out", help="folder for the PNG (default bench-out)")
     p.set_defaults(func=cmd_calibrate)

@@ -425,7 +425,7 @@ class FingerParams:
     saturate: Annotated[Flag, Field(description="torsion limit follows eq 26 (linear above P*), the default: closer "
                                     "to the measured fingertip (docs/peer.md); false: μ'|P|^γ at every P")] = True
     restick_time: quantity("s", "a slipping contact (cone, torsion) stopped this long re-sticks; 0: static limits "
-                           "re-tested every tick (seed 002 eq 39 as printed); a minute is already never",
+                           "re-tested every tick (Simulating human fingers, eq 39 as printed); a minute is already never",
                            low=0.0, high=60.0) = RESTICK_TIME
     max_force: quantity("N", "clamp on |F| (devices render <= ~1e2 N; the wall benchmark 200 N, tests 1e4)",
                         low=0.0, high=1e5, open_low=True) = 40.0
@@ -532,7 +532,7 @@ class TactileSpec(_ChannelSpec):
 class SensingSpec(_ChannelSpec):
     """A finger's contact-sensing channel: frame rate (Hz), Nano17 noise model and seed, pad frame."""
 
-    noise: choice(NOISE, "sensor noise model (seed 003 §2.1, the Nano17's resolution)") = "none"
+    noise: choice(NOISE, "sensor noise model (the contact-sensing paper's §2.1: the Nano17's resolution)") = "none"
     seed: count("seed of the noise's random generator") = 0
 
 

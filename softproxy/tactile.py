@@ -617,7 +617,7 @@ def tactile_main(as_json: bool, out_dir: str) -> int:
         print(json.dumps(result))
         return 0
     p = result["parameters"]
-    print(f"Inoue–Hirai virtual-spring fingertip (seed 000 §III): L = {p['joint_distance_mm']:g} mm, "
+    print(f"Inoue–Hirai virtual-spring fingertip (Rotational Contact Model of Soft Fingertip, §III): L = {p['joint_distance_mm']:g} mm, "
           f"r = {p['radius_mm']:g} mm, E = {p['youngs_modulus_MPa']:g} MPa, Δθ = {p['step_deg']:g}°, "
           f"{p['cells']}×{p['cells']} cells on {p['side_mm']:g} mm")
     print("frame: +x distal (away from the joint), cell (5.5, 5.5) = fingertip axis")

@@ -101,7 +101,7 @@ def test_peer_bench(tmp_path):
     softproxy holds, point contacts spin, MuJoCo's limit is linear, the power law's |P|^γ."""
     data, text = bench(tmp_path, "peer", "--duration", "1.5")
     hold = data["hold"]
-    assert abs(hold["softproxy eq 26"]["rotation_end_deg"]) < 2.0
+    assert abs(hold["softproxy saturating law"]["rotation_end_deg"]) < 2.0
     assert abs(hold["softproxy point"]["rotation_max_deg"]) > 20.0
     exps = data["limit_exponent"]
     assert abs(exps["softproxy power law"]["0.5-8 N"] - 4 / 3) < 0.05  # seed 002 eq 29: M ∝ P^(4/3) for CH

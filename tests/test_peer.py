@@ -57,7 +57,7 @@ def test_pybullet_spinning_friction_is_linear():
 def test_static_and_dynamic_friction():
     """Slip, then unload: softproxy slides at μ_d/μ_s = 0.8 of its break-away torque and
     re-sticks; MuJoCo has one coefficient, so it slides at its break-away torque."""
-    sp = peer.hysteresis("softproxy eq 26")
+    sp = peer.hysteresis("softproxy saturating law")
     mj = peer.hysteresis("mujoco best condim 4")
     assert sp["slipped"] and sp["resticks"] and mj["slipped"] and mj["resticks"]
     assert sp["sliding_over_breakaway"] == pytest.approx(0.8, abs=0.02)
