@@ -104,7 +104,8 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     `loop.sensors` (softproxy.fingertip_sensors); no other finger costs the tick anything.
     `passivity=False` switches the passivity controller off (`ServoLoop.passivity`).
     """
-    world = World(scene.load_model(), **scene.world_options())
+    model = scene.load_model()
+    world = World(model, scene.start_data(model), **scene.world_options())
     fingers = []
     for params in scene.fingers:
         if finger_model is not None:

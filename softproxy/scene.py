@@ -37,6 +37,7 @@ of the model, a `[measure]` object that is a body.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
@@ -83,11 +84,25 @@ class Scene:
     exclude: tuple[str, ...] = ()         # geoms / flexes kept out of haptic contact, by name
     exclude_groups: tuple[int, ...] = ()  # ... and by geom group
     mesh_surface: str = "true"            # "true" | "hull": what a mesh feels like
+    keyframe: str | None = None           # the MJCF <key> the world starts from (None: qpos0)
+    settle_s: float = 0.0                 # s the world runs alone before the device takes over
 
     def world_options(self) -> dict:
         """The keyword arguments of `World` this scene asks for (force shading, exclusions, mesh surface)."""
         return {"force_shading": self.force_shading, "exclude": self.exclude, "exclude_groups": self.exclude_groups,
                 "mesh_surface": self.mesh_surface}
+
+    def start_data(self, model: mujoco.MjModel) -> mujoco.MjData:
+        """The state the run starts from: the scene's keyframe (else qpos0), then `settle_s` of
+        MuJoCo on its own at the model's own timestep, nothing pushing on it, so a model that
+        sags from its start state comes to rest before a finger touches it."""
+        data = mujoco.MjData(model)
+        if self.keyframe is not None:
+            mujoco.mj_resetDataKeyframe(model, data, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, self.keyframe))
+        for _ in range(math.ceil(self.settle_s / model.opt.timestep - 1e-9)):
+            mujoco.mj_step(model, data)
+        mujoco.mj_forward(model, data)
+        return data
 
     def load_model(self) -> mujoco.MjModel:
         """Compile the scene's MJCF and check that the servo loop can run it (see the module
@@ -116,6 +131,11 @@ class Scene:
         unsupported = unsupported_geoms(model, excluded)
         if unsupported:
             raise SceneError(f"{self.mjcf}: {unsupported_message(model, unsupported, scene=True)} ({self.path.name})")
+        if self.keyframe is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, self.keyframe) < 0:
+            keys = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k) for k in range(model.nkey)]
+            named = ", ".join(repr(k) for k in keys if k) or "none named"
+            raise SceneError(f"{self.path}: scene.keyframe {self.keyframe!r} is not a <key> of {self.mjcf.name}; "
+                             f"its keys: {named}")
         if self.measure is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, self.measure.object) < 0:
             bodies = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(1, model.nbody)]
             named = [b for b in bodies if b]
@@ -203,7 +223,8 @@ def _scene(path: Path, doc: dict) -> Scene:
     if not mjcf.is_file():
         raise SceneError(f"{where}: scene.mjcf {s.mjcf!r} does not exist ({mjcf})")
     scene = Scene(name=path.stem, path=path, mjcf=mjcf, description=s.description, rate_hz=s.rate_hz,
-                  duration_s=s.duration_s, audit=s.audit, force_shading=s.force_shading)
+                  duration_s=s.duration_s, audit=s.audit, force_shading=s.force_shading, keyframe=s.keyframe,
+                  settle_s=s.settle_s)
     defaults = doc.get("finger_defaults", {})
     parsed = [_finger(where, defaults, f, i) for i, f in enumerate(doc["finger"])]
     scene.fingers = [p[0] for p in parsed]

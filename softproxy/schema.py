@@ -573,6 +573,10 @@ FingerTable = _finger_table("FingerTable", "One [[finger]]: FingerParams fields 
 FingerDefaults = _finger_table("FingerDefaults", "[finger_defaults]: fields every [[finger]] starts from.")
 
 
+SETTLE_MAX_S = 60.0
+"""The longest [scene] settle_s (s): a model that has not come to rest in a minute will not."""
+
+
 class SceneTable(Table):
     """[scene]: the MJCF and the run's rate and length."""
 
@@ -583,6 +587,11 @@ class SceneTable(Table):
     duration_s: quantity("s", "length of the run (24 h at most)", low=0.0, high=MAX_DURATION_S, open_low=True,
                          hint_high="duration_s is in s") = 5.0
     audit: Annotated[Flag, Field(description="track proxy penetration every tick")] = True
+    keyframe: Annotated[Optional[Name], Field(description="a <key> of the MJCF, by name: the world starts "
+                                              "from its state (default: the model's qpos0)")] = None
+    settle_s: quantity("s", "how long the world runs on its own, no finger in it, before the device takes "
+                       "over (a model that sags or drops from its start state comes to rest first)",
+                       low=0.0, high=SETTLE_MAX_S, hint_high="settle_s is in s") = 0.0
     force_shading: Annotated[Flag, Field(description="mesh contacts report the normal interpolated from the "
                                           "vertex normals (false: the faceted normal)")] = False
 

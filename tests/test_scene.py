@@ -114,3 +114,36 @@ def test_a_model_the_loop_cannot_run_is_refused_at_load(tmp_path, toml, xml, wor
         assert w in message, (w, message)
     for w in absent:
         assert w not in message, (w, message)
+
+
+DROP_XML = """<mujoco><option timestep="0.002"/>
+  <worldbody><geom type="plane" size="1 1 .1"/>
+    <body name="box" pos="0 0 0.3"><freejoint/><geom type="box" size=".02 .02 .02" mass="0.1"/></body>
+  </worldbody>
+  <keyframe><key name="high" qpos="0.1 0 0.5 1 0 0 0"/></keyframe></mujoco>"""
+
+
+def test_a_scene_starts_from_its_keyframe_and_settles(tmp_path):
+    """[scene] keyframe: the world starts from that <key>'s state; settle_s: it then runs on its
+    own that long, so a box dropped from the key has landed and come to rest (on the floor,
+    its half-size up, nearly still) before the device takes over. Without either: qpos0."""
+    toml = GOOD.replace('mjcf = "w.xml"', 'mjcf = "w.xml"\nkeyframe = "high"\nsettle_s = 1.5')
+    scene = load_scene(write(tmp_path, toml, xml=DROP_XML))
+    model = scene.load_model()
+    data = scene.start_data(model)
+    box = model.body("box").id
+    assert data.xpos[box][0] == pytest.approx(0.1, abs=1e-3)  # the key's x, kept through the drop
+    assert data.xpos[box][2] == pytest.approx(0.02, abs=2e-3)  # landed from 0.5 m
+    assert abs(data.qvel[2]) < 0.05 and data.time == pytest.approx(1.5, abs=0.002)
+    plain = load_scene(write(tmp_path, GOOD, xml=DROP_XML))
+    start = plain.start_data(plain.load_model())
+    assert tuple(start.xpos[box]) == (0.0, 0.0, 0.3) and start.time == 0.0
+
+
+def test_a_keyframe_the_model_lacks_is_refused_naming_its_keys(tmp_path):
+    toml = GOOD.replace('mjcf = "w.xml"', 'mjcf = "w.xml"\nkeyframe = "home"')
+    scene = load_scene(write(tmp_path, toml, xml=DROP_XML))
+    with pytest.raises(SceneError, match=r"scene.keyframe 'home' is not a <key> of w.xml; its keys: 'high'"):
+        scene.load_model()
+    with pytest.raises(SceneError, match=r"scene.settle_s must be"):
+        load_scene(write(tmp_path, GOOD.replace('mjcf = "w.xml"', 'mjcf = "w.xml"\nsettle_s = -1')))
