@@ -454,6 +454,32 @@ def shapes_of(model: mujoco.MjModel, data: mujoco.MjData, mesh_shape=None, *, ex
     if unfelt:
         warnings.warn(flex_message(model, unfelt), FlexWarning, stacklevel=_outside_softproxy())
     out = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _touchable_shapes(model, data, mesh_shape, mesh_surface, geoms, out)
+    _warn_once_per_cause(caught)
+    return ShapeSet(out, data)
+
+
+def _warn_once_per_cause(caught: list) -> None:
+    """Warnings caught while building shapes, said again: a mesh defect once per asset and
+    defect however many geoms use the asset (`MeshWarning.of` names them), others as they were."""
+    merged = {}
+    for w in caught:
+        m = w.message
+        if getattr(m, "defect", "") and hasattr(type(m), "of"):
+            names = merged.setdefault((type(m), m.mesh, m.file, m.defect), [])
+            for g in m.geoms:
+                if g not in names:
+                    names.append(g)
+        else:
+            warnings.warn_explicit(m, w.category, w.filename, w.lineno)
+    for (cls, mesh, file, defect), names in merged.items():
+        warnings.warn(cls.of(mesh, names, file, defect), stacklevel=_outside_softproxy())
+
+
+def _touchable_shapes(model, data, mesh_shape, mesh_surface: str, geoms: set, out: list) -> None:
+    """Append to `out` a shape for every touchable geom not in `geoms` (`shapes_of`)."""
     for g in range(model.ngeom):
         if not touchable(model, g) or g in geoms:
             continue
@@ -471,4 +497,3 @@ def shapes_of(model: mujoco.MjModel, data: mujoco.MjData, mesh_shape=None, *, ex
             out.append(mesh_shape(model, data, g, static, triangles=hull_triangles(model, g)))
         else:
             out.append(mesh_shape(model, data, g, static))
-    return ShapeSet(out, data)

@@ -66,7 +66,26 @@ DEGENERATE = 1e-6
 
 
 class MeshWarning(UserWarning):
-    """A defect found (and repaired or worked around) in a mesh loaded for haptic contact."""
+    """A defect found (and repaired or worked around) in a mesh loaded for haptic contact.
+    Raised by a mesh shape it names `mesh` (the asset), `geoms` (the geoms using it, by name),
+    `file` (or None) and `defect`, so that a world whose geoms share one asset is told of
+    each defect once (`of`; `softproxy.geometry.shapes_of` merges them)."""
+
+    mesh: str | None = None
+    geoms: tuple = ()
+    file: str | None = None
+    defect: str = ""
+
+    @classmethod
+    def of(cls, mesh: str, geoms, file: str | None, defect: str) -> "MeshWarning":
+        """The warning of `defect` in asset `mesh` used by `geoms`: "mesh 'm' (geom 'g', file
+        'f'): defect", or for several geoms "(geoms 'a', 'b', 'c' and 9 more, file 'f')"."""
+        geoms = tuple(geoms)
+        named = ", ".join(repr(g) for g in geoms[:3]) + (f" and {len(geoms) - 3} more" if len(geoms) > 3 else "")
+        parts = [("geom " if len(geoms) == 1 else "geoms ") + named] + ([f"file {file!r}"] if file else [])
+        w = cls(f"mesh {mesh!r} ({', '.join(parts)}): {defect}")
+        w.mesh, w.geoms, w.file, w.defect = mesh, geoms, file, defect
+        return w
 
 
 # ---------------------------------------------------------------------------------------
@@ -438,10 +457,11 @@ _TABLES: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
 """Every MeshTables alive, by (a digest of the triangles it was built from, its reach (m))."""
 
 
-def tables_of(vertices, faces, label: str) -> MeshTables:
+def tables_of(vertices, faces, mesh: str, geom: str, file: str | None = None) -> MeshTables:
     """The MeshTables of triangles (vertices (n, 3), faces (m, 3); geom frame, m), built the
     first time these exact triangles are seen and shared while any shape holds them; each call
-    warns (`MeshWarning`, naming `label`) of what validation repaired or reported."""
+    warns (`MeshWarning` naming the asset `mesh`, its `geom` and `file`) of what validation
+    repaired or reported."""
     vertices = np.ascontiguousarray(vertices, dtype=np.float64).reshape(-1, 3)
     faces = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
     h = hashlib.blake2b(digest_size=20)
@@ -451,11 +471,11 @@ def tables_of(vertices, faces, label: str) -> MeshTables:
     key = h.digest()
     tables = _TABLES.get((key, reach(KEPT_RADIUS)))
     if tables is None:
-        v, f, defects, closed = _clean(vertices, faces, label, warn=False)
+        v, f, defects, closed = _clean(vertices, faces, mesh, warn=False)
         tables = MeshTables(v, f, defects, closed, key)
         _TABLES[(key, tables.kept)] = tables
     for d in tables.defects:
-        warnings.warn(f"mesh {label}: {d}", MeshWarning, stacklevel=3)
+        warnings.warn(MeshWarning.of(mesh, [geom], file, d), stacklevel=3)
     return tables
 
 
@@ -523,11 +543,11 @@ class MeshShape(Shape):
             fa, fn = int(model.mesh_faceadr[mesh]), int(model.mesh_facenum[mesh])
             vertices = model.mesh_vert[va:va + vn]
             faces = model.mesh_face[fa:fa + fn]
-            label = _label(model, geom, mesh, self.name)
+            asset, file = _asset(model, mesh)
         else:
             vertices, faces = _explicit(triangles, self.name)
-            label = f"'triangles' (geom {self.name!r})"
-        self.tables = tables_of(vertices, faces, label)
+            asset, file = "triangles", None
+        self.tables = tables_of(vertices, faces, asset, self.name, file)
         self.shading = bool(shading)
         # the bounding sphere about the geom origin that the god-object's broad phase uses
         self.rbound = self.tables.rbound
@@ -567,13 +587,9 @@ def _explicit(triangles, geom_name: str) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces.astype(np.int64)
 
 
-def _label(model: mujoco.MjModel, geom: int, mesh: int, geom_name: str) -> str:
-    """How warnings name a mesh: geom, mesh asset and file when known."""
-    mesh_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MESH, mesh) or f"#{mesh}"
-    parts = [f"geom {geom_name!r}"]
+def _asset(model: mujoco.MjModel, mesh: int) -> tuple[str, str | None]:
+    """How warnings name a mesh asset: its name (or #id) and its file when known."""
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MESH, mesh) or f"#{mesh}"
     adr = int(model.mesh_pathadr[mesh])
-    if adr >= 0:
-        path = bytes(model.paths[adr:]).split(b"\0", 1)[0].decode(errors="replace")
-        if path:
-            parts.append(f"file {path!r}")
-    return f"{mesh_name!r} ({', '.join(parts)})"
+    path = bytes(model.paths[adr:]).split(b"\0", 1)[0].decode(errors="replace") if adr >= 0 else ""
+    return name, path or None

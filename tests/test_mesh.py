@@ -558,3 +558,25 @@ def test_world_picks_shaded_mesh_contact_when_asked():
     s = mesh_of(world.shapes)
     assert s.shading and s.signed and s.triangles == 7200
     assert world.shapes.T.shape[0] == 7200 and world.shapes.S[s.row].shading
+
+
+def test_a_defect_of_an_asset_many_geoms_use_is_said_once():
+    """One open mesh asset used by 12 geoms: one warning naming the asset, three of its geoms
+    and how many more, not twelve."""
+    sheet = trimesh.Trimesh(np.array([[-0.05, -0.05, 0.0], [0.05, -0.05, 0.0], [0.05, 0.05, 0.0],
+                                      [-0.05, 0.05, 0.0], [0.06, 0.0, -0.01]]),
+                            np.array([[0, 1, 2], [0, 2, 3], [1, 4, 2]]), process=False)  # (not flat: MuJoCo hulls it)
+    v = " ".join(f"{x:g}" for x in sheet.vertices.ravel())
+    f = " ".join(str(i) for i in sheet.faces.ravel())
+    bodies = "".join(f'<body pos="{0.2 * k} 0 0"><geom name="tile{k}" type="mesh" mesh="sheet"/></body>'
+                     for k in range(12))
+    m = mujoco.MjModel.from_xml_string(f'<mujoco><asset><mesh name="sheet" vertex="{v}" face="{f}"/></asset>'
+                                       f'<worldbody>{bodies}</worldbody></mujoco>')
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    with pytest.warns(MeshWarning) as caught:
+        shapes = shapes_of(m, d, mesh_shape=MeshShape)
+    texts = [str(w.message) for w in caught if issubclass(w.category, MeshWarning)]
+    assert len(shapes) == 12
+    assert len(texts) == 1 and texts[0].startswith("mesh 'sheet' (geoms 'tile0', 'tile1', 'tile2' and 9 more): "
+                                                   "open mesh (")

@@ -115,11 +115,11 @@ def test_sliver_heavy_mesh_builds_within_bounded_memory():
     v, f = np.asarray(part.vertices), np.asarray(part.faces)
     assert old_rule_pairs(v, f, reach(0.005)) > 1e8
     tracemalloc.start()
-    tables = tables_of(v, f, "cad part")
+    tables = tables_of(v, f, "cad part", "g")
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     assert tables.triangles == len(f) and peak < 200e6
-    assert tables_of(v.copy(), f.copy(), "the same part again") is tables
+    assert tables_of(v.copy(), f.copy(), "the same part again", "g") is tables
 
 
 @pytest.mark.slow  # a long property run
@@ -132,7 +132,7 @@ def test_sliver_heavy_tables_hold_what_the_queries_need():
     from softproxy.mesh import reach, tables_of
 
     part = cad_part(200, seed=3)
-    t = tables_of(np.asarray(part.vertices, float), np.asarray(part.faces), "cad part")
+    t = tables_of(np.asarray(part.vertices, float), np.asarray(part.faces), "cad part", "g")
     assert t.kept == reach(0.005)
     rng = np.random.default_rng(4)
     certified, concave = assert_tables_hold(t, rng.choice(t.triangles, 100, replace=False),
