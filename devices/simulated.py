@@ -28,12 +28,14 @@ from __future__ import annotations
 import functools
 import math
 import time
+import warnings
 
 import numpy as np
 from numba import njit, types
 
 from softproxy import device_kernel as dk
 from softproxy.device import DeviceError
+from softproxy.input_error import implausible
 
 from . import device_config as config
 from .kernel_device import I_CLOSED, KernelDevice
@@ -269,6 +271,26 @@ def _setting_property(index: int, doc: str) -> property:
     return property(lambda self: float(self._floats[index]), doc=doc)
 
 
+PLAUSIBLE_REACH_M = 1.0
+"""A keyframe position farther than this from the device origin on an axis (m) is likely in mm:
+no desktop haptic device reaches a metre."""
+PLAUSIBLE_TWIST_RAD = 2.0 * math.pi
+"""A keyframe twist beyond ± a turn (rad) is likely in degrees."""
+
+
+def _warn_implausible(frames: list, path: str, source: str) -> None:
+    """A UnitWarning for the first keyframe position beyond PLAUSIBLE_REACH_M and the first
+    twist beyond PLAUSIBLE_TWIST_RAD of one finger's keyframes."""
+    far = next(((j, v) for j, key in enumerate(frames) for v in key[1:4] if abs(v) > PLAUSIBLE_REACH_M), None)
+    if far is not None:
+        warnings.warn(implausible(f"{path}[{far[0]}] position", far[1], "m", "in mm? positions are in m, and no "
+                                  "desktop device reaches a metre", source=source), stacklevel=3)
+    turn = next(((j, key[4]) for j, key in enumerate(frames) if abs(key[4]) > PLAUSIBLE_TWIST_RAD), None)
+    if turn is not None:
+        warnings.warn(implausible(f"{path}[{turn[0]}] twist", turn[1], "rad", "in degrees? the twist is in rad "
+                                  "(beyond a full turn)", source=source), stacklevel=3)
+
+
 class SimulatedDevice(KernelDevice):
     """A scripted multi-finger device implementing the `softproxy.device.Device` protocol: `read`
     fills samples[i] with finger i's pose as scripted at t - latency_s, plus sensor effects."""
@@ -431,5 +453,6 @@ class SimulatedDevice(KernelDevice):
                 if frames[j][0] <= frames[j - 1][0]:
                     raise _fail(source, f"device.finger[{i}].keyframes[{j}]", f"later than t = {frames[j - 1][0]} s",
                                 frames[j][0])
+            _warn_implausible(frames, f"device.finger[{i}].keyframes", source)
             keyframes.append(frames)
         return cls(keyframes, **kwargs)

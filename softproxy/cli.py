@@ -14,6 +14,7 @@ import os
 import re
 import signal
 import sys
+import warnings
 from pathlib import Path
 
 from softproxy.fingertip import MODELS
@@ -300,6 +301,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                   f"finger-ticks; the most any coupling owed {owed:.3g} J")
             t = result["tick_us"]
             print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
+            for line in result["warnings"]:
+                print(f"  warning: {line}")
             if result.get("device_error"):
                 print(f"  the device failed ({result['faults']['device_error']} ticks, zero force each): "
                       f"{result['device_error']}")
@@ -699,7 +702,22 @@ def main(argv: list[str] | None = None) -> int:
         return _main(argv)
 
 
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """How the command line shows a warning: `softproxy: warning: MESSAGE` (the message names
+    the file and field; where in softproxy it was raised is no help to a user)."""
+    return f"softproxy: warning: {message}\n"
+
+
 def _main(argv: list[str] | None) -> int:
+    shown = warnings.formatwarning
+    warnings.formatwarning = _one_line_warning
+    try:
+        return _command(argv)
+    finally:
+        warnings.formatwarning = shown  # (a caller of main() in the same process keeps its own)
+
+
+def _command(argv: list[str] | None) -> int:
     _standard_streams_open()
     args = build_parser().parse_args(argv)
     try:

@@ -23,6 +23,18 @@ class InputError(ValueError):
     """Bad input: one line naming the file (where there is one), the field, what was wrong and the fix."""
 
 
+class UnitWarning(UserWarning):
+    """A value legal but implausible in its SI unit, as one typed in another would be (mm for m,
+    degrees for rad): one line naming the field, the value and the likely unit. A warning, not
+    an error: a research setup may mean it."""
+
+
+def implausible(path: str, value, unit: str, likely: str, *, source: str = "") -> UnitWarning:
+    """The one-line warning `[source: ]path is value unit: likely?`."""
+    where = f"{source}: " if source else ""
+    return UnitWarning(f"{where}{path} is {value!r} {unit}: {likely}")
+
+
 def must_be(path: str, requirement: str, value, *, source: str = "", hint: str = "") -> InputError:
     """The one-line error `[source: ]path must be requirement, got value[ (hint)]`."""
     where = f"{source}: " if source else ""

@@ -124,6 +124,34 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     return loop
 
 
+MOSTLY = 0.5
+"""A run whose samples were invalid (or whose reads failed) this often is said to have mostly failed."""
+
+
+def run_warnings(loop: ServoLoop) -> list[str]:
+    """One line for each thing a run's figures say went wrong though it ended cleanly: most
+    samples invalid or most reads failed (a device in other units, outside the workspace, or
+    unplugged), every send failed, a finger that never touched anything."""
+    ticks, n = loop.ticks, len(loop.fingers)
+    if ticks == 0:
+        return []
+    faults = loop.faults
+    said = []
+    if faults["device_error"] > MOSTLY * ticks:
+        said.append(f"the device's reads failed on {faults['device_error']} of {ticks} ticks: the fingers rendered "
+                    "nothing then")
+    if faults["invalid_sample"] > MOSTLY * ticks * n:
+        said.append(f"{faults['invalid_sample']} of {ticks * n} samples were invalid or refused (positions in m, "
+                    "within ±1 km; a twist in rad): check the device's units")
+    if faults["send_error"] >= ticks * n:
+        said.append(f"every send to the device failed ({faults['send_error']}): {loop.last_send_error or 'no reason given'}")
+    for f in loop.fingers:
+        if f.max_force_seen == 0.0:
+            said.append(f"finger {f.params.name!r} never touched anything: are its device positions in m, and its "
+                        "offset and scale those of the scene?")
+    return said
+
+
 def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
     """Signed rotation (deg) about a world axis taking orientation q_from to q_to (w, x, y, z)."""
     inverse = np.zeros(4)
@@ -223,6 +251,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     result["passivity_controller"] = loop.passivity
     for i, channels in sensor_summaries(loop).items():  # only the fingers whose scene asked
         result["fingers"][i].update(channels)
+    result["warnings"] = run_warnings(loop)
     result["tick_us"] = loop.stats.summary_us()
     result["deadline_misses"] = loop.stats.misses if realtime else None
     result["faults"] = dict(loop.faults)

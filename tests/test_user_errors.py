@@ -14,7 +14,8 @@ import pytest
 import softproxy.run
 from softproxy import cli
 from softproxy.finger import FingerParams
-from softproxy.scene import find_scene
+from softproxy.input_error import UnitWarning
+from softproxy.scene import find_scene, load_scene
 
 GRASP = find_scene("two_finger_grasp")
 
@@ -381,3 +382,47 @@ def test_an_interrupt_is_one_line(capsys, monkeypatch):
     monkeypatch.setattr(cli, "cmd_models", interrupted)
     assert cli.main(["models"]) == 130
     assert capsys.readouterr().err == "softproxy models: interrupted\n"
+
+
+def test_keyframes_in_mm_or_degrees_are_warned_of_naming_the_field(capsys, tmp_path):
+    """Keyframes typed in mm (60 for 0.06 m) and a twist in degrees (90 for π/2): one warning
+    each naming the field, the value and the likely unit; the run goes on (rc 0) and ends
+    saying that the fingers never touched anything. On the command line each warning is one
+    line, `softproxy: warning: ...`."""
+    scene = grasp_variant(tmp_path, toml=[("[0.0, 0.06, 0.02, 0.03, 0.0], [0.5, 0.0265, 0.02, 0.03, 0.0]",
+                                           "[0.0, 60.0, 20.0, 30.0, 0.0], [0.5, 26.5, 20.0, 30.0, 90.0]"),
+                                          ("[0.0, -0.06, 0.02, 0.03, 0.0], [0.5, -0.0265, 0.02, 0.03, 0.0]",
+                                           "[0.0, -60.0, 20.0, 30.0, 0.0], [0.5, -26.5, 20.0, 30.0, 0.0]")])
+    with pytest.warns(UnitWarning) as caught:
+        assert cli.main(["run", scene, "--headless", "--duration", "0.3"]) == 0
+    said = [str(w.message) for w in caught]
+    assert said == [f"{scene}: device.finger[0].keyframes[0] position is 60.0 m: in mm? positions are in m, and no "
+                    "desktop device reaches a metre",
+                    f"{scene}: device.finger[0].keyframes[1] twist is 90.0 rad: in degrees? the twist is in rad "
+                    "(beyond a full turn)",
+                    f"{scene}: device.finger[1].keyframes[0] position is -60.0 m: in mm? positions are in m, and no "
+                    "desktop device reaches a metre"]
+    out = capsys.readouterr().out
+    assert "  warning: finger 'right' never touched anything" in out and "finger 'left' never touched" in out
+    shown = subprocess.run([sys.executable, "-m", "softproxy.cli", "run", scene, "--headless", "--duration", "0.01"],
+                           capture_output=True, text=True, timeout=300)
+    assert shown.returncode == 0
+    assert [line for line in shown.stderr.splitlines() if "warning" in line] == [f"softproxy: warning: {s}" for s in said]
+
+
+def test_a_run_whose_samples_are_mostly_refused_says_so(tmp_path):
+    """Positions beyond the workspace (±1 km: a device reporting in µm, say) are refused as
+    garbage on every tick: the run ends cleanly, its result's warnings saying most samples
+    were invalid; a clean run has none."""
+    scene = grasp_variant(tmp_path, toml=[("[0.0, 0.06, 0.02, 0.03, 0.0], [0.5, 0.0265, 0.02, 0.03, 0.0]",
+                                           "[0.0, 6e4, 0.02, 0.03, 0.0], [0.5, 2.65e4, 0.02, 0.03, 0.0]"),
+                                          ("[0.0, -0.06, 0.02, 0.03, 0.0], [0.5, -0.0265, 0.02, 0.03, 0.0]",
+                                           "[0.0, -6e4, 0.02, 0.03, 0.0], [0.5, -2.65e4, 0.02, 0.03, 0.0]")])
+    loaded = load_scene(scene)
+    with pytest.warns(UnitWarning, match="position is -?60000.0 m"):
+        result = softproxy.run.run_scene(loaded, softproxy.run.open_device("sim", loaded), duration_s=0.2)
+    assert result["faults"]["invalid_sample"] > 0.5 * result["ticks"] * 2
+    assert any(w.startswith(f"{result['faults']['invalid_sample']} of {result['ticks'] * 2} samples were invalid")
+               for w in result["warnings"]), result["warnings"]
+    clean = load_scene(str(GRASP))
+    assert softproxy.run.run_scene(clean, softproxy.run.open_device("sim", clean), duration_s=1.0)["warnings"] == []
