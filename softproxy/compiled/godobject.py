@@ -46,6 +46,7 @@ distance tells whether the plane's own feature is still under the proxy. Units: 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -94,6 +95,11 @@ depth and the grip: at 10 N a CH torsion's band reached 69 mrad/s and a steady t
 deep re-stuck below 2 mm/s. A slipping contact now stays slipping while it slides at least
 the smaller of the two: down to 0.3 mm/s and 3 mrad/s at any grip (docs/friction.md)."""
 
+
+Move = namedtuple("Move", "x y z hx hy hz straight planes")
+"""Where a constrained move ended (`_move`): the end point (m), the first surface point it
+reached (or the end point), whether the way from that first point to the end was one straight
+swept segment (any point on it is reachable), and how many planes it rests on at the end."""
 
 @njit(cache=True, error_model="numpy")
 def restick_travel(offset_travel, speed, restick_time):
@@ -889,11 +895,9 @@ def _rest_nearest(sh, fm, fd, near, x, y, z, gx, gy, gz, pl):
 @njit(cache=True, error_model="numpy")
 def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """Constrained motion from (x, y, z) toward (gx, gy, gz), starting from the planes
-    warm[:nwarm] the proxy rests on (none: cold). Returns (restart, x, y, z, hx, hy, hz,
-    straight, n): restart when what a warm start assumed no longer holds (`_move` solves
-    again cold); otherwise the end point, the first surface point reached (or the end point),
-    whether the way from that first point to the end was one straight swept segment (any
-    point on it is reachable), and the planes the proxy rests on at the end in pl[:n].
+    warm[:nwarm] the proxy rests on (none: cold). Returns (restart, Move): restart when what
+    a warm start assumed no longer holds (`_move` solves again cold); otherwise where the
+    move ended (a `Move`), the planes the proxy rests on at the end in pl[:Move.planes].
     `follow_lifts`: a warm start's plane that lifts is followed on as a cold solve follows
     it, not solved again (the frictionless proxy's solve, which wants only where sliding
     ends, not the first surface point)."""
@@ -1006,7 +1010,7 @@ def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, fol
                 break
             fd.rounding = True
             if nwarm > 0 and not follow_lifts:  # what the warm start assumed no longer holds: solve cold
-                return True, x, y, z, hx, hy, hz, straight, 0
+                return True, Move(x, y, z, hx, hy, hz, straight, 0)
             straight = False
             for i in range(nk):
                 for k in range(PLANE_WIDTH):
@@ -1065,22 +1069,20 @@ def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, fol
             nr += 1
         elif nwarm > 0 and abs(along(pl, i, x, y, z) - pl[i, PLANE_OFFSET]) <= LIFT_TOL:
             # on a plane, off its shape: solve again from no planes, as above
-            return True, x, y, z, hx, hy, hz, straight, 0
+            return True, Move(x, y, z, hx, hy, hz, straight, 0)
     if not has_first:
         hx, hy, hz = x, y, z
-    return False, x, y, z, hx, hy, hz, straight, nr
+    return False, Move(x, y, z, hx, hy, hz, straight, nr)
 
 
 @njit(cache=True, error_model="numpy")
 def _move(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """`_move_once`, warm-started, and solved again cold when the warm start's planes did not
-    hold: (x, y, z, hx, hy, hz, straight, n), the resting planes in pl[:n]."""
-    restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz,
-                                                              warm, nwarm, pl, kept, follow_lifts)
+    hold: a `Move`, the resting planes in pl[:Move.planes]."""
+    restart, move = _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts)
     if restart:  # what the warm start assumed no longer holds: solve again from no planes
-        restart, ex, ey, ez, hx, hy, hz, straight, n = _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz,
-                                                                  warm, 0, pl, kept, False)
-    return ex, ey, ez, hx, hy, hz, straight, n
+        restart, move = _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, 0, pl, kept, False)
+    return move
 
 
 @njit(cache=True, error_model="numpy")
@@ -1136,13 +1138,14 @@ def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
             nfree = 0
     if nfree > 0:
         # a plane lifting on the way is followed on: both ends are reached through free space
-        fx, fy, fz, _, _, _, _, n = _move(sh, fm, fd, near, fd.free_pos[0], fd.free_pos[1], fd.free_pos[2], xd, yd, zd,
-                                          warm, nfree, pl, kept, True)
+        move = _move(sh, fm, fd, near, fd.free_pos[0], fd.free_pos[1], fd.free_pos[2], xd, yd, zd,
+                     warm, nfree, pl, kept, True)
+        fx, fy, fz, n = move.x, move.y, move.z, move.planes
         straight = False  # the proxy is where it touches first (h)
     if n == 0:
         nwarm = _warm_planes(sh, fm, fd, x, y, z, warm)
-        fx, fy, fz, hx, hy, hz, straight, n = _move(sh, fm, fd, near, x, y, z, xd, yd, zd, warm, nwarm,
-                                                    pl, kept, False)
+        move = _move(sh, fm, fd, near, x, y, z, xd, yd, zd, warm, nwarm, pl, kept, False)
+        fx, fy, fz, hx, hy, hz, straight, n = move
     # the frictionless proxy and its planes, for the next tick
     fd.free_pos[:] = fx, fy, fz
     fd.nfree = _newest_three(fd.free_planes, pl, n)
@@ -1196,9 +1199,9 @@ def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
             for j in range(n):  # the frictionless solve's planes, kept aside
                 for k in range(PLANE_WIDTH):
                     saved[j, k] = pl[j, k]
-            fx, fy, fz, _, _, _, _, m = _move(sh, fm, fd, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept,
-                                              False)
-            _keep_resting(sh, fm, fd, pl, m, saved, n, fx, fy, fz)
+            move = _move(sh, fm, fd, near, hx, hy, hz, tx, ty, tz, warm, 0, pl, kept, False)
+            fx, fy, fz = move.x, move.y, move.z
+            _keep_resting(sh, fm, fd, pl, move.planes, saved, n, fx, fy, fz)
     fd.contact = True
     fd.normal[:] = nx, ny, nz
     fd.depth = depth
