@@ -32,9 +32,20 @@ def _scalar(v) -> float:
 class DeviceSample:
     """One finger's reading, mutated in place each tick (no allocation in the hot path).
 
-    position: x, y, z (m); orientation: unit quaternion qw, qx, qy, qz of the finger;
-    twist: rotation of the finger about its own axis (rad), the α_s of seed 002 §7;
-    buttons: bit field; valid: False when the device has no fresh sample this tick.
+    All in the device's own frame, SI units; the finger's `offset` and `scale`
+    (`FingerParams`) map it to the world: world = offset + scale × device.
+
+    - `t` (s): when the device took it, on the loop's clock.
+    - `x`, `y`, `z` (m): the fingertip's position.
+    - `qw`, `qx`, `qy`, `qz`: the finger's orientation, a unit quaternion (w first, as
+      MuJoCo writes one); devices without one leave the identity.
+    - `twist` (rad): the finger's rotation about its own axis, the axis that runs from the
+      fingertip back toward the hand (which is the contact normal n when the finger presses
+      straight on a surface), right-handed about that axis and counted from wherever the
+      device starts (the torsional proxy's α_s, *Simulating human fingers* §7).
+    - `buttons`: the device's buttons, one bit each.
+    - `valid`: False when the device has no fresh sample for this finger this tick; the
+      finger then renders zero force and its proxy only follows the body it touches.
     """
 
     __slots__ = ("t", "x", "y", "z", "qw", "qx", "qy", "qz", "twist", "buttons", "valid")
@@ -97,15 +108,25 @@ class DeviceSample:
 
 @runtime_checkable
 class Device(Protocol):
-    """What the servo loop needs from a device.
+    """What the servo loop needs from a device: six members.
 
-    `fingers`: how many fingers the device drives. `max_force` (N) and `max_torque` (N·m)
-    are what it can render; the loop clamps to them (0 = renders nothing).
-    `read` fills one sample per finger for time `t` (s, the loop's clock) and may raise
-    DeviceError; a sample field that is not a number makes that sample invalid (counted).
-    `send` renders a force (N) and a torque (N·m) on one finger, both in the device frame;
-    it is always called with finite values within the clamps. `close` stops rendering
-    (zero force) and releases the device; it may be called more than once.
+    - `fingers` (int ≥ 1): how many fingers the device drives.
+    - `max_force` (N), `max_torque` (N·m): what it can render; every send is clamped to
+      them (0: renders nothing). Read every tick, so a device may derate mid-run.
+    - `read(t, samples)`: fill `samples[i]` (a `DeviceSample`, in place) for each finger
+      i at loop time `t` (s). May raise `DeviceError` (that tick renders zero force); a
+      sample field that is no number makes that sample invalid (counted in
+      `ServoLoop.faults`).
+    - `send(finger, fx, fy, fz, tx, ty, tz)`: render a force (N) and a torque (N·m) on one
+      finger, along the device's axes (which are the world's: a finger's mapping is an
+      offset and a scale, no rotation): the force the fingertip feels, and the torsional
+      friction's torque M about the contact normal n as the vector M·n. Always called with
+      finite values within both clamps; once per finger per tick.
+    - `close()`: stop rendering (zero force first) and release the device; it may be
+      called more than once.
+
+    A device may also offer `compiled_io()` (`softproxy.device_kernel`), its read and send as
+    compiled functions, so the loop runs blocks of ticks without Python.
     """
 
     fingers: int
