@@ -540,6 +540,36 @@ def _device_types() -> list[str]:
     return device_types()
 
 
+def cmd_compile(args: argparse.Namespace) -> int:
+    """Build each scene's servo loop once, so that its kernels are compiled now and a first
+    run loads them from numba's cache. Each scene is driven by a still simulated device of as
+    many fingers as it needs, whatever device it names (the tick's kernels are the same)."""
+    import time
+
+    from softproxy.run import build, open_device
+    from softproxy.scene import SceneError, list_scenes, load_scene
+
+    names = args.scenes or [str(p) for p in list_scenes()]
+    try:
+        scenes = [load_scene(name) for name in names]  # every name checked before any compiles
+    except SceneError as exc:
+        print(f"softproxy compile: {exc}", file=sys.stderr)
+        return 2
+    for scene in scenes:
+        wall, cpu = time.monotonic(), time.process_time()
+        still = {"type": "sim", "finger": [{"keyframes": [[0.0, 0.0, 0.0, 0.0, 0.0]]}] * scene_fingers(scene)}
+        loop = build(scene, open_device("sim", scene, still, source="softproxy compile"), realtime=False)
+        loop.close()
+        print(f"{scene.name}: ready in {time.monotonic() - wall:.1f} s ({time.process_time() - cpu:.1f} s of CPU)",
+              flush=True)
+    return 0
+
+
+def scene_fingers(scene) -> int:
+    """How many device fingers a scene's fingers use."""
+    return 1 + max(p.device_finger for p in scene.fingers)
+
+
 def cmd_schema(args: argparse.Namespace) -> int:
     """Write the JSON Schema of a scene TOML, a HID profile and a [device] table for editors."""
     from softproxy.schema import write_json_schemas
@@ -614,6 +644,11 @@ def build_parser() -> argparse.ArgumentParser:
                                       "(for editors) into a folder")
     p.add_argument("--out", default="schema", help="folder for the .schema.json files (default schema)")
     p.set_defaults(func=cmd_schema)
+
+    p = sub.add_parser("compile", help="compile the servo tick of every shipped scene (or those named) now, so "
+                                       "their first runs load it from the cache")
+    p.add_argument("scenes", nargs="*", help="scene names or TOML paths (default: every shipped scene)")
+    p.set_defaults(func=cmd_compile)
 
     p = sub.add_parser("devices", help="list connected HID devices and their profiles, and the vendor SDK backends")
     p.add_argument("--json", action="store_true", help="print JSON")

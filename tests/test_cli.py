@@ -1,10 +1,13 @@
 """The command line, run as a user would run it."""
 
 import json
+import re
 import subprocess
 import sys
 
 import pytest
+
+from softproxy import cli
 
 
 def run_cli(*args):
@@ -81,3 +84,16 @@ def test_a_long_run_on_a_terminal_shows_progress_and_is_silent_otherwise(monkeyp
     assert bar.bar.n == 1.5
     bar.close()
     assert "servo time" in capsys.readouterr().err
+
+
+def test_compile_leaves_nothing_for_a_first_run_to_compile(capsys):
+    """`softproxy compile knob`: the knob scene's kernels built (one line saying so); a run of
+    it then compiles nothing (no "compiling" line). An unknown scene: one line, exit 2."""
+    assert cli.main(["compile", "knob"]) == 0
+    assert re.fullmatch(r"knob: ready in [\d.]+ s \([\d.]+ s of CPU\)\n", capsys.readouterr().out)
+    run = subprocess.run([sys.executable, "-m", "softproxy.cli", "run", "knob", "--headless", "--duration", "0.01"],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0 and "compiling" not in run.stderr, run.stderr
+    assert cli.main(["compile", "no_such_scene"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("softproxy compile:") and "no_such_scene" in err[0]
