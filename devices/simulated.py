@@ -35,7 +35,7 @@ from numba import njit, types
 
 from softproxy import device_kernel as dk
 from softproxy.device import DeviceError
-from softproxy.input_error import implausible
+from softproxy.input_error import PLAUSIBLE_REACH_M, PLAUSIBLE_TWIST_RAD, implausible
 
 from . import device_config as config
 from .kernel_device import I_CLOSED, KernelDevice
@@ -269,13 +269,6 @@ def _limit(index: int, doc: str) -> property:
 
 def _setting_property(index: int, doc: str) -> property:
     return property(lambda self: float(self._floats[index]), doc=doc)
-
-
-PLAUSIBLE_REACH_M = 1.0
-"""A keyframe position farther than this from the device origin on an axis (m) is likely in mm:
-no desktop haptic device reaches a metre."""
-PLAUSIBLE_TWIST_RAD = 2.0 * math.pi
-"""A keyframe twist beyond ± a turn (rad) is likely in degrees."""
 
 
 def _warn_implausible(frames: list, path: str, source: str) -> None:

@@ -11,6 +11,7 @@ units; the scene's device mapping turns it into world coordinates.
 
 from __future__ import annotations
 
+import inspect
 import math
 from numbers import Integral
 from typing import Protocol, runtime_checkable
@@ -140,14 +141,38 @@ class Device(Protocol):
     def close(self) -> None: ...
 
 
+CALLS = {"read": "t, samples", "send": "finger, fx, fy, fz, tx, ty, tz", "close": ""}
+"""The positional arguments the servo loop calls each method of a device with."""
+
+
+def _refuses(method, arguments: str) -> str | None:
+    """The method's signature when it cannot take `arguments` positionally, else None (also
+    when it has no signature Python can read: a builtin or an extension's method)."""
+    try:
+        signature = inspect.signature(method)
+    except (TypeError, ValueError):
+        return None
+    try:
+        signature.bind(*arguments.split(", ") if arguments else ())
+    except TypeError:
+        return str(signature)
+    return None
+
+
 def check_device(device) -> None:
     """TypeError or ValueError naming the device unless it has what `Device` asks for:
-    `fingers` an integer ≥ 1, callable `read`, `send` and `close`, and force and torque
-    limits that are finite numbers (`softproxy.device_guard.check_limits`)."""
+    `fingers` an integer ≥ 1, `read`, `send` and `close` callable with the arguments the loop
+    passes (`CALLS`: a send of the wrong signature would fail every tick, counted but
+    silent), and force and torque limits that are finite numbers
+    (`softproxy.device_guard.check_limits`)."""
     name = type(device).__name__
-    missing = [m for m in ("read", "send", "close") if not callable(getattr(device, m, None))]
+    missing = [m for m in CALLS if not callable(getattr(device, m, None))]
     if missing:
         raise TypeError(f"device {name} is not a softproxy.Device: it has no {' or '.join(m + '()' for m in missing)}")
+    for method, arguments in CALLS.items():
+        signature = _refuses(getattr(device, method), arguments)
+        if signature is not None:
+            raise TypeError(f"device {name}: {method} must take ({arguments}), its signature is {method}{signature}")
     fingers = getattr(device, "fingers", None)
     if isinstance(fingers, bool) or not isinstance(fingers, Integral) or fingers < 1:
         raise ValueError(f"device {name}: fingers must be an integer >= 1, got {fingers!r}")

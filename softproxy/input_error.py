@@ -29,6 +29,13 @@ class UnitWarning(UserWarning):
     an error: a research setup may mean it."""
 
 
+PLAUSIBLE_REACH_M = 1.0
+"""A device position farther than this from the device's origin on an axis (m) is likely in
+mm: no desktop haptic device reaches a metre."""
+PLAUSIBLE_TWIST_RAD = 2.0 * math.pi
+"""A twist beyond ± a turn (rad) is likely in degrees."""
+
+
 def implausible(path: str, value, unit: str, likely: str, *, source: str = "") -> UnitWarning:
     """The one-line warning `[source: ]path is value unit: likely?`."""
     where = f"{source}: " if source else ""

@@ -32,6 +32,7 @@ import atexit
 import gc
 import math
 import threading
+import warnings
 import weakref
 
 import numpy as np
@@ -46,6 +47,7 @@ from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
 from softproxy.finger_rows import FingerRows
+from softproxy.input_error import PLAUSIBLE_REACH_M, implausible
 from softproxy.schema import SERVO_RATE_HZ
 from softproxy.scheduling import check_priority, realtime_thread, spin_time
 from softproxy.world import World
@@ -344,6 +346,10 @@ class ServoLoop:
                 f.placed = False  # placed at its first good sample instead
             else:
                 s = self.samples[j]
+                if max(abs(s.x), abs(s.y), abs(s.z)) > PLAUSIBLE_REACH_M:
+                    warnings.warn(implausible(f"device {type(self.device).__name__} finger {j}: position",
+                                              (s.x, s.y, s.z), "m", "in mm? positions are in m, and no desktop "
+                                              "device reaches a metre"), stacklevel=2)
                 f.place(s.x, s.y, s.z)
 
     def _usable_samples(self) -> list[bool]:

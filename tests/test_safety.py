@@ -16,15 +16,15 @@ import subprocess
 import sys
 import textwrap
 import time
-from pathlib import Path
+import warnings
 
 import mujoco
 import numpy as np
 import pytest
 
-from softproxy.device import DeviceSample
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
+from softproxy.input_error import UnitWarning
 from softproxy import servo
 from softproxy.servo import ServoLoop
 from softproxy.world import World
@@ -145,6 +145,52 @@ def test_a_device_missing_the_protocol_is_refused():
 
     with pytest.raises(TypeError, match=r"NoSend is not a softproxy.Device: it has no send\(\) or close\(\)"):
         loop_on_plane(NoSend())
+
+
+def test_a_device_method_of_the_wrong_signature_is_refused():
+    """A send that takes only the force (it would raise on every tick: counted, but silent) and
+    a read without the time: refused when the loop is built, naming the method and both
+    signatures; a method taking *args, or with defaults, is fine."""
+    class ForceOnly(PressingDevice):
+        def send(self, finger, fx, fy, fz):
+            pass
+
+    with pytest.raises(TypeError, match=r"ForceOnly: send must take \(finger, fx, fy, fz, tx, ty, tz\), its "
+                                        r"signature is send\(finger, fx, fy, fz\)"):
+        loop_on_plane(ForceOnly())
+
+    class NoTime(PressingDevice):
+        def read(self, samples):
+            pass
+
+    with pytest.raises(TypeError, match=r"NoTime: read must take \(t, samples\), its signature is read\(samples\)"):
+        loop_on_plane(NoTime())
+
+    class Loose(PressingDevice):
+        def send(self, finger, *wrench, gain=1.0):
+            super().send(finger, *wrench)
+
+    loop_on_plane(Loose()).close()
+
+
+def test_a_device_reporting_in_mm_is_warned_of_at_start():
+    """A device whose first sample lies 8 m up (8 mm typed as m: the finger would hover far
+    above everything, rendering nothing, no fault): one UnitWarning at start naming the device,
+    the finger and the position; a device in m: none."""
+    class InMillimetres(PressingDevice):
+        def read(self, t, samples):
+            super().read(t, samples)
+            samples[0].z *= 1e3
+
+    loop = loop_on_plane(InMillimetres())
+    with pytest.warns(UnitWarning, match=r"device InMillimetres finger 0: position is \(0\.0, 0\.0, 8\.0\) m: in mm\?"):
+        loop.start()
+    loop.close()
+    quiet = loop_on_plane(PressingDevice())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitWarning)
+        quiet.start()
+    quiet.close()
 
 
 GARBAGE = [None, "0.01", b"x", np.array([0.0, 1.0]), [0.0], 10 ** 400, math.nan, -math.inf, 1e400j, object()]
