@@ -35,7 +35,7 @@ from numba import njit, types
 
 from softproxy import device_kernel as dk
 from softproxy.device import DeviceError
-from softproxy.input_error import PLAUSIBLE_REACH_M, PLAUSIBLE_TWIST_RAD, implausible
+from softproxy.input_error import PLAUSIBLE_TWIST_RAD, implausible
 
 from . import device_config as config
 from .kernel_device import I_CLOSED, KernelDevice
@@ -272,12 +272,8 @@ def _setting_property(index: int, doc: str) -> property:
 
 
 def _warn_implausible(frames: list, path: str, source: str) -> None:
-    """A UnitWarning for the first keyframe position beyond PLAUSIBLE_REACH_M and the first
-    twist beyond PLAUSIBLE_TWIST_RAD of one finger's keyframes."""
-    far = next(((j, v) for j, key in enumerate(frames) for v in key[1:4] if abs(v) > PLAUSIBLE_REACH_M), None)
-    if far is not None:
-        warnings.warn(implausible(f"{path}[{far[0]}] position", far[1], "m", "in mm? positions are in m, and no "
-                                  "desktop device reaches a metre", source=source), stacklevel=3)
+    """A UnitWarning for the first twist beyond PLAUSIBLE_TWIST_RAD of one finger's keyframes
+    (a position in mm is warned of when a loop starts, for every device: `ServoLoop.start`)."""
     turn = next(((j, key[4]) for j, key in enumerate(frames) if abs(key[4]) > PLAUSIBLE_TWIST_RAD), None)
     if turn is not None:
         warnings.warn(implausible(f"{path}[{turn[0]}] twist", turn[1], "rad", "in degrees? the twist is in rad "

@@ -195,7 +195,7 @@ def test_a_face_of_long_triangles_sees_short_ones_rising_above_it():
     f = np.vstack([[[0, 1, 2], [0, 2, 3]], bf + len(ground)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # an open sheet
-        t = tables_of(v, f, "ground and box")
+        t = tables_of(v, f, "ground and box", "g")
     abc = t.vpos[t.tv]
     span = np.linalg.norm(abc - np.roll(abc, 1, axis=1), axis=2).max(axis=1)
     floor = np.flatnonzero(span > 0.01)

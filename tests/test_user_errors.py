@@ -386,7 +386,8 @@ def test_an_interrupt_is_one_line(capsys, monkeypatch):
 
 def test_keyframes_in_mm_or_degrees_are_warned_of_naming_the_field(capsys, tmp_path):
     """Keyframes typed in mm (60 for 0.06 m) and a twist in degrees (90 for π/2): one warning
-    each naming the field, the value and the likely unit; the run goes on (rc 0) and ends
+    per finger whose first position lies beyond a metre (when the loop starts), one naming the
+    twist's keyframe, each with the value and the likely unit; the run goes on (rc 0) and ends
     saying that the fingers never touched anything. On the command line each warning is one
     line, `softproxy: warning: ...`."""
     scene = grasp_variant(tmp_path, toml=[("[0.0, 0.06, 0.02, 0.03, 0.0], [0.5, 0.0265, 0.02, 0.03, 0.0]",
@@ -396,12 +397,12 @@ def test_keyframes_in_mm_or_degrees_are_warned_of_naming_the_field(capsys, tmp_p
     with pytest.warns(UnitWarning) as caught:
         assert cli.main(["run", scene, "--headless", "--duration", "0.3"]) == 0
     said = [str(w.message) for w in caught]
-    assert said == [f"{scene}: device.finger[0].keyframes[0] position is 60.0 m: in mm? positions are in m, and no "
-                    "desktop device reaches a metre",
-                    f"{scene}: device.finger[0].keyframes[1] twist is 90.0 rad: in degrees? the twist is in rad "
+    assert said == [f"{scene}: device.finger[0].keyframes[1] twist is 90.0 rad: in degrees? the twist is in rad "
                     "(beyond a full turn)",
-                    f"{scene}: device.finger[1].keyframes[0] position is -60.0 m: in mm? positions are in m, and no "
-                    "desktop device reaches a metre"]
+                    "device SimulatedDevice finger 0: position is (60.0, 20.0, 30.0) m: in mm? positions are in m, "
+                    "and no desktop device reaches a metre",
+                    "device SimulatedDevice finger 1: position is (-60.0, 20.0, 30.0) m: in mm? positions are in m, "
+                    "and no desktop device reaches a metre"]
     out = capsys.readouterr().out
     assert "  warning: finger 'right' never touched anything" in out and "finger 'left' never touched" in out
     shown = subprocess.run([sys.executable, "-m", "softproxy.cli", "run", scene, "--headless", "--duration", "0.01"],
@@ -419,7 +420,7 @@ def test_a_run_whose_samples_are_mostly_refused_says_so(tmp_path):
                                           ("[0.0, -0.06, 0.02, 0.03, 0.0], [0.5, -0.0265, 0.02, 0.03, 0.0]",
                                            "[0.0, -6e4, 0.02, 0.03, 0.0], [0.5, -2.65e4, 0.02, 0.03, 0.0]")])
     loaded = load_scene(scene)
-    with pytest.warns(UnitWarning, match="position is -?60000.0 m"):
+    with pytest.warns(UnitWarning, match=r"position is \(-?60000.0, 0.02, 0.03\) m"):
         result = softproxy.run.run_scene(loaded, softproxy.run.open_device("sim", loaded), duration_s=0.2)
     assert result["faults"]["invalid_sample"] > 0.5 * result["ticks"] * 2
     assert any(w.startswith(f"{result['faults']['invalid_sample']} of {result['ticks'] * 2} samples were invalid")
