@@ -21,14 +21,13 @@ radius built for plus BALL_LIFT, so that a proxy resting on the face, or floatin
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
 from softproxy.compiled.certificate import ABOVE_TOL, box_gap2, box_heights, oriented_heights
 from softproxy.compiled.layout import FEW_SLOTS
-from softproxy.compiled.tree_walk import FROM_ROOT, LEAF, depth_first, depth_scratch
+from softproxy.compiled.tree_walk import LEAF, STACK
 from softproxy.compiled.triangle import closest, segments_gap2
 
 BALL_LIFT = 1e-5
@@ -132,74 +131,6 @@ def _may_reach(lo, hi, top, flo, fhi, ulo, uhi, radius, spare):
             and box_gap2(lo, hi, ulo, uhi) <= radius * radius + spare)
 
 
-BallReach = namedtuple("BallReach", "V F tri tlo thi i flo fhi ulo uhi sx sy sz off lx ly lz radius spare reach2 "
-                                     "order nlo nhi axes ext tstamp stamp row")
-"""A face side's walk of a box tree (`ball_lists`): the mesh (V, F, its triangle table tri),
-every triangle's box; face i's box flo..fhi and lifted by the radius ulo..uhi, its side's
-unit normal s and plane offset, the lift l = radius s, the resting ball's radius, spare and
-reach² (m, m², m²); the tree (order, nlo, nhi, its oriented boxes axes, ext); the stamps and
-the face side's row of listed triangles. Its state: (how many listed (-1: too many, or the
-budget spent), leaves opened)."""
-
-
-@njit(cache=True, error_model="numpy")
-def _ball_bound(q, s, node):
-    """No order: the children are read as they come, the right one first."""
-    return 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def _ball_opened(q, s, node):
-    """A node that is not empty and that a ball resting on the face may reach (`_may_reach`)."""
-    lo, hi = q.nlo[node], q.nhi[node]
-    if lo[0] > hi[0]:
-        return False
-    top = min(box_heights(lo, hi, q.sx, q.sy, q.sz, q.off)[0],
-              oriented_heights(q.axes, q.ext, node, q.sx, q.sy, q.sz, q.off)[0])
-    return _may_reach(lo, hi, top, q.flo, q.fhi, q.ulo, q.uhi, q.radius, q.spare)
-
-
-@njit(cache=True, error_model="numpy")
-def _ball_done(q, s):
-    """Too many, or the budget spent: no ball certificate."""
-    return s[0] < 0
-
-
-@njit(cache=True, error_model="numpy")
-def _ball_leaf(q, s, leaf):
-    """List the triangles of a leaf that a ball resting on the face reaches."""
-    m, leaves = s
-    leaves += 1
-    if leaves > BALL_BUDGET:
-        return -1, leaves
-    V, F, tri, i, sx, sy, sz, off, stamp = q.V, q.F, q.tri, q.i, q.sx, q.sy, q.sz, q.off, q.stamp
-    first = leaf * LEAF
-    for item in range(first, min(len(q.order), first + LEAF)):
-        t = q.order[item]
-        if q.tstamp[t] == stamp:
-            continue
-        top = -math.inf
-        for v in range(3):
-            w = F[t, v]
-            top = max(top, sx * V[w, 0] + sy * V[w, 1] + sz * V[w, 2] - off)
-        if not _may_reach(q.tlo[t], q.thi[t], top, q.flo, q.fhi, q.ulo, q.uhi, q.radius, q.spare):
-            continue
-        q.tstamp[t] = stamp
-        if _bound_beyond(tri, V, F, t, i, sx, sy, sz, off, q.radius, q.spare):
-            continue
-        if not _reaches(tri, V, F, t, i, q.lx, q.ly, q.lz, sx, sy, sz, off, q.radius, q.reach2):
-            continue
-        if m == BALL_ABOVE:
-            return -1, leaves
-        q.row[m] = t
-        m += 1
-    return m, leaves
-
-
-_ball_walk = depth_first(_ball_bound, _ball_leaf, opened=_ball_opened, done=_ball_done, ties_left=False)
-"""A face side's walk of a box tree, depth first."""
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def ball_lists(faces, wanted, V, F, tri, plane, tlo, thi, sorder, slo, shi, ssize, saxes, sext, lorder, llo, lhi,
                lsize, laxes, lext, radius, tstamp, stamp0, count, listed):
@@ -215,7 +146,7 @@ def ball_lists(faces, wanted, V, F, tri, plane, tlo, thi, sorder, slo, shi, ssiz
     boxes no resting ball reaches (`_may_reach`: near the face only as far as they rise above
     its plane). `tstamp` (one int per triangle) is scratch, stamped from stamp0 + 2 j + side
     + 1 on."""
-    stack = depth_scratch()
+    stack = np.empty(STACK, np.int64)
     reach = radius + BALL_SLACK
     reach2 = reach * reach
     spare = reach2 - radius * radius
@@ -236,11 +167,50 @@ def ball_lists(faces, wanted, V, F, tri, plane, tlo, thi, sorder, slo, shi, ssiz
             ulo[0], ulo[1], ulo[2] = flo[0] + lx, flo[1] + ly, flo[2] + lz
             uhi[0], uhi[1], uhi[2] = fhi[0] + lx, fhi[1] + ly, fhi[2] + lz
             row = listed[j, side]
-            s = (0, 0)
-            q = BallReach(V, F, tri, tlo, thi, i, flo, fhi, ulo, uhi, sx, sy, sz, off, lx, ly, lz, radius, spare, reach2,
-                          sorder, slo, shi, saxes, sext, tstamp, stamp, row)
-            s, _ = _ball_walk(ssize, FROM_ROOT, q, s, stack)
-            q_long = BallReach(V, F, tri, tlo, thi, i, flo, fhi, ulo, uhi, sx, sy, sz, off, lx, ly, lz, radius, spare,
-                               reach2, lorder, llo, lhi, laxes, lext, tstamp, stamp, row)
-            s, _ = _ball_walk(lsize, FROM_ROOT, q_long, s, stack)
-            count[j, side] = s[0]
+            m = 0
+            leaves = 0
+            for tree in range(2):
+                order, nlo, nhi, size = (sorder, slo, shi, ssize) if tree == 0 else (lorder, llo, lhi, lsize)
+                axes, ext = (saxes, sext) if tree == 0 else (laxes, lext)
+                stack[0] = 1
+                sp = 1
+                while sp > 0 and m >= 0:
+                    sp -= 1
+                    node = stack[sp]
+                    lo, hi = nlo[node], nhi[node]
+                    if lo[0] > hi[0]:
+                        continue
+                    top = min(box_heights(lo, hi, sx, sy, sz, off)[0], oriented_heights(axes, ext, node, sx, sy, sz, off)[0])
+                    if not _may_reach(lo, hi, top, flo, fhi, ulo, uhi, radius, spare):
+                        continue
+                    if node < size:
+                        stack[sp] = 2 * node
+                        stack[sp + 1] = 2 * node + 1
+                        sp += 2
+                        continue
+                    leaves += 1
+                    if leaves > BALL_BUDGET:
+                        m = -1
+                        break
+                    first = (node - size) * LEAF
+                    for item in range(first, min(len(order), first + LEAF)):
+                        t = order[item]
+                        if tstamp[t] == stamp:
+                            continue
+                        top = -math.inf
+                        for v in range(3):
+                            w = F[t, v]
+                            top = max(top, sx * V[w, 0] + sy * V[w, 1] + sz * V[w, 2] - off)
+                        if not _may_reach(tlo[t], thi[t], top, flo, fhi, ulo, uhi, radius, spare):
+                            continue
+                        tstamp[t] = stamp
+                        if _bound_beyond(tri, V, F, t, i, sx, sy, sz, off, radius, spare):
+                            continue
+                        if not _reaches(tri, V, F, t, i, lx, ly, lz, sx, sy, sz, off, radius, reach2):
+                            continue
+                        if m == BALL_ABOVE:
+                            m = -1
+                            break
+                        row[m] = t
+                        m += 1
+            count[j, side] = m

@@ -27,12 +27,11 @@ on a dense mesh, or walks its box tree.
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.tree_walk import LEAF, FROM_ROOT, best_first, best_scratch, depth_first, depth_scratch, heap_offer
+from softproxy.compiled.tree_walk import LEAF, STACK, heap_offer, heap_pop
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, FEW_SLOTS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
     V_RING, V_SINES, V_THRESHOLD, V_X, VERTEX_A,
@@ -577,124 +576,6 @@ def _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp):
     return front, back
 
 
-FaceReach = namedtuple("FaceReach", "V F nx ny nz off qlo qhi cx cy cz ri tlo thi centre rho reach fan_start fan "
-                                     "order nlo nhi limit2 laxes lext alo ahi apex fj bj tstamp stamp")
-"""A face's walk of a box tree (`face_lists`): the mesh (V, F), the face's plane (n, off), box
-qlo..qhi and bounding ball (c, ri), every triangle's box and ball, the reach (m), the fans;
-the tree (order, nlo, nhi; the long tree's oriented boxes and apex boxes), the squared gap
-(m²) past which its nodes are left out; the face's rows of listed triangles, front and back,
-and the stamps. Its state: (how many listed front, back (-1: too many), leaves opened)."""
-
-
-@njit(cache=True, error_model="numpy")
-def _face_bound(q, s, node):
-    """A node's bound: the squared gap (m²) between its box and the face's."""
-    return box_gap2(q.nlo[node], q.nhi[node], q.qlo, q.qhi)
-
-
-@njit(cache=True, error_model="numpy")
-def _face_limit(q, s):
-    """Nothing beyond the tree's reach."""
-    return q.limit2
-
-
-@njit(cache=True, error_model="numpy")
-def _face_done(q, s):
-    """Both sides have too many: no certificate."""
-    return s[0] < 0 and s[1] < 0
-
-
-@njit(cache=True, error_model="numpy")
-def _rises(front, back, top, bottom):
-    """Whether a box reaching from `bottom` to `top` (m) over the plane rises above it on a
-    side still open."""
-    return (front >= 0 and top > ABOVE_TOL) or (back >= 0 and bottom < -ABOVE_TOL)
-
-
-@njit(cache=True, error_model="numpy")
-def _vertex_opened(q, s, node):
-    """A node of the vertex tree whose box rises above the face's plane on a side still open."""
-    top, bottom = box_heights(q.nlo[node], q.nhi[node], q.nx, q.ny, q.nz, q.off)
-    return _rises(s[0], s[1], top, bottom)
-
-
-@njit(cache=True, error_model="numpy")
-def _long_opened(q, s, node):
-    """A node of the long tree that rises above the face's plane on a side still open, by its
-    box, its oriented box, and its apex and the boxes of the rest."""
-    nx, ny, nz, off = q.nx, q.ny, q.nz, q.off
-    top, bottom = box_heights(q.nlo[node], q.nhi[node], nx, ny, nz, off)
-    t2, b2 = oriented_heights(q.laxes, q.lext, node, nx, ny, nz, off)
-    a = q.apex[node]
-    if a >= 0:  # the rest's boxes, and the apex
-        t3, b3 = box_heights(q.alo[node], q.ahi[node], nx, ny, nz, off)
-        V = q.V
-        h = nx * V[a, 0] + ny * V[a, 1] + nz * V[a, 2] - off
-        t2, b2 = max(min(t2, t3), h), min(max(b2, b3), h)
-    top, bottom = min(top, t2), max(bottom, b2)
-    return _rises(s[0], s[1], top, bottom)
-
-
-@njit(cache=True, error_model="numpy")
-def _long_leaf(q, s, leaf):
-    """The long triangles of a leaf within reach of the face that rise above its plane."""
-    front, back, leaves = s
-    leaves += 1
-    if leaves > BUDGET:
-        return -1, -1, leaves
-    first = leaf * LEAF
-    for item in range(first, min(len(q.order), first + LEAF)):
-        t = q.order[item]
-        if _near_face(t, q.qlo, q.qhi, q.cx, q.cy, q.cz, q.ri, q.tlo, q.thi, q.centre, q.rho, q.reach):
-            front, back = _rise(t, q.V, q.F, q.nx, q.ny, q.nz, q.off, front, back, q.fj, q.bj, q.tstamp, q.stamp)
-    return front, back, leaves
-
-
-@njit(cache=True, error_model="numpy")
-def _vertex_leaf(q, s, leaf):
-    """The triangles of the fans of a leaf's vertices that rise above the face's plane, within
-    reach of it."""
-    front, back, leaves = s
-    leaves += 1
-    if leaves > BUDGET:
-        return -1, -1, leaves
-    V, nx, ny, nz, off, qlo, qhi, stamp = q.V, q.nx, q.ny, q.nz, q.off, q.qlo, q.qhi, q.stamp
-    first = leaf * LEAF
-    for item in range(first, min(len(q.order), first + LEAF)):
-        w = q.order[item]
-        h = nx * V[w, 0] + ny * V[w, 1] + nz * V[w, 2] - off
-        if -ABOVE_TOL <= h <= ABOVE_TOL:
-            continue
-        # w's fan is read for the side w rises on, while that side is open: a
-        # triangle of it rising on the other side has a vertex rising there,
-        # read in turn (a cap's hub is not read 25,000 triangles a face)
-        up = h > 0.0
-        if (up and front < 0) or (not up and back < 0):
-            continue
-        g = 0.0
-        for k in range(3):
-            e = V[w, k] - qhi[k] if V[w, k] > qhi[k] else qlo[k] - V[w, k] if V[w, k] < qlo[k] else 0.0
-            g += e * e
-        if g > q.limit2:
-            continue
-        for f in range(q.fan_start[w], q.fan_start[w + 1]):
-            t = q.fan[f]
-            if q.tstamp[t] != stamp and _near_face(t, qlo, qhi, q.cx, q.cy, q.cz, q.ri, q.tlo, q.thi, q.centre, q.rho,
-                                                    q.reach):
-                front, back = _rise(t, V, q.F, nx, ny, nz, off, front, back, q.fj, q.bj, q.tstamp, stamp)
-                if (up and front < 0) or (not up and back < 0):
-                    break
-    return front, back, leaves
-
-
-_vertex_tree_walk = depth_first(_face_bound, _vertex_leaf, limit=_face_limit, opened=_vertex_opened, done=_face_done,
-                                ties_left=False)
-"""A face's walk of the vertex tree: nearest node first (a concave side ends sooner)."""
-_long_tree_walk = depth_first(_face_bound, _long_leaf, limit=_face_limit, opened=_long_opened, done=_face_done,
-                              ties_left=False)
-"""A face's walk of the long tree: nearest node first."""
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder, vlo, vhi, vsize, lorder, llo, lhi,
                lsize, reach, long_edge, laxes, lext, alo, ahi, apex, tstamp, stamp0, count, listed):
@@ -710,7 +591,7 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
     tree by the apex and the boxes of the rest too: a cone's face sees its ~25,000 slivers
     about the tip within reach, each node a wedge whose boxes rose above its plane beside the
     tip). `tstamp` (one int per triangle) is scratch, stamped from stamp0 + 1 on."""
-    stack = depth_scratch()
+    stack = np.empty(STACK, np.int64)
     vreach2 = (reach + long_edge) ** 2
     reach2 = reach * reach
     for j in range(len(faces)):
@@ -721,14 +602,72 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
         qlo, qhi = tlo[i], thi[i]
         cx, cy, cz, ri = centre[i, 0], centre[i, 1], centre[i, 2], rho[i]
         fj, bj = listed[j, 0], listed[j, 1]
-        s = (0, 0, 0)
-        q = FaceReach(V, F, nx, ny, nz, off, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach, fan_start, fan,
-                      vorder, vlo, vhi, vreach2, laxes, lext, alo, ahi, apex, fj, bj, tstamp, stamp)
-        s, _ = _vertex_tree_walk(vsize, FROM_ROOT, q, s, stack)
-        q_long = FaceReach(V, F, nx, ny, nz, off, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach, fan_start, fan,
-                      lorder, llo, lhi, reach2, laxes, lext, alo, ahi, apex, fj, bj, tstamp, stamp)
-        s, _ = _long_tree_walk(lsize, FROM_ROOT, q_long, s, stack)
-        count[j, 0], count[j, 1] = s[0], s[1]
+        front, back = 0, 0
+        leaves = 0
+        for tree in range(2):
+            order, nlo, nhi, size = (vorder, vlo, vhi, vsize) if tree == 0 else (lorder, llo, lhi, lsize)
+            limit2 = vreach2 if tree == 0 else reach2
+            stack[0] = 1
+            sp = 1
+            while sp > 0 and (front >= 0 or back >= 0):
+                sp -= 1
+                node = stack[sp]
+                lo, hi = nlo[node], nhi[node]
+                if lo[0] > hi[0] or box_gap2(lo, hi, qlo, qhi) > limit2:
+                    continue
+                top, bottom = box_heights(lo, hi, nx, ny, nz, off)
+                if tree == 1:
+                    t2, b2 = oriented_heights(laxes, lext, node, nx, ny, nz, off)
+                    a = apex[node]
+                    if a >= 0:  # the rest's boxes, and the apex
+                        t3, b3 = box_heights(alo[node], ahi[node], nx, ny, nz, off)
+                        h = nx * V[a, 0] + ny * V[a, 1] + nz * V[a, 2] - off
+                        t2, b2 = max(min(t2, t3), h), min(max(b2, b3), h)
+                    top, bottom = min(top, t2), max(bottom, b2)
+                if not ((front >= 0 and top > ABOVE_TOL) or (back >= 0 and bottom < -ABOVE_TOL)):
+                    continue
+                if node < size:
+                    a, b = 2 * node, 2 * node + 1
+                    if box_gap2(nlo[a], nhi[a], qlo, qhi) < box_gap2(nlo[b], nhi[b], qlo, qhi):
+                        a, b = b, a
+                    stack[sp] = a      # the nearer child last: walked first (a concave side ends sooner)
+                    stack[sp + 1] = b
+                    sp += 2
+                    continue
+                leaves += 1
+                if leaves > BUDGET:
+                    front, back = -1, -1
+                    break
+                first = (node - size) * LEAF
+                for item in range(first, min(len(order), first + LEAF)):
+                    if tree == 1:
+                        t = order[item]
+                        if _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
+                            front, back = _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp)
+                        continue
+                    w = order[item]
+                    h = nx * V[w, 0] + ny * V[w, 1] + nz * V[w, 2] - off
+                    if -ABOVE_TOL <= h <= ABOVE_TOL:
+                        continue
+                    # w's fan is read for the side w rises on, while that side is open: a
+                    # triangle of it rising on the other side has a vertex rising there,
+                    # read in turn (a cap's hub is not read 25,000 triangles a face)
+                    up = h > 0.0
+                    if (up and front < 0) or (not up and back < 0):
+                        continue
+                    g = 0.0
+                    for k in range(3):
+                        e = V[w, k] - qhi[k] if V[w, k] > qhi[k] else qlo[k] - V[w, k] if V[w, k] < qlo[k] else 0.0
+                        g += e * e
+                    if g > vreach2:
+                        continue
+                    for f in range(fan_start[w], fan_start[w + 1]):
+                        t = fan[f]
+                        if tstamp[t] != stamp and _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
+                            front, back = _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp)
+                            if (up and front < 0) or (not up and back < 0):
+                                break
+        count[j, 0], count[j, 1] = front, back
 
 
 @njit(cache=True, error_model="numpy")
@@ -783,74 +722,6 @@ def _long_near(w, v, p, F, fan_start, fan, longest, long_edge, tlo, thi, centre,
     return False
 
 
-VertexReach = namedtuple("VertexReach", "V F fan_start fan longest tlo thi centre rho vorder vlo vhi rlo rhi wlo whi "
-                                         "vaxes vext reach long_edge reach2 vreach2 mark stamp v p ax ay az av hs hw")
-"""A vertex's walk of the reach-box tree (`vertex_tables`): the mesh, every triangle's box and
-ball and longest edge, the tree (vorder, its items' boxes wlo..whi; per node its vertices'
-box vlo..vhi and oriented box, its reach boxes' rlo..rhi), the reach (m), the marks; vertex v
-at p, its cone's axis a (av = a·p), its table (a max-heap of sin β, vertex ids). Its state:
-(how many the table holds, leaves opened)."""
-
-
-@njit(cache=True, error_model="numpy")
-def _reach_bound(q, s, node):
-    """A node's bound: the squared gap (m²) from v to its vertices' box; inf for an empty node
-    or one whose reach boxes lie beyond reach."""
-    if q.vlo[node, 0] <= q.vhi[node, 0] and box_gap2(q.rlo[node], q.rhi[node], q.p, q.p) <= q.reach2:
-        return box_gap2(q.vlo[node], q.vhi[node], q.p, q.p)
-    return math.inf
-
-
-@njit(cache=True, error_model="numpy")
-def _reach_opened(q, s, node):
-    """Once the table is full, only a node that may hold a lower sin β than its top."""
-    if s[0] < len(q.hs):
-        return True
-    px, py, pz = q.p[0], q.p[1], q.p[2]
-    return not _least_sine(q.vlo[node], q.vhi[node], px, py, pz, q.ax, q.ay, q.az, q.av,
-                           oriented_heights(q.vaxes, q.vext, node, q.ax, q.ay, q.az, q.av)[0]) >= q.hs[0]
-
-
-@njit(cache=True, error_model="numpy")
-def _reach_done(q, s):
-    """The leaf budget spent, or a full table no query can pass (all below DEAD_SINE)."""
-    m, leaves = s
-    return (m == len(q.hs) and q.hs[0] < DEAD_SINE) or leaves > BUDGET
-
-
-@njit(cache=True, error_model="numpy")
-def _reach_leaf(q, s, leaf):
-    """The vertices of a leaf that may bear a triangle within reach, into the table while
-    their sin β is among the lowest."""
-    m, leaves = s
-    leaves += 1
-    if leaves > BUDGET:
-        return m, leaves
-    V, p, v, stamp, mark, hs, hw = q.V, q.p, q.v, q.stamp, q.mark, q.hs, q.hw
-    keep = len(hs)
-    px, py, pz = p[0], p[1], p[2]
-    first = leaf * LEAF
-    for item in range(first, min(len(q.vorder), first + LEAF)):
-        w = q.vorder[item]
-        if mark[w] == stamp:
-            continue
-        near = box_gap2(V[w], V[w], p, p) <= q.vreach2
-        if not near and box_gap2(q.wlo[item], q.whi[item], p, p) > q.reach2:
-            continue
-        sine = _sine(w, V, px, py, pz, q.ax, q.ay, q.az)
-        if m == keep and sine >= hs[0]:
-            continue  # the table keeps lower ones
-        if near or _long_near(w, v, p, q.F, q.fan_start, q.fan, q.longest, q.long_edge, q.tlo, q.thi, q.centre, q.rho,
-                              q.reach):
-            mark[w] = stamp
-            m = heap_offer(hs, hw, m, keep, sine, w)
-    return m, leaves
-
-
-_reach_walk = best_first(_reach_bound, _reach_leaf, opened=_reach_opened, done=_reach_done)
-"""A vertex's walk of the reach-box tree, nearest node first."""
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho, fan_start, fan, longest, vorder,
                   vlo, vhi, rlo, rhi, wlo, whi, vsize, vaxes, vext, reach, long_edge, mark, stamp0, sines, ids, counts):
@@ -881,7 +752,9 @@ def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho,
     VERTEX_READ, and the box tree serves it). `mark` (one int per vertex) is scratch,
     stamped from stamp0 + 1 on."""
     keep = sines.shape[1]
-    heap = best_scratch(2 * vsize + 2)  # every node waits at most once a walk
+    room = 2 * vsize + 2  # every node waits at most once a walk
+    gaps = np.empty(room)
+    waiting = np.empty(room, np.int64)
     vreach2 = (reach + long_edge) ** 2
     reach2 = reach * reach
     p = np.empty(3)
@@ -896,12 +769,45 @@ def vertex_tables(verts, V, F, axis, ring_start, ring_to, tlo, thi, centre, rho,
         for e in range(ring_start[v], ring_start[v + 1]):
             mark[ring_to[e]] = stamp
         hs, hw = sines[j], ids[j]
-        q = VertexReach(V, F, fan_start, fan, longest, tlo, thi, centre, rho, vorder, vlo, vhi, rlo, rhi, wlo, whi,
-                        vaxes, vext, reach, long_edge, reach2, vreach2, mark, stamp, v, p, ax, ay, az, av, hs, hw)
-        # nearest node first: the table fills with the nearest vertices, whose sin β leaves
-        # out the rest soonest; stopped with nodes waiting: a table no query can pass
-        (m, leaves), waiting = _reach_walk(vsize, FROM_ROOT, q, (0, 0), heap)
-        if leaves > BUDGET or waiting > 0:
+        m = 0
+        leaves = 0
+        # nearest node first (a heap of those waiting, by -gap²): the table fills with the
+        # nearest vertices, whose sin β leaves out the rest soonest
+        w_count = heap_offer(gaps, waiting, 0, room, -box_gap2(vlo[1], vhi[1], p, p), 1)
+        while w_count > 0:
+            if m == keep and hs[0] < DEAD_SINE:
+                leaves = BUDGET + 1  # already a table no query can pass: stop here
+                break
+            _, node, w_count = heap_pop(gaps, waiting, w_count)
+            lo, hi = vlo[node], vhi[node]
+            if lo[0] > hi[0] or box_gap2(rlo[node], rhi[node], p, p) > reach2:
+                continue
+            if m == keep and _least_sine(lo, hi, px, py, pz, ax, ay, az, av,
+                                         oriented_heights(vaxes, vext, node, ax, ay, az, av)[0]) >= hs[0]:
+                continue
+            if node < vsize:
+                for child in range(2 * node, 2 * node + 2):
+                    if vlo[child, 0] <= vhi[child, 0] and box_gap2(rlo[child], rhi[child], p, p) <= reach2:
+                        w_count = heap_offer(gaps, waiting, w_count, room, -box_gap2(vlo[child], vhi[child], p, p), child)
+                continue
+            leaves += 1
+            if leaves > BUDGET:
+                break
+            first = (node - vsize) * LEAF
+            for item in range(first, min(len(vorder), first + LEAF)):
+                w = vorder[item]
+                if mark[w] == stamp:
+                    continue
+                near = box_gap2(V[w], V[w], p, p) <= vreach2
+                if not near and box_gap2(wlo[item], whi[item], p, p) > reach2:
+                    continue
+                s = _sine(w, V, px, py, pz, ax, ay, az)
+                if m == keep and s >= hs[0]:
+                    continue  # the table keeps lower ones
+                if near or _long_near(w, v, p, F, fan_start, fan, longest, long_edge, tlo, thi, centre, rho, reach):
+                    mark[w] = stamp
+                    m = heap_offer(hs, hw, m, keep, s, w)
+        if leaves > BUDGET:
             for c in range(keep):
                 hs[c], hw[c] = -1.0, v
             m = keep

@@ -86,7 +86,7 @@ from softproxy.compiled.layout import (
 )
 from softproxy.compiled.patch import slot_patch
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
-from softproxy.compiled.tree_walk import depth_first, depth_scratch
+from softproxy.compiled.tree_walk import best_so_far, depth_first, depth_scratch
 from softproxy.compiled.triangle import Sweep, closest, pressed, shade, sweep_triangle
 
 POINT_RADIUS = 1e-8
@@ -184,26 +184,20 @@ def _nearest_run(q, j0, j1, s):
     return best2, qx, qy, qz, bf, bi
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _nearest_bound(q, s, node):
     """A node's bound: the squared gap (m²) from p to its boxes."""
     return node_gap2(q.C, q.base + NODE_WIDTH * node, q.x, q.y, q.z)
 
 
-@njit(cache=True, error_model="numpy")
-def _nearest_limit(q, s):
-    """Nothing beyond the nearest found so far (m²) matters."""
-    return s[0]
-
-
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _nearest_leaf(q, s, leaf):
     """The nearest so far after the triangles of a leaf."""
     j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
     return _nearest_run(q, j0, j1, s)
 
 
-_nearest_walk = depth_first(_nearest_bound, _nearest_leaf, limit=_nearest_limit)
+_nearest_walk = depth_first(_nearest_bound, _nearest_leaf, limit=best_so_far)
 """The box tree walked nearest node first, leaving out every node farther than the best found."""
 
 
@@ -510,7 +504,7 @@ def _sweep_run(q, j0, j1, s):
     return best_lam, bnx, bny, bnz, bi, far2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sweep_bound(q, s, node):
     """A node's bound: where (fraction of the segment) the sweep enters its boxes grown by
     the reach, before the earliest touch so far (`node_entry`; beyond it when not)."""
@@ -519,26 +513,20 @@ def _sweep_bound(q, s, node):
                       q.slack, s[0])
 
 
-@njit(cache=True, error_model="numpy")
-def _sweep_limit(q, s):
-    """Nothing entered after the earliest touch so far matters."""
-    return s[0]
-
-
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sweep_opened(q, s, node):
     """Not a node wholly behind the cull plane."""
     return not (q.cull and node_top(q.C, q.base + NODE_WIDTH * node, q.pnx, q.pny, q.pnz) <= q.poff)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sweep_leaf(q, s, leaf):
     """The earliest touch so far after the triangles of a leaf."""
     j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
     return _sweep_run(q, j0, j1, s)
 
 
-_sweep_walk = depth_first(_sweep_bound, _sweep_leaf, limit=_sweep_limit, opened=_sweep_opened, rebound=True)
+_sweep_walk = depth_first(_sweep_bound, _sweep_leaf, limit=best_so_far, opened=_sweep_opened, rebound=True)
 """The box tree walked earliest entry first: the nodes the segment enters, grown by the
 reach, before the earliest touch found (a node taken up after a touch was found since its
 entry was is entered again up to that touch)."""

@@ -22,7 +22,7 @@ from softproxy.compiled.layout import (
     CUT_NODES, NODE_WIDTH, PATCH_RECORDS, PATCH_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS,
     RECORD_WIDTH,
 )
-from softproxy.compiled.tree_walk import FROM_ROOT, best_first, best_scratch, heap_offer
+from softproxy.compiled.tree_walk import FROM_ROOT, best_first, best_scratch, best_so_far, heap_offer
 
 
 FRONTIER = 4096
@@ -211,32 +211,26 @@ a max-heap of their bounds (m²) and their rows in `kept`. Its walk's state: (r2
 below `least`)."""
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _gather_bound(q, s, node):
     """A node's bound: the squared gap (m²) between the segment and its boxes."""
     return span_gap2(q.C, q.base + NODE_WIDTH * node, q.ax, q.ay, q.az, q.ux, q.uy, q.uz, 1.0)
 
 
-@njit(cache=True, error_model="numpy")
-def _gather_limit(q, s):
-    """Nothing beyond the radius gathered out to (m²) is kept."""
-    return s[0]
-
-
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _gather_done(q, s):
     """Given up: the patch would hold less than `least`."""
     return s[2]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _gather_overflow(q, s, g2):
     """A node with no room to wait: the patch holds only what lies nearer (g2, m²)."""
     _, m, given_up = s
     return g2, m, given_up or g2 < q.least * q.least
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _gather_leaf(q, s, leaf):
     """Keep the records of a leaf that lie within the radius, the nearest PATCH_RECORDS of
     all kept so far; when full, the radius shrinks to the least bound left out."""
@@ -268,7 +262,7 @@ def _gather_leaf(q, s, leaf):
     return r2, m, False
 
 
-_gather_walk = best_first(_gather_bound, _gather_leaf, limit=_gather_limit, done=_gather_done,
+_gather_walk = best_first(_gather_bound, _gather_leaf, limit=best_so_far, done=_gather_done,
                           overflow=_gather_overflow)
 """The box tree walked nearest node first, out to the radius gathered so far."""
 

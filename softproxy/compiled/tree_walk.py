@@ -1,17 +1,14 @@
 """The one walk of a box tree: which nodes a query reads, in what order, and when it stops.
 
 Every box tree of the engine has one shape: node 1 the root, node j's children 2j and 2j + 1,
-node j a leaf when j >= size (its leaf number j - size; a leaf holds LEAF items). A mesh's
-tree lives in the float table C (`softproxy.compiled.box_tree`), the load-time trees of the
-certificates in arrays (`softproxy.compiled.certificate`, `ball`); a query reads either. What
-a query changes is small and the walk is the same, so it is written once here, twice over:
+node j a leaf when j >= size (its leaf number j - size; a leaf holds LEAF items). The run-time
+queries on a mesh's tree (in the float table C, `softproxy.compiled.box_tree`) walk it here,
+one walk written once, twice over:
 
 - `depth_first`: a stack, the children's bounds taken when their parent is read and the
-  nearer child read first (the distance and sweep queries of `softproxy.compiled.mesh`,
-  the face lists of `certificate`, the ball lists of `ball`);
+  nearer child read first (the distance and sweep queries of `softproxy.compiled.mesh`);
 - `best_first`: a heap of the nodes waiting, the least bound read first, so the walk may
-  end at the first node beyond what it needs (a patch's gathering in `patch`, the vertex
-  tables of `certificate`).
+  end at the first node beyond what it needs (a patch's gathering in `patch`).
 
 A query is its parts, small @njit functions of (q, s, ...): q the query's constants (a
 namedtuple of the arrays and scalars it reads, never reassigned during the walk), s its state
@@ -20,11 +17,11 @@ namedtuple of the arrays and scalars it reads, never reassigned during the walk)
   entry): nodes are read least first; a node whose bound exceeds `limit(q, s)`, or is
   infinite (an empty node, one the query rules out by another test), is left out;
 - `visit(q, s, leaf)`: read leaf number `leaf`, returning the new state;
-- `limit(q, s)`: the bound past which nothing can matter (the best found so far: it shrinks
-  as the walk finds better; infinite by default);
+- `limit(q, s)`: the bound past which nothing can matter (`best_so_far`, the state's first
+  entry: it shrinks as the walk finds better; infinite by default);
 - `opened(q, s, node)`: a test made when a node is taken up, on the state of that moment
-  (a face's lists still open, a sweep's cull plane, a full vertex table); every node by default;
-- `done(q, s)`: the walk stops (a leaf budget spent, a list found too long); never by default;
+  (a sweep's cull plane); every node by default;
+- `done(q, s)`: the walk stops (a patch given up); never by default;
 - and per walk: `ties_left` (depth first: on equal bounds the child 2j first, else
   2j + 1), `rebound` (depth first: a node taken up after the limit has shrunk since its
   bound was taken is bounded again: a sweep's entry depends on how far the sweep still
@@ -44,8 +41,19 @@ themselves are compiled with the kernels that call them and not cached on their 
 keys a closure's cache on its cells, and a dispatcher pickles with an id of its process, so
 such an entry would never be read again.
 
+The parts are inlined at numba's IR level (inline="always"): every call of a function taking a
+tuple of arrays counts a reference to each array (an atomic add, and a subtract after),
+which LLVM removes only where both lie in one branch-free stretch. For the same reason the
+walks that build the certificates at load (`certificate.face_lists`, `vertex_tables`,
+`ball.ball_lists`) stay written out, with this module's LEAF, STACK and heap: their queries
+read some twenty arrays, and as parts of these walks they paid ~40 atomic counts a leaf
+visit; a chunk of 4096 faces of the 100k-triangle sliver mesh took 0.21 s for its face lists
+(0.05 s written out) and 0.55 s for its vertex tables (0.19 s). The run-time queries read
+two arrays (T and C) and a few scalars.
+
 Each walk keeps the order the walks written out kept, ties included, so every query finds
-the same triangles in the same order as before they were one.
+the same triangles in the same order as before they were one. `patch._cut` is not a walk:
+it takes the tree level by level down to the deepest that CUT_NODES nodes cover.
 """
 
 from __future__ import annotations
@@ -63,25 +71,31 @@ FROM_ROOT = np.zeros(0)
 """The `cut` of a walk that starts at the root."""
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def unlimited(q, s):
     """No limit: every node whose bound is finite is read."""
     return math.inf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
+def best_so_far(q, s):
+    """The limit is the state's first entry: the best found so far."""
+    return s[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def always(q, s, node):
     """Every node taken up is opened."""
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def never(q, s):
     """The walk runs until no node waits."""
     return False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def left_out(q, s, bound):
     """A node with no room in the heap is left out (the state unchanged)."""
     return s
