@@ -2,8 +2,8 @@
 
 `layout` holds the record dtypes of fingers and shapes (and the mesh tables' columns);
 `tolerances` the geometric tolerances; `shapes`, `mesh` and `certificate` the proxy-vs-shape
-queries (on a mesh: `triangle` one triangle, `box_tree` the tree's bounds, `patch` a hint
-slot's patch, `ball` the ball certificates); `godobject` the god-object solver; `finger` the coupling, the torsion law and the
+queries (on a mesh: `triangle` one triangle, `box_tree` the tree's bounds, `tree_walk` its
+walk, `patch` a hint slot's patch, `ball` the ball certificates); `godobject` the god-object solver; `finger` the coupling, the torsion law and the
 tick over every finger; `native` MuJoCo's C step and a monotonic clock for kernels;
 `dispatch` calls kernels from Python without numba's per-call type resolution; `cache`
 keeps numba's on-disk cache in step with every file the kernels are built from. The classes

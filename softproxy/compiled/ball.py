@@ -25,8 +25,9 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.certificate import ABOVE_TOL, LEAF, STACK, box_gap2, box_heights, oriented_heights
+from softproxy.compiled.certificate import ABOVE_TOL, box_gap2, box_heights, oriented_heights
 from softproxy.compiled.layout import FEW_SLOTS
+from softproxy.compiled.tree_walk import LEAF, STACK
 from softproxy.compiled.triangle import closest, segments_gap2
 
 BALL_LIFT = 1e-5

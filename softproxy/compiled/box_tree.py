@@ -1,11 +1,12 @@
-"""A mesh's box tree at run time: node and record bounds, and the stack a walk keeps.
+"""A mesh's box tree at run time: the bounds of its nodes and records.
 
 Node j of mesh k lives at C[S.tree + TREE_NODES + NODE_WIDTH (j - 1)] (`softproxy.compiled.layout`):
 its axis-aligned box and its box oriented by its first triangle; a leaf's records carry each
 triangle's plane and the rectangle in that plane that holds it. Here: the gap (m) from a
 point or a segment to a node or a record, the fraction at which a sphere's segment enters a
-node grown by its reach, whether a segment stays above a plane over a node, and the
-ordered stack the walks of `softproxy.compiled.mesh` keep.
+node grown by its reach, whether a segment stays above a plane over a node: the bounds the
+walks of `softproxy.compiled.mesh` and `patch` prune by (the walk itself is
+`softproxy.compiled.tree_walk`).
 """
 
 from __future__ import annotations
@@ -14,17 +15,15 @@ import math
 
 from numba import njit
 
-from softproxy.compiled.certificate import LEAF
 from softproxy.compiled.layout import (
     NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, RECORD_WIDTH, TREE_NODES, TREE_RECORDS, TREE_SIZE,
 )
+from softproxy.compiled.tree_walk import LEAF
 
 
 TREE_MARGIN = 1e-12
 """A box tree's boxes are grown by this (m, plus as much per metre of the mesh's bounding
 radius) beyond their triangles, so that no rounding of a box test leaves a triangle out."""
-STACK = 256
-"""Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -162,22 +161,10 @@ def tree_of(S, C, k):
 
 
 @njit(cache=True, error_model="numpy")
-def push_ordered(nodes, keys, top, node, key):
-    """Push `node` with `key` onto a walk's stack nodes[:top], keys[:top] kept in descending
-    key order, so the least (the nearest, the earliest entered) is read first; returns the
-    new top."""
-    j = top
-    while j > 0 and keys[j - 1] < key:
-        nodes[j], keys[j] = nodes[j - 1], keys[j - 1]
-        j -= 1
-    nodes[j], keys[j] = node, key
-    return top + 1
-
-
-@njit(cache=True, error_model="numpy")
-def leaf_records(C, tree, node, size, n):
-    """The records (C[j0:j1]) of the triangles of leaf node `node` of a tree at C[tree]."""
-    first = (node - size) * LEAF
+def leaf_records(C, tree, leaf, n):
+    """The records (C[j0:j1]) of the triangles of leaf number `leaf` (node size + leaf) of a
+    tree of n triangles at C[tree]."""
+    first = leaf * LEAF
     last = min(first + LEAF, n)
     rec = int(C[tree + TREE_RECORDS])
     return rec + first * RECORD_WIDTH, rec + max(last, first) * RECORD_WIDTH

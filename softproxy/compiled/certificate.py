@@ -31,6 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
+from softproxy.compiled.tree_walk import LEAF, STACK, heap_offer, heap_pop
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, FEW_SLOTS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
     V_RING, V_SINES, V_THRESHOLD, V_X, VERTEX_A,
@@ -236,8 +237,6 @@ def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
 # a face's plane; boxes that cannot hold a lower sin β than a full vertex table has).
 # ---------------------------------------------------------------------------------------
 
-LEAF = 8
-"""Items (vertices or triangles) per leaf of a box tree."""
 SINE_GRID = 2.0 ** 40
 """Steps per unit a kept vertex table's sin β is rounded down to (≈1e-12), so that equal sines sort alike."""
 BUDGET = 512
@@ -247,8 +246,6 @@ DEAD_SINE = 1e-12
 """A full vertex table whose every sin β is below this certifies nothing: a query reads the
 entries below its tilt's sine (never less than 1e-12, `_vertex_few`), all of them, past
 VERTEX_READ. Its walk stops there (a concave, noisy or flat neighbourhood)."""
-STACK = 256
-"""Depth of a tree walk's stack (two entries per level: far more than any tree has)."""
 FAN_CHECK = 64
 """A vertex beyond reach + long_edge of a vertex whose table is being built is taken when one
 of its long triangles may come within reach: its fan is searched for one, unless it holds
@@ -671,55 +668,6 @@ def face_lists(faces, V, F, plane, tlo, thi, centre, rho, fan_start, fan, vorder
                             if (up and front < 0) or (not up and back < 0):
                                 break
         count[j, 0], count[j, 1] = front, back
-
-
-@njit(cache=True, error_model="numpy")
-def heap_offer(hs, hw, m, keep, s, w):
-    """Offer (s, w) to the max-heap (by hs) of hs[:m], hw[:m] of at most `keep` entries: added
-    while there is room, else in place of the top when s is below it; returns the new m."""
-    if m < keep:
-        c = m
-        hs[c], hw[c] = s, w
-        m += 1
-        while c > 0:  # sift up
-            parent = (c - 1) // 2
-            if hs[parent] >= hs[c]:
-                break
-            hs[parent], hs[c] = hs[c], hs[parent]
-            hw[parent], hw[c] = hw[c], hw[parent]
-            c = parent
-    elif s < hs[0]:
-        hs[0], hw[0] = s, w
-        _sift_down(hs, hw, m)
-    return m
-
-
-@njit(cache=True, error_model="numpy")
-def heap_pop(hs, hw, m):
-    """Take the top (the largest hs) off the max-heap hs[:m], hw[:m]: (its hs, its hw, new m)."""
-    s, w = hs[0], hw[0]
-    m -= 1
-    if m > 0:
-        hs[0], hw[0] = hs[m], hw[m]
-        _sift_down(hs, hw, m)
-    return s, w, m
-
-
-@njit(cache=True, error_model="numpy")
-def _sift_down(hs, hw, m):
-    """Restore the max-heap (by hs) of hs[:m], hw[:m] after its top was replaced."""
-    j = 0
-    while True:
-        c = 2 * j + 1
-        if c >= m:
-            return
-        if c + 1 < m and hs[c + 1] > hs[c]:
-            c += 1
-        if hs[c] <= hs[j]:
-            return
-        hs[j], hs[c] = hs[c], hs[j]
-        hw[j], hw[c] = hw[c], hw[j]
-        j = c
 
 
 @njit(cache=True, error_model="numpy")

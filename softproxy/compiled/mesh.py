@@ -70,14 +70,13 @@ frictionless proxy on from last tick's (`_free_from_last`), every motion still s
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
-import numpy as np
 from numba import njit
 
 from softproxy.compiled.ball import BALL_SLACK
 from softproxy.compiled.box_tree import (
-    STACK, TREE_MARGIN, leaf_records, node_entry, node_gap2, node_top, push_ordered, record_beyond2, record_gap2,
-    record_top, tree_of,
+    TREE_MARGIN, leaf_records, node_entry, node_gap2, node_top, record_beyond2, record_gap2, record_top, tree_of,
 )
 from softproxy.compiled.certificate import ABOVE_TOL, face_few, static_clear
 from softproxy.compiled.layout import (
@@ -87,6 +86,7 @@ from softproxy.compiled.layout import (
 )
 from softproxy.compiled.patch import slot_patch
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
+from softproxy.compiled.tree_walk import best_so_far, depth_first, depth_scratch
 from softproxy.compiled.triangle import Sweep, closest, pressed, shade, sweep_triangle
 
 POINT_RADIUS = 1e-8
@@ -153,10 +153,18 @@ def _from_hint(S, T, C, k, hint0, x, y, z):
     return d2, qx, qy, qz, f, hint
 
 
+Nearest = namedtuple("Nearest", "T C tree n base x y z")
+"""A nearest-triangle query on mesh tables T, C: mesh k's tree (`tree_of`: where it begins in
+C, its number of triangles, its nodes' base) and the point p (geom frame, m). Its walk's
+state: (best2 (m²), q, feature, row of T) of the nearest found so far."""
+
+
 @njit(cache=True, error_model="numpy")
-def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
+def _nearest_run(q, j0, j1, s):
     """The nearest so far to p among the triangles of the records C[j0:j1] and the one found
-    before (best2 (m²), q, feature bf, row bi; bi itself is not read again)."""
+    before (the state s: best2 (m²), q, feature bf, row bi; bi itself is not read again)."""
+    T, C, x, y, z = q.T, q.C, q.x, q.y, q.z
+    best2, qx, qy, qz, bf, bi = s
     best = math.sqrt(best2)
     for j in range(j0, j1, RECORD_WIDTH):
         h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
@@ -174,6 +182,23 @@ def _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi):
             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
             best = math.sqrt(d2)
     return best2, qx, qy, qz, bf, bi
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _nearest_bound(q, s, node):
+    """A node's bound: the squared gap (m²) from p to its boxes."""
+    return node_gap2(q.C, q.base + NODE_WIDTH * node, q.x, q.y, q.z)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _nearest_leaf(q, s, leaf):
+    """The nearest so far after the triangles of a leaf."""
+    j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
+    return _nearest_run(q, j0, j1, s)
+
+
+_nearest_walk = depth_first(_nearest_bound, _nearest_leaf, limit=best_so_far)
+"""The box tree walked nearest node first, leaving out every node farther than the best found."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -221,7 +246,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
     qx = qy = qz = 0.0
     bf = 0
     bi = int(S[k].hint)
-    cut = -1
+    at, m, cut = -1, 0, -1
     if bi >= 0:
         best2, qx, qy, qz, bf, bi = _from_hint(S, T, C, k, bi, x, y, z)
         if best2 > 0.0:
@@ -240,54 +265,17 @@ def _nearest(S, T, C, k, sl, x, y, z):
                 S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
         at, m, cut = slot_patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
-        if at >= 0:
-            j0 = at + P_RECORDS
-            best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j0 + m * RECORD_WIDTH, x, y, z,
-                                                     best2, qx, qy, qz, bf, bi)
-            S[k].hint = bi
-            return math.sqrt(best2), qx, qy, qz, bf, bi
-    # the box tree, nearest node first; a node whose boxes lie farther than the best found
-    # holds nothing nearer
     tree, size, n, base = tree_of(S, C, k)
-    nodes = np.empty(STACK, dtype=np.int64)
-    gaps = np.empty(STACK)
-    if cut >= 0:
-        # from the cut, the nearest node on top
-        top = 0
-        for i in range(int(C[cut])):
-            node = int(C[cut + 1 + i])
-            g = node_gap2(C, base + NODE_WIDTH * node, x, y, z)
-            if g <= best2:
-                top = push_ordered(nodes, gaps, top, node, g)
-    else:
-        nodes[0], gaps[0] = 1, node_gap2(C, base + NODE_WIDTH, x, y, z)
-        top = 1
-    while top > 0:
-        top -= 1
-        node, gap = nodes[top], gaps[top]
-        if gap > best2:
-            continue
-        if node >= size:
-            j0, j1 = leaf_records(C, tree, node, size, n)
-            best2, qx, qy, qz, bf, bi = _nearest_run(T, C, j0, j1, x, y, z, best2, qx, qy, qz, bf, bi)
-            continue
-        g0 = node_gap2(C, base + NODE_WIDTH * 2 * node, x, y, z)
-        g1 = node_gap2(C, base + NODE_WIDTH * (2 * node + 1), x, y, z)
-        # the nearer child on top of the stack, read first
-        if g0 <= g1:
-            if g1 <= best2:
-                nodes[top], gaps[top] = 2 * node + 1, g1
-                top += 1
-            if g0 <= best2:
-                nodes[top], gaps[top] = 2 * node, g0
-                top += 1
-        else:
-            if g0 <= best2:
-                nodes[top], gaps[top] = 2 * node, g0
-                top += 1
-            if g1 <= best2:
-                nodes[top], gaps[top] = 2 * node + 1, g1
-                top += 1
+    q = Nearest(T, C, tree, n, base, x, y, z)
+    if at >= 0:
+        j0 = at + P_RECORDS
+        best2, qx, qy, qz, bf, bi = _nearest_run(q, j0, j0 + m * RECORD_WIDTH, (best2, qx, qy, qz, bf, bi))
+        S[k].hint = bi
+        return math.sqrt(best2), qx, qy, qz, bf, bi
+    # the box tree, nearest node first (from the cut, when the slot noted one); a node whose
+    # boxes lie farther than the best found holds nothing nearer
+    s, _ = _nearest_walk(size, C[cut:] if cut >= 0 else C[:0], q, (best2, qx, qy, qz, bf, bi), depth_scratch())
+    best2, qx, qy, qz, bf, bi = s
     S[k].hint = bi
     return math.sqrt(best2), qx, qy, qz, bf, bi
 
@@ -465,14 +453,23 @@ def mesh_walk_distance(sh, k, row, x, y, z):
     return d, nx, ny, nz, i
 
 
+Sweeping = namedtuple("Sweeping", "T C tree n base stamp sweep slab reach length slack cull pnx pny pnz poff")
+"""A sweep's tree walk on mesh tables T, C: mesh k's tree (`tree_of`), the scan's stamp, the
+sweep, how near (m) a triangle must come to it (`slab`), its reach and length (m), what its
+nodes' boxes were grown by (`slack`, m), and when `cull`, the plane p·x = poff it stays r
+above. Its walk's state: the earliest touch so far (lam, normal, row of T; -1 for none) and
+far² (m², how far a triangle may lie from the start and be touched before it)."""
+
+
 @njit(cache=True, error_model="numpy")
-def _sweep_run(T, C, j0, j1, stamp, sweep, slab, reach, length,
-               best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff):
+def _sweep_run(q, j0, j1, s):
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
-    returns the earliest hit so far (lam, normal, row of T; -1 for none) and the new far².
-    Only the part of the segment before the earliest hit so far (lam < best_lam) is tested;
-    when `cull`, not the triangles whose rectangle lies wholly behind the plane p·x = poff
-    (a tangent plane the sphere stays r above all the way)."""
+    returns the state: the earliest hit so far (lam, normal, row of T; -1 for none) and the
+    new far². Only the part of the segment before the earliest hit so far (lam < best_lam) is
+    tested; when `cull`, not the triangles whose rectangle lies wholly behind the plane p·x =
+    poff (a tangent plane the sphere stays r above all the way)."""
+    T, C, stamp, sweep, slab, reach, length = q.T, q.C, q.stamp, q.sweep, q.slab, q.reach, q.length
+    best_lam, bnx, bny, bnz, bi, far2 = s
     ax, ay, az, ux, uy, uz, r, _, _ = sweep
     bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz  # where that part ends
     for j in range(j0, j1, RECORD_WIDTH):
@@ -492,7 +489,7 @@ def _sweep_run(T, C, j0, j1, stamp, sweep, slab, reach, length,
         # the part of the segment before the earliest touch found
         if record_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
             continue
-        if cull and record_top(C, j, pnx, pny, pnz) <= poff:
+        if q.cull and record_top(C, j, q.pnx, q.pny, q.pnz) <= q.poff:
             continue
         i = int(C[j + R_ROW])
         if C[C_STAMPS + i] == stamp:
@@ -505,6 +502,34 @@ def _sweep_run(T, C, j0, j1, stamp, sweep, slab, reach, length,
             far2 = far * far
             bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz
     return best_lam, bnx, bny, bnz, bi, far2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep_bound(q, s, node):
+    """A node's bound: where (fraction of the segment) the sweep enters its boxes grown by
+    the reach, before the earliest touch so far (`node_entry`; beyond it when not)."""
+    w = q.sweep
+    return node_entry(q.C, q.base + NODE_WIDTH * node, w.ax, w.ay, w.az, w.ux, w.uy, w.uz, q.length, w.r, q.slab,
+                      q.slack, s[0])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep_opened(q, s, node):
+    """Not a node wholly behind the cull plane."""
+    return not (q.cull and node_top(q.C, q.base + NODE_WIDTH * node, q.pnx, q.pny, q.pnz) <= q.poff)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep_leaf(q, s, leaf):
+    """The earliest touch so far after the triangles of a leaf."""
+    j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
+    return _sweep_run(q, j0, j1, s)
+
+
+_sweep_walk = depth_first(_sweep_bound, _sweep_leaf, limit=best_so_far, opened=_sweep_opened, rebound=True)
+"""The box tree walked earliest entry first: the nodes the segment enters, grown by the
+reach, before the earliest touch found (a node taken up after a touch was found since its
+entry was is entered again up to that touch)."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -724,69 +749,19 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
     # about one point)
     at, m, cut = slot_patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
+    tree, size, n, base = tree_of(S, C, k)
+    slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
+    q = Sweeping(T, C, tree, n, base, stamp, sweep, slab, reach, length, slack, cull, pnx, pny, pnz, poff)
+    s = (best_lam, bnx, bny, bnz, bi, far2)
     if at >= 0:
         j0 = at + P_RECORDS
-        best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
-            T, C, j0, j0 + m * RECORD_WIDTH, stamp, sweep, slab,
-            reach, length, best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff)
-        if bi < 0:
-            return (-1.0, 0.0, 0.0, 0.0)
-        return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, sweep)
-    # the box tree: the nodes the segment enters, grown by the reach, earliest entry first;
-    # a node entered after the earliest touch found holds no earlier one
-    slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
-    tree, size, n, base = tree_of(S, C, k)
-    nodes = np.empty(STACK, dtype=np.int64)
-    entries = np.empty(STACK)
-    asked = np.empty(STACK)  # the earliest touch when the node's entry was found
-    if cut >= 0:
-        # from the cut, the earliest entered on top
-        top = 0
-        for i in range(int(C[cut])):
-            node = int(C[cut + 1 + i])
-            e = node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
-            if e <= best_lam:
-                top = push_ordered(nodes, entries, top, node, e)
-        asked[:top] = best_lam
+        s = _sweep_run(q, j0, j0 + m * RECORD_WIDTH, s)
     else:
-        nodes[0] = 1
-        entries[0] = node_entry(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
-        asked[0] = best_lam
-        top = 1
-    while top > 0:
-        top -= 1
-        node, entry = nodes[top], entries[top]
-        if entry > best_lam:
-            continue
-        if best_lam < asked[top]:  # a touch found since: the segment before it is shorter
-            again = node_entry(C, base + NODE_WIDTH * node, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
-            if again > best_lam:
-                continue
-        if cull and node_top(C, base + NODE_WIDTH * node, pnx, pny, pnz) <= poff:
-            continue
-        if node >= size:
-            j0, j1 = leaf_records(C, tree, node, size, n)
-            best_lam, bnx, bny, bnz, bi, far2 = _sweep_run(
-                T, C, j0, j1, stamp, sweep, slab, reach, length,
-                best_lam, bnx, bny, bnz, bi, far2, cull, pnx, pny, pnz, poff)
-            continue
-        at = base + NODE_WIDTH * 2 * node
-        e0 = node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
-        e1 = node_entry(C, at + NODE_WIDTH, ax, ay, az, ux, uy, uz, length, r, slab, slack, best_lam)
-        if e0 <= e1:  # the earlier entered on top of the stack, read first
-            if e1 <= best_lam:
-                nodes[top], entries[top], asked[top] = 2 * node + 1, e1, best_lam
-                top += 1
-            if e0 <= best_lam:
-                nodes[top], entries[top], asked[top] = 2 * node, e0, best_lam
-                top += 1
-        else:
-            if e0 <= best_lam:
-                nodes[top], entries[top], asked[top] = 2 * node, e0, best_lam
-                top += 1
-            if e1 <= best_lam:
-                nodes[top], entries[top], asked[top] = 2 * node + 1, e1, best_lam
-                top += 1
+        # the box tree (from the cut, when the slot noted one): the nodes the segment
+        # enters, grown by the reach, earliest entry first; a node entered after the
+        # earliest touch found holds no earlier one
+        s, _ = _sweep_walk(size, C[cut:] if cut >= 0 else C[:0], q, s, depth_scratch())
+    best_lam, bnx, bny, bnz, bi, far2 = s
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
     return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, sweep)

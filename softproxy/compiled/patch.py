@@ -11,17 +11,18 @@ noted instead, and the walk starts there.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
 from softproxy.compiled.box_tree import capsule_gap, leaf_records, record_gap2, segment_gap, span_gap2, tree_of
-from softproxy.compiled.certificate import heap_offer, heap_pop
 from softproxy.compiled.finite import finite
 from softproxy.compiled.layout import (
     CUT_NODES, NODE_WIDTH, PATCH_RECORDS, PATCH_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS,
     RECORD_WIDTH,
 )
+from softproxy.compiled.tree_walk import FROM_ROOT, best_first, best_scratch, best_so_far, heap_offer
 
 
 FRONTIER = 4096
@@ -202,6 +203,70 @@ def _cut(S, C, k, at, ax, ay, az, bx, by, bz, radius):
         C[at + 1 + i] = level[i]
 
 
+Gathering = namedtuple("Gathering", "C tree n base ax ay az bx by bz ux uy uz least keys rows kept")
+"""A patch's gathering on the mesh grids C: mesh k's tree (`tree_of`), the segment a..b (geom
+frame, m; u = b - a), the least radius (m) worth a patch, and the scratch of the records kept:
+a max-heap of their bounds (m²) and their rows in `kept`. Its walk's state: (r2, the radius²
+(m²) gathered out to so far; how many records are kept; whether it gave up: the radius fell
+below `least`)."""
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_bound(q, s, node):
+    """A node's bound: the squared gap (m²) between the segment and its boxes."""
+    return span_gap2(q.C, q.base + NODE_WIDTH * node, q.ax, q.ay, q.az, q.ux, q.uy, q.uz, 1.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_done(q, s):
+    """Given up: the patch would hold less than `least`."""
+    return s[2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_overflow(q, s, g2):
+    """A node with no room to wait: the patch holds only what lies nearer (g2, m²)."""
+    _, m, given_up = s
+    return g2, m, given_up or g2 < q.least * q.least
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_leaf(q, s, leaf):
+    """Keep the records of a leaf that lie within the radius, the nearest PATCH_RECORDS of
+    all kept so far; when full, the radius shrinks to the least bound left out."""
+    C, ax, ay, az, bx, by, bz, keys, rows, kept = q.C, q.ax, q.ay, q.az, q.bx, q.by, q.bz, q.keys, q.rows, q.kept
+    r2, m, _ = s
+    j0, j1 = leaf_records(C, q.tree, leaf, q.n)
+    for j in range(j0, j1, RECORD_WIDTH):
+        ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
+        hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
+        if ha * ha > r2 and hb * hb > r2 and ha * hb > 0.0:
+            continue
+        g2 = record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb)
+        if g2 > r2:
+            continue
+        if m == PATCH_RECORDS:
+            # full: the farthest kept (or this one) is left out, and the patch holds only
+            # what lies nearer than it (a node it had no room for may have said less)
+            out = g2 if g2 >= keys[0] else keys[0]
+            if out < r2:
+                r2 = out
+            if r2 < q.least * q.least:
+                return r2, m, True
+            if g2 >= keys[0]:
+                continue
+        row = m if m < PATCH_RECORDS else rows[0]  # the row of the one it displaces
+        m = heap_offer(keys, rows, m, PATCH_RECORDS, g2, row)
+        for c in range(RECORD_WIDTH):
+            kept[row, c] = C[j + c]
+    return r2, m, False
+
+
+_gather_walk = best_first(_gather_bound, _gather_leaf, limit=best_so_far, done=_gather_done,
+                          overflow=_gather_overflow)
+"""The box tree walked nearest node first, out to the radius gathered so far."""
+
+
 @njit(cache=True, error_model="numpy")
 def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
     """Fill the patch at C[at] with the records of mesh k's triangles nearest the segment a..b
@@ -218,63 +283,20 @@ def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
     full read on until the radius came down: the 1M grid's slowest sliding ticks spent 119 µs
     gathering, now 75). At most `room` nodes wait (FRONTIER); one it has no room for bounds
     the radius."""
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    r2 = radius * radius
     tree, size, n, base = tree_of(S, C, k)
-    # a max-heap on minus the nodes' gaps (m²): the nearest on top
-    waiting = np.empty(room)
-    nodes = np.empty(room, dtype=np.int64)
-    w = heap_offer(waiting, nodes, 0, room, -span_gap2(C, base + NODE_WIDTH, ax, ay, az, ux, uy, uz, 1.0), 1)
     # a max-heap of the kept records' bounds (m²) and their rows in `kept`
     keys = np.empty(PATCH_RECORDS)
     rows = np.empty(PATCH_RECORDS, dtype=np.int64)
     kept = np.empty((PATCH_RECORDS, RECORD_WIDTH))
-    m = 0
-    while w > 0:
-        gap, node, w = heap_pop(waiting, nodes, w)
-        if -gap > r2:
-            break  # every node waiting lies at least as far
-        if node < size:
-            for child in range(2 * node, 2 * node + 2):
-                g2 = span_gap2(C, base + NODE_WIDTH * child, ax, ay, az, ux, uy, uz, 1.0)
-                if g2 > r2:
-                    continue
-                if w == room:
-                    # no room to keep it waiting: the patch holds only what lies nearer
-                    r2 = g2
-                    if r2 < least * least:
-                        return False
-                    continue
-                w = heap_offer(waiting, nodes, w, room, -g2, child)
-            continue
-        j0, j1 = leaf_records(C, tree, node, size, n)
-        for j in range(j0, j1, RECORD_WIDTH):
-            ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
-            hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
-            if ha * ha > r2 and hb * hb > r2 and ha * hb > 0.0:
-                continue
-            g2 = record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb)
-            if g2 > r2:
-                continue
-            if m == PATCH_RECORDS:
-                # full: the farthest kept (or this one) is left out, and the patch holds only
-                # what lies nearer than it (a node it had no room for may have said less)
-                out = g2 if g2 >= keys[0] else keys[0]
-                if out < r2:
-                    r2 = out
-                if r2 < least * least:
-                    return False
-                if g2 >= keys[0]:
-                    continue
-            row = m if m < PATCH_RECORDS else rows[0]  # the row of the one it displaces
-            m = heap_offer(keys, rows, m, PATCH_RECORDS, g2, row)
-            for c in range(RECORD_WIDTH):
-                kept[row, c] = C[j + c]
+    q = Gathering(C, tree, n, base, ax, ay, az, bx, by, bz, bx - ax, by - ay, bz - az, least, keys, rows, kept)
+    (r2, m, given_up), _ = _gather_walk(size, FROM_ROOT, q, (radius * radius, 0, False), best_scratch(room))
+    if given_up:
+        return False
     order = np.argsort(keys[:m])
-    for q in range(m):
-        h = order[q]
-        C[at + P_KEYS + q] = keys[h]
-        o = at + P_RECORDS + RECORD_WIDTH * q
+    for i in range(m):
+        h = order[i]
+        C[at + P_KEYS + i] = keys[h]
+        o = at + P_RECORDS + RECORD_WIDTH * i
         for c in range(RECORD_WIDTH):
             C[o + c] = kept[rows[h], c]
     C[at], C[at + 1], C[at + 2] = ax, ay, az
