@@ -41,6 +41,7 @@ from softproxy import termination
 from softproxy.compiled import coupling, native
 from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
+from softproxy.compiled.godobject import WORKSPACE_LIMIT
 from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, StatRings
 from softproxy.device import Device, check_device, DeviceSample
 from softproxy.device_guard import as_limit
@@ -346,7 +347,7 @@ class ServoLoop:
                 f.placed = False  # placed at its first good sample instead
             else:
                 s = self.samples[j]
-                if max(abs(s.x), abs(s.y), abs(s.z)) > PLAUSIBLE_REACH_M:
+                if PLAUSIBLE_REACH_M < max(abs(s.x), abs(s.y), abs(s.z)) <= WORKSPACE_LIMIT:  # (beyond: garbage)
                     warnings.warn(implausible(f"device {type(self.device).__name__} finger {j}: position",
                                               (s.x, s.y, s.z), "m", "in mm? positions are in m, and no desktop "
                                               "device reaches a metre"), stacklevel=2)

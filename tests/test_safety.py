@@ -176,7 +176,8 @@ def test_a_device_method_of_the_wrong_signature_is_refused():
 def test_a_device_reporting_in_mm_is_warned_of_at_start():
     """A device whose first sample lies 8 m up (8 mm typed as m: the finger would hover far
     above everything, rendering nothing, no fault): one UnitWarning at start naming the device,
-    the finger and the position; a device in m: none."""
+    the finger and the position; a device in m: none; one beyond the workspace (±1 km):
+    none either, its samples are refused as garbage (counted)."""
     class InMillimetres(PressingDevice):
         def read(self, t, samples):
             super().read(t, samples)
@@ -186,11 +187,17 @@ def test_a_device_reporting_in_mm_is_warned_of_at_start():
     with pytest.warns(UnitWarning, match=r"device InMillimetres finger 0: position is \(0\.0, 0\.0, 8\.0\) m: in mm\?"):
         loop.start()
     loop.close()
-    quiet = loop_on_plane(PressingDevice())
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", UnitWarning)
-        quiet.start()
-    quiet.close()
+    class Garbage(PressingDevice):
+        def read(self, t, samples):
+            super().read(t, samples)
+            samples[0].z = 3e16
+
+    for device in (PressingDevice(), Garbage()):
+        quiet = loop_on_plane(device)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", UnitWarning)
+            quiet.start()
+        quiet.close()
 
 
 GARBAGE = [None, "0.01", b"x", np.array([0.0, 1.0]), [0.0], 10 ** 400, math.nan, -math.inf, 1e400j, object()]
