@@ -230,4 +230,5 @@ def torque_within_laws(fm, fd, M):
         bound = fm.max_torque * fd.ramp
     M = bound if M > bound else -bound if M < -bound else M
     fd.torque_n = M
-    fd.torque[:] = M * fd.normal
+    nx, ny, nz = fd.normal  # (M * fd.normal would allocate an array every tick)
+    fd.torque[:] = M * nx, M * ny, M * nz
