@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from softproxy.compiled import finger as kernel
-from softproxy.finger_rows import Field, FingerRows, RecordView
+from softproxy.finger_rows import Field, FingerRows, RecordView, vector
 from softproxy.fingertip import MODELS, FingertipModel
 from softproxy.fingertip import model as fingertip_model
 from softproxy.geometry import Shape, ShapeSet
@@ -47,9 +47,7 @@ class SoftFingerProxy(RecordView):
     b_tau = Field("torsion_damping")
     max_force = Field()
     max_torque = Field()
-    ox = Field("origin", 0)
-    oy = Field("origin", 1)
-    oz = Field("origin", 2)
+    ox, oy, oz = vector("origin")
     scale = Field()
     max_speed = Field()
     soft_start = Field()
@@ -57,19 +55,11 @@ class SoftFingerProxy(RecordView):
     """The last tick's period (s), for a hold() that has none of its own."""
     ramp = Field()
     """Soft start: the fraction of the clamps in force; 0 right after placement."""
-    xd = Field("device_pos", 0)
-    yd = Field("device_pos", 1)
-    zd = Field("device_pos", 2)
-    fx = Field("force", 0)
-    fy = Field("force", 1)
-    fz = Field("force", 2)
+    xd, yd, zd = vector("device_pos")
+    fx, fy, fz = vector("force")
     torque = Field("torque_n")
-    tx = Field("torque", 0)
-    ty = Field("torque", 1)
-    tz = Field("torque", 2)
-    px = Field("contact_pos", 0)
-    py = Field("contact_pos", 1)
-    pz = Field("contact_pos", 2)
+    tx, ty, tz = vector("torque")
+    px, py, pz = vector("contact_pos")
     body = Field(kind=int)
     normal_force = Field()
     valid = Field(kind=bool)

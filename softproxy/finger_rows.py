@@ -97,3 +97,9 @@ class Field:
             obj._recs[self._which][self.name] = value
         else:
             obj._recs[self._which][self.name][self.index] = value
+
+
+def vector(name: str, size: int = 3) -> tuple[Field, ...]:
+    """The components of vector field `name` as `size` float attributes: `fx, fy, fz =
+    vector("force")` in a view's class body."""
+    return tuple(Field(name, i) for i in range(size))

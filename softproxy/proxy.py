@@ -12,7 +12,7 @@ from __future__ import annotations
 from softproxy.compiled import godobject as kernel
 from softproxy.compiled.godobject import RESTICK_TIME
 from softproxy.compiled.godobject import WORKSPACE_LIMIT  # noqa: F401 (the workspace a device position must lie in)
-from softproxy.finger_rows import Field, FingerRows, RecordView
+from softproxy.finger_rows import Field, FingerRows, RecordView, vector
 from softproxy.geometry import Shape, ShapeSet
 from softproxy.input_error import check_finite, must_be
 
@@ -30,22 +30,16 @@ class GodObject(RecordView):
     again; 0 re-tests the static cone every tick (the literature's cone as printed).
     """
 
-    x = Field("pos", 0)
-    y = Field("pos", 1)
-    z = Field("pos", 2)
+    x, y, z = vector("pos")
     contact = Field(kind=bool)
-    nx = Field("normal", 0)
-    ny = Field("normal", 1)
-    nz = Field("normal", 2)
+    nx, ny, nz = vector("normal")
     depth = Field()
     sticking = Field(kind=bool)
     squeezed = Field(kind=bool)
     """Caught between a moving and a static shape with no room between them: the proxy rests on
     the static one (never pushed through it), and the moving one overlaps it."""
     squeeze_ticks = Field(kind=int)
-    lx = Field("local", 0)
-    ly = Field("local", 1)
-    lz = Field("local", 2)
+    lx, ly, lz = vector("local")
     radius = Field()
     mu_s = Field()
     mu_d = Field()

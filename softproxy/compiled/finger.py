@@ -191,13 +191,21 @@ def _follow_body(S, cvel, fm, fd):
         fd.body_turn = omega_n * fd.dt
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def to_world(fm, x, y, z):
+    """A device position (device frame, m) in the world (m): origin + scale × device."""
+    ox, oy, oz = fm.origin
+    s = fm.scale
+    return ox + s * x, oy + s * y, oz + s * z
+
+
 @njit(cache=True, error_model="numpy")
 def place(sh, fm, fd, near, x, y, z):
     """Put the proxy at a device position (device frame, m), out of contact and torsion, the
     soft start's ramp back at zero. False, and the finger left unplaced, for a position
     outside the workspace: an unplaced finger places itself at its first good sample and
     renders nothing then."""
-    xd, yd, zd = fm.origin[0] + fm.scale * x, fm.origin[1] + fm.scale * y, fm.origin[2] + fm.scale * z
+    xd, yd, zd = to_world(fm, x, y, z)
     if not godobject.reset(sh, fm, fd, near, xd, yd, zd):
         fd.placed = False
         return False
@@ -246,9 +254,7 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
         ok = place(sh, fm, fd, near, x, y, z) and finite(twist)
         clear_output(fd)
         return ok
-    xd = fm.origin[0] + fm.scale * x
-    yd = fm.origin[1] + fm.scale * y
-    zd = fm.origin[2] + fm.scale * z
+    xd, yd, zd = to_world(fm, x, y, z)
     # velocity-spike filter: a jump no hand makes in one period is held back for up to
     # SPIKE_PATIENCE ticks; a device that really moved that far is followed after that
     ex, ey, ez = xd - fd.device_pos[0], yd - fd.device_pos[1], zd - fd.device_pos[2]
