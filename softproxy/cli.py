@@ -557,17 +557,12 @@ def cmd_compile(args: argparse.Namespace) -> int:
         return 2
     for scene in scenes:
         wall, cpu = time.monotonic(), time.process_time()
-        still = {"type": "sim", "finger": [{"keyframes": [[0.0, 0.0, 0.0, 0.0, 0.0]]}] * scene_fingers(scene)}
+        still = {"type": "sim", "finger": [{"keyframes": [[0.0, 0.0, 0.0, 0.0, 0.0]]}] * scene.device_fingers}
         loop = build(scene, open_device("sim", scene, still, source="softproxy compile"), realtime=False)
         loop.close()
         print(f"{scene.name}: ready in {time.monotonic() - wall:.1f} s ({time.process_time() - cpu:.1f} s of CPU)",
               flush=True)
     return 0
-
-
-def scene_fingers(scene) -> int:
-    """How many device fingers a scene's fingers use."""
-    return 1 + max(p.device_finger for p in scene.fingers)
 
 
 def cmd_schema(args: argparse.Namespace) -> int:

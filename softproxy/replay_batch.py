@@ -205,7 +205,7 @@ def plan(inputs: list[str], specs: list[str], scene: str | None = None) -> tuple
             for v in variations[1:]:
                 _varied(loaded, v, f"--vary {v['label']!r} on scene {scene_name!r}")
         loaded = scenes[scene_name]
-        needed = max((f.device_finger for f in loaded.fingers), default=0) + 1
+        needed = loaded.device_fingers
         if header["fingers"] < needed:
             raise BatchError(f"{name}: holds {header['fingers']} finger(s), but scene {scene_name!r} drives "
                              f"{needed}; give the scene it was recorded on with --scene")

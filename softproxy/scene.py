@@ -87,6 +87,11 @@ class Scene:
     keyframe: str | None = None           # the MJCF <key> the world starts from (None: qpos0)
     settle_s: float = 0.0                 # s the world runs alone before the device takes over
 
+    @property
+    def device_fingers(self) -> int:
+        """How many fingers a device needs to drive this scene's (its highest `device_finger` + 1)."""
+        return max((f.device_finger for f in self.fingers), default=0) + 1
+
     def world_options(self) -> dict:
         """The keyword arguments of `World` this scene asks for (force shading, exclusions, mesh surface)."""
         return {"force_shading": self.force_shading, "exclude": self.exclude, "exclude_groups": self.exclude_groups,
