@@ -4,7 +4,9 @@
 into the two arrays the run-time queries read (`softproxy.compiled.mesh`): T, one row per
 triangle, and C, per mesh its box tree (`tree_nodes`), its records (each triangle's plane and
 the rectangle that holds it, `rectangles`) and its kept certificates
-(`softproxy.compiled.certificate`). Plain numpy, once per world.
+(`softproxy.compiled.certificate`): the model, constant for a run. `mesh_query_data` makes
+what the queries keep between ticks: the hint slots' patches P and the scans' marks.
+Plain numpy, once per world.
 """
 
 from __future__ import annotations
@@ -16,8 +18,8 @@ import numpy as np
 from softproxy.compiled.box_tree import TREE_MARGIN
 from softproxy.compiled.certificate import certificate_tables, node_frames
 from softproxy.compiled.layout import (
-    C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, PATCH_WIDTH, P_FULL,
-    P_RADIUS, RECORD_WIDTH, R_CENTRE, R_ROW, TREE_NODES, T_COLUMNS, T_N,
+    EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, PATCH_WIDTH, P_FULL,
+    P_RADIUS, RECORD_WIDTH, R_CENTRE, R_ROW, SCAN_STAMPS, TREE_NODES, T_COLUMNS, T_N,
 )
 
 
@@ -59,16 +61,15 @@ def _rectangles(tri: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
-    rows of the shape table S filled in (where their triangles and box tree live). Geoms of
-    one mesh asset (one `MeshTables`) share its rows of T and its part of C; each keeps its
-    own pose, hint and kept answers in S. A world with no mesh gets empty tables (the
-    kernels' types stay the same)."""
+    rows of the shape table S filled in (where their triangles, box tree and patches live).
+    Geoms of one mesh asset (one `MeshTables`) share its rows of T and its part of C; each
+    keeps its own pose, and its hint, kept answers and patches in the data. A world with no
+    mesh gets empty tables (the kernels' types stay the same)."""
     meshes = [(k, s) for k, s in enumerate(shapes) if s.gtype == GEOM_MESH]
     assets = list({id(s.tables): s.tables for _, s in meshes}.values())
-    ntri = sum(a.triangles for a in assets)
     rows, parts, where = [], [], {}
     t0 = 0
-    c0 = C_STAMPS + ntri  # the scan counter, the certificates' scratch, a stamp per triangle, then the trees
+    c0 = 0
     for a in assets:
         n = a.triangles
         order, size, nodes = a.tree
@@ -94,31 +95,36 @@ def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         parts.append(kept)
         c0 += len(kept)
         t0 += n
-    for k, s in meshes:
+    for j, (k, s) in enumerate(meshes):
         t0, n, tree, verts, reach, ball = where[id(s.tables)]
         S[k].t0, S[k].nt, S[k].tree = t0, n, tree
         S[k].signed = s.signed
         S[k].shading = s.shading
-        S[k].hint = S[k].feature = -1
-        S[k].key[:, :] = math.nan  # no hint slot used, none kept
         S[k].verts = verts
         S[k].kept = reach
         S[k].ball = ball
-        S[k].patch = c0
-        patches = np.zeros((HINT_SLOTS, PATCH_WIDTH))
-        patches[:, P_RADIUS] = -1.0  # holds nothing yet
-        patches[:, P_FULL + 6] = -1.0  # nor was found too full
-        parts.append(patches.ravel())
-        c0 += patches.size
+        S[k].patch = j * HINT_SLOTS * PATCH_WIDTH
     T = np.concatenate(rows) if len(rows) != 1 else rows[0]
     if not rows:
         T = np.zeros((0, T_COLUMNS))
     assert T.shape[1] == T_COLUMNS
     C = np.empty(c0)
-    C[:C_STAMPS + ntri] = 0.0
-    at = C_STAMPS + ntri
+    at = 0
     for g in parts:
         C[at:at + len(g)] = g
         at += len(g)
     assert at == c0 and len(C) < 2 ** 53
     return np.ascontiguousarray(T), C
+
+
+def mesh_query_data(S: np.ndarray, SD: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What the mesh queries keep, as loaded: each mesh shape's data (`SD`) with no hint and no
+    hint slot used, its patches (P) holding nothing and none found too full, and the scans'
+    marks (int64: the scan count, a certificate's list, a mark per row of T) all zero."""
+    meshes = S.type == GEOM_MESH
+    SD.hint[meshes] = SD.feature[meshes] = -1
+    SD.key[meshes] = math.nan  # no hint slot used, none kept
+    patches = np.zeros((int(meshes.sum()) * HINT_SLOTS, PATCH_WIDTH))
+    patches[:, P_RADIUS] = -1.0  # holds nothing yet
+    patches[:, P_FULL + 6] = -1.0  # nor was found too full
+    return patches.ravel(), np.zeros(SCAN_STAMPS + len(T), dtype=np.int64)

@@ -33,7 +33,7 @@ from numba import njit
 
 from softproxy.compiled.tree_walk import LEAF, STACK, heap_offer, heap_pop
 from softproxy.compiled.layout import (
-    C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, FEW_SLOTS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
+    EDGE_AB, FACE, FEW_SLOTS, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
     V_RING, V_SINES, V_THRESHOLD, V_X, VERTEX_A,
 )
 
@@ -136,22 +136,22 @@ def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
 
 
 @njit(cache=True, error_model="numpy")
-def face_few(T, C, i, side, at, lists=T_CLEAR):
+def face_few(T, C, scan, i, side, at, lists=T_CLEAR):
     """Row i's list on `side` (`lists`: T_CLEAR, the triangles rising above its plane; T_BALL,
-    those a ball resting on it reaches), copied to C[C_FEW + at:]; the new count, or -1 when
-    it has none (a concave patch)."""
+    those a ball resting on it reaches), copied to scan[SCAN_FEW + at:]; the new count, or -1
+    when it has none (a concave patch)."""
     col = lists if side > 0.0 else lists + 2
     count = int(T[i, col + 1])
-    if count < 0 or at + count > C_STAMPS - C_FEW:
+    if count < 0 or at + count > FEW_SLOTS:
         return -1
     start = int(T[i, col])
     for j in range(count):
-        C[C_FEW + at + j] = C[start + j]
+        scan[SCAN_FEW + at + j] = int(C[start + j])
     return at + count
 
 
 @njit(cache=True, error_model="numpy")
-def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
+def _vertex_few(S, T, C, scan, k, hint, feature, nx, ny, nz):
     """`static_clear` when the nearest point is vertex `feature - VERTEX_A` of row `hint`: the fan lies
     behind the tangent plane when n is inside the vertex's cone (else every edge leaving it is
     tested); a triangle off the fan does when its vertices lie more than the plane's tilt
@@ -178,8 +178,8 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     if m > VERTEX_READ:
         return -1
     off = nx * C[rec + V_X] + ny * C[rec + V_X + 1] + nz * C[rec + V_X + 2] + ABOVE_TOL
-    C[C_STAMP] += 1.0
-    stamp = C[C_STAMP]
+    scan[SCAN_COUNT] += 1
+    stamp = scan[SCAN_COUNT]
     count = 0
     for j in range(m):
         w = verts + VERTEX_WIDTH * int(C[s0 + 2 * j + 1])
@@ -187,43 +187,44 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
             f0 = int(C[w + V_FAN])
             for f in range(f0, f0 + int(C[w + V_FAN + 1])):
                 i = int(C[f])
-                if C[C_STAMPS + i] == stamp:
+                if scan[SCAN_STAMPS + i] == stamp:
                     continue
-                C[C_STAMPS + i] = stamp
+                scan[SCAN_STAMPS + i] = stamp
                 if count == STATIC_ABOVE:
                     return -1
-                C[C_FEW + count] = i
+                scan[SCAN_FEW + count] = i
                 count += 1
     return count
 
 
 @njit(cache=True, error_model="numpy")
-def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
-    """How many triangles (rows of T, listed in C[C_FEW:]) within
+def static_clear(sh, k, hint, feature, nx, ny, nz, need):
+    """How many triangles (rows of T, listed in sh.scan[SCAN_FEW:]) within
     `need` (m) of the nearest point on `feature` of row `hint` may reach above the tangent
     plane there (normal n, geom frame, out of the hint); every other triangle that near lies
     behind it. -1 when the certificates do not hold (a concave patch, or need beyond the
     reach they were built for): then every triangle must be asked. A point p at distance d
     has no nearer triangle off the list when need >= 2d; a sphere of radius r touching at p
     and sliding by L on or above the plane enters none when need >= 2r + L."""
+    S, T, C, scan = sh.S, sh.T, sh.C, sh.scan
     if need > S[k].kept:
         return -1
     dot0 = nx * T[hint, T_N] + ny * T[hint, T_N + 1] + nz * T[hint, T_N + 2]
     side0 = 1.0 if dot0 >= 0.0 else -1.0
     if feature == FACE:
-        return face_few(T, C, hint, side0, 0)
+        return face_few(T, C, scan, hint, side0, 0)
     if feature >= VERTEX_A:
-        return _vertex_few(S, T, C, k, hint, feature, nx, ny, nz)
+        return _vertex_few(S, T, C, scan, k, hint, feature, nx, ny, nz)
     other = int(T[hint, T_ADJ + feature - EDGE_AB])
     if other < 0:
         return -1
     side1 = _convex_edge(T, hint, other, nx, ny, nz, side0, dot0)
     if side1 == 0.0:
         return -1
-    m = face_few(T, C, hint, side0, 0)
+    m = face_few(T, C, scan, hint, side0, 0)
     if m < 0:
         return -1
-    return face_few(T, C, other, side1, m)
+    return face_few(T, C, scan, other, side1, m)
 
 
 # ---------------------------------------------------------------------------------------
