@@ -411,9 +411,13 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
             except Exception:
                 pass
             self._release()
-        plan = self._with_last_reopen(f"rendering zero force; reopening every {REOPEN_INTERVAL_S:g} s")
-        self._fault = f"{self.label}: failed while {what} ({why}); {plan}"
+        self._fault_why = f"{self.label}: failed while {what} ({why})"
+        self._fault = self._fault_text()
         return DeviceError(self._fault)
+
+    def _fault_text(self) -> str:
+        plan = self._with_last_reopen(f"rendering zero force; reopening every {REOPEN_INTERVAL_S:g} s")
+        return f"{self._fault_why}; {plan}"
 
     def _try_reopen(self) -> None:
         """Open the Inverse3 again (wake-up, an answered zero force); it must be the same one."""
@@ -436,6 +440,7 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
         """While failed: reopen when due; True once a reopen went through (its zero force answered)."""
         self._reopen_when_due()
         if self._link is None:
+            self._fault = self._fault_text()  # with why the last reopen failed
             return False
         self._fault = None
         return True
