@@ -478,6 +478,8 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
                 self.grip_reopens += 1
             except Exception:
                 pass
+            if self.closed:  # closed meanwhile: the new port is not kept open
+                self._grip_link = None
         del link
         return False
 

@@ -336,6 +336,37 @@ def test_unplugged_device_is_reopened_and_must_be_the_same_one():
     dev.close()
 
 
+def test_a_failed_send_tries_zero_force_before_it_drops_the_link():
+    """A send whose exchange raises: the adapter's last word on that link is a zero force (the
+    link may still carry the old one), then nothing until the device is reopened."""
+    dev, api, hw, g, clock = make()
+    s = [DeviceSample()]
+    tick(dev, s, clock)
+    dev.send(0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+
+    def refuse_force(force):
+        if any(force):
+            raise RuntimeError("serial write failed")
+
+    hw.exchange_hook = refuse_force
+    with pytest.raises(DeviceError, match="failed while sending a force.*serial write failed"):
+        dev.send(0, 0.0, 0.0, 1.5, 0.0, 0.0, 0.0)
+    assert zero(hw.wire[-1]) and dev._link is None
+    n = len(hw.wire)
+    with pytest.raises(DeviceError):
+        tick(dev, s, clock)
+    assert len(hw.wire) == n
+
+
+def test_power_status_is_read_at_open():
+    """An Inverse3 on USB power alone renders no force: `powered` says so."""
+    dev, api, hw, g, clock = make()
+    assert dev.powered is True
+    hw2 = Inverse3Hardware()
+    hw2.powered = False
+    assert HaplyDevice(FakeHaply(hw2), start_threads=False).powered is False
+
+
 def test_opening_names_what_to_check():
     """No Inverse3 detected, an index past them, a port that does not exist, one that does not
     answer: DeviceError, one line each, nothing left driven."""
