@@ -277,7 +277,7 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
         self.device_id = self._identity[0]
         self.firmware_version = info.get("firmware_version")
         try:
-            self.powered = bool(self._link[1].get_power_status())  # USB alone powers the encoders, not the motors
+            self.powered = bool(self._link[1].get_power_status())  # the device's own word (False: no supply)
         except Exception:
             self.powered = None
         self.label = label or f"{NAME} Inverse3 {self.device_id:04X} ({self.port})"
@@ -287,7 +287,6 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
         self._grip_link = None
         self._grip_latest: tuple | None = None  # (time, (w, x, y, z), buttons): replaced whole, never mutated
         self._grip_id = None                     # the first grip's device id: another's readings are dropped
-        self._grip_opened_at = self._clock()
         self._grip_failing_since: float | None = None
         if self.grip_port is not None:
             try:

@@ -359,7 +359,7 @@ def test_a_failed_send_tries_zero_force_before_it_drops_the_link():
 
 
 def test_power_status_is_read_at_open():
-    """An Inverse3 on USB power alone renders no force: `powered` says so."""
+    """The device's power status, read at open, is `powered` (False: its motors render nothing)."""
     dev, api, hw, g, clock = make()
     assert dev.powered is True
     hw2 = Inverse3Hardware()
