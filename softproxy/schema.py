@@ -249,7 +249,7 @@ def _path(prefix: str, loc) -> str:
     return text
 
 
-_UNION_TAGS = {"flag", "table", "choice", "sim", "hid", "forcedimension", "openhaptics", "replay"}
+_UNION_TAGS = {"flag", "table", "choice", "sim", "hid", "forcedimension", "openhaptics", "haply", "replay"}
 """Tags pydantic puts in an error's location inside a union (a channel's, a [device] table's type)."""
 
 
@@ -875,6 +875,25 @@ class OpenHapticsDeviceTable(Table):
                                  high=1000.0, open_low=True, optional=True) = None
 
 
+class HaplyDeviceTable(Table):
+    """[device] of a Haply Inverse3 with an optional VerseGrip (`type = "haply"`, the HaplyHardwareAPI binding)."""
+
+    type: Literal["haply"]
+    port: Optional[text("the Inverse3's serial port, e.g. \"/dev/ttyACM0\" (give port or index)")] = None
+    index: Optional[count("which detected Inverse3 (give port or index)", low=0)] = None
+    grip: text("\"auto\" (the first VerseGrip detected, if any), \"off\", or the VerseGrip's serial port") = "auto"
+    twist_axis: choice(("x", "y", "z"), "the VerseGrip's axis the finger's twist turns about") = "z"
+    workspace_scale: WorkspaceScale = 1.0
+    workspace_offset: WorkspaceOffset = (0.0, 0.0, 0.0)
+    max_force_N: quantity("N", "lowers the device's limit (never raises it)", low=0.0, optional=True) = None
+    stall_ms: quantity("ms", "a force not renewed for this long is replaced by zero (0: never)", low=0.0,
+                       high=1000.0) = 50.0
+    timeout_ms: quantity("ms", "a serial exchange not answered in this long is a fault", low=0.0, high=1000.0,
+                         open_low=True) = 20.0
+    grip_stale_ms: quantity("ms", "a VerseGrip reading older than this makes the sample invalid", low=0.0,
+                            high=5000.0, open_low=True) = 100.0
+
+
 class ReplayDeviceTable(Table):
     """[device] that replays a recording (`type = "replay"`)."""
 
@@ -883,7 +902,7 @@ class ReplayDeviceTable(Table):
 
 
 DEVICE_TABLES = {"sim": SimDeviceTable, "hid": HidDeviceTable, "forcedimension": ForceDimensionDeviceTable,
-                 "openhaptics": OpenHapticsDeviceTable, "replay": ReplayDeviceTable}
+                 "openhaptics": OpenHapticsDeviceTable, "haply": HaplyDeviceTable, "replay": ReplayDeviceTable}
 """The declared [device] table of each shipped device type."""
 DeviceTable = Annotated[Union[tuple(DEVICE_TABLES.values())], Field(discriminator="type")]
 

@@ -25,7 +25,7 @@ print(" ".join(sorted({m.split(".")[0] for m in sys.modules})))
 """
 
 NOT_FOR_THE_TICK = ("matplotlib", "glfw", "moderngl", "hid", "trimesh", "tqdm", "ray", "pybullet",
-                    "imageio_ffmpeg", "networkx", "forcedimension_core", "pyOpenHaptics")
+                    "imageio_ffmpeg", "networkx", "forcedimension_core", "pyOpenHaptics", "HaplyHardwareAPI")
 
 
 def test_an_embedded_loop_imports_nothing_it_does_not_use():
