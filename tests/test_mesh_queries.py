@@ -34,7 +34,7 @@ def start_from(shape, tri: int) -> None:
     """Make triangle `tri` the hint the next query of `shape` starts from, its kept answers
     forgotten (as after a query that ended on that triangle somewhere else)."""
     record = shape.set.SD[shape.row]
-    record.hint = int(shape.set.S[shape.row].t0) + tri
+    record.hint = int(shape.set.S[shape.row].faceadr) + tri
     record.key[:, :] = math.nan
 
 
@@ -44,7 +44,7 @@ def forget_queries(shape) -> None:
     record = shape.set.SD[shape.row]
     record.hint = record.feature = -1
     record.key[:, :] = math.nan
-    at, P = int(shape.set.S[shape.row].patch), shape.set.P
+    at, P = int(shape.set.S[shape.row].patchadr), shape.set.P
     P[at:at + HINT_SLOTS * PATCH_WIDTH] = 0.0
     for k in range(HINT_SLOTS):
         P[at + PATCH_WIDTH * k + P_RADIUS] = P[at + PATCH_WIDTH * k + P_FULL + 6] = -1.0
@@ -339,9 +339,9 @@ def test_hint_and_kept_answers_change_nothing():
         s.distance(*p)
     for p, u in queries[::5]:
         after = s.sweep(*p, *u, 0.005), s.distance(*p)
-        start_from(s, -1 - int(shapes.S[s.row].t0))  # no hint
+        start_from(s, -1 - int(shapes.S[s.row].faceadr))  # no hint
         fresh = s.sweep(*p, *u, 0.005)
-        start_from(s, -1 - int(shapes.S[s.row].t0))
+        start_from(s, -1 - int(shapes.S[s.row].faceadr))
         fresh = fresh, s.distance(*p)
         assert (after[0] is None) == (fresh[0] is None)
         if after[0] is not None:
@@ -642,7 +642,7 @@ def patches(shape) -> list[tuple[float, int, tuple]]:
     """(radius (m), count, the capsule found too full: its ends (geom frame) and radius (m),
     -1: none) of each hint slot's patch of a mesh shape."""
 
-    at, P = int(shape.set.S[shape.row].patch), shape.set.P
+    at, P = int(shape.set.S[shape.row].patchadr), shape.set.P
     return [(P[at + PATCH_WIDTH * k + P_RADIUS], int(P[at + PATCH_WIDTH * k + P_COUNT]),
              tuple(P[at + PATCH_WIDTH * k + P_FULL:at + PATCH_WIDTH * k + P_FULL + 7].tolist()))
             for k in range(HINT_SLOTS)]
@@ -661,7 +661,7 @@ def test_a_query_off_the_map_leaves_the_patches_as_they_were():
     u = np.array([2e-4, 1e-4, 0.0])
     check_distance(o, s, [p])
     o.check_sweep(p, u, r, s.sweep(*p, *u, r))
-    at, P = int(s.set.S[s.row].patch), s.set.P
+    at, P = int(s.set.S[s.row].patchadr), s.set.P
     before = P[at:at + HINT_SLOTS * PATCH_WIDTH].copy()
     rng = np.random.default_rng(4)
     for bad in (math.nan, math.inf, -math.inf):
@@ -696,7 +696,7 @@ def test_a_vanishing_proxy_leaves_the_mesh_queries_exact():
     god = GodObject(shapes, 4.027865658967583e-290, mu, 0.8 * mu, (0.0, 0.0, 0.09))
     for q in np.array(path) * 0.07:
         god.update(*q)
-    at, P = int(s.set.S[s.row].patch), s.set.P
+    at, P = int(s.set.S[s.row].patchadr), s.set.P
     for k in range(HINT_SLOTS):
         for c in (at + PATCH_WIDTH * k, at + PATCH_WIDTH * k + P_FULL):  # the patch's, the too full one
             assert not np.isnan(P[c:c + 7]).any(), (k, P[c:c + 7])

@@ -262,7 +262,7 @@ def test_two_geoms_of_one_asset_share_one_build():
     a, b = shapes
     assert a.tables is b.tables
     assert len(shapes.T) == a.triangles
-    assert shapes.S[a.row].t0 == shapes.S[b.row].t0
+    assert shapes.S[a.row].faceadr == shapes.S[b.row].faceadr
     rng = np.random.default_rng(8)
     for g, shape in ((0, a), (1, b)):
         o = Oracle(*world_mesh(m, d, g), True)
@@ -533,9 +533,9 @@ def from_tree(shape, hint: int = -1) -> None:
     the box tree), its kept answers forgotten, and it keeps no patches (the tree answers
     what the hint does not)."""
     record = shape.set.SD[shape.row]
-    record.hint = -1 if hint < 0 else int(shape.set.S[shape.row].t0) + hint
+    record.hint = -1 if hint < 0 else int(shape.set.S[shape.row].faceadr) + hint
     record.key[:, :] = math.nan
-    shape.set.S[shape.row].patch = -1
+    shape.set.S[shape.row].patchadr = -1
 
 
 def noisy_ball(triangles: int):
@@ -731,7 +731,7 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
     centre = (A + B + Cv) / 3.0
     circum = np.max([np.linalg.norm(X - centre, axis=1) for X in (A, B, Cv)], axis=0)
     S, C, P, k = s.set.S, s.set.C, s.set.P, s.row
-    at, t0 = int(S[k].patch), int(S[k].t0)
+    at, t0 = int(S[k].patchadr), int(S[k].faceadr)
     rng = np.random.default_rng(7)
     shrunk = whole = 0
     for i in range(24):
@@ -831,7 +831,7 @@ def test_a_finger_held_still_gathers_a_close_patch():
             if i == 1:
                 held = patches(s)
         used = [(radius, count) for radius, count, _ in patches(s) if count > 0]
-        at, P = int(s.set.S[s.row].patch), s.set.P
+        at, P = int(s.set.S[s.row].patchadr), s.set.P
         tried = [P[at + PATCH_WIDTH * k + P_FULL + 9] for k in range(HINT_SLOTS)]
         if close:
             assert len(used) == 1 and r + PATCH_CLOSE / 2 <= used[0][0] <= r + 2 * PATCH_CLOSE, used
@@ -860,7 +860,7 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
         s, o, a, n, t = dish_floor(spacing)
         # r above the floor (z = x² / 0.2 m), within the dish's tilt (~1 µm)
         path = [a + x * t + (r + 1e-6 + x * x / 0.2) * n for x in np.arange(251) * 1.2e-5]
-        at, P = int(s.set.S[s.row].patch), s.set.P
+        at, P = int(s.set.S[s.row].patchadr), s.set.P
         stretched = close = 0.0
         for i in range(250):
             p, u = path[i], path[i + 1] - path[i]
@@ -938,14 +938,14 @@ def test_record_bounds_hold_and_are_as_thin_as_a_sliver():
     (slivers 7 mm long, a fifth of a millimetre wide at the rim), a point a few millimetres
     over a cap is bounded near only the slivers truly near it. A ball about each sliver
     would be as wide as the cap and rule out none of a third of the fan."""
-    from softproxy.compiled.layout import RECORD_WIDTH, R_ROW, TREE_RECORDS
+    from softproxy.compiled.layout import RECORD_WIDTH, R_ROW
     from softproxy.compiled.box_tree import record_gap2
 
     s, _ = tree_shape(*sliver_part())
     t = s.tables
     A, B, Cv = (t.vpos[t.tv[:, k]] for k in range(3))
     S, C, k = s.set.S, s.set.C, s.row
-    first, t0, n = int(C[int(S[k].tree) + TREE_RECORDS]), int(S[k].t0), int(S[k].nt)
+    first, t0, n = int(S[k].recadr), int(S[k].faceadr), int(S[k].facenum)
     records = first + RECORD_WIDTH * np.arange(n)
     rows = C[records + R_ROW].astype(np.int64) - t0
     A, B, Cv = A[rows], B[rows], Cv[rows]

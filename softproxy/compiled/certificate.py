@@ -33,8 +33,9 @@ from numba import njit
 
 from softproxy.compiled.tree_walk import LEAF, STACK, heap_offer, heap_pop
 from softproxy.compiled.layout import (
-    EDGE_AB, FACE, FEW_SLOTS, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, T_ADJ, T_BALL, T_CLEAR, T_N, T_TV, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN,
-    V_RING, V_SINES, V_THRESHOLD, V_X, VERTEX_A,
+    EDGE_AB, FACE, FEW_SLOTS, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, TI_ADJ, TI_CLEAR, TI_COLUMNS, TI_TV, T_N, VERTEX_A,
+    VERTEX_INTS, VERTEX_WIDTH, VI_FAN, VI_FAN_NUM, VI_RING, VI_RING_NUM, VI_RING_ROW, VI_SINES, VI_SINE_NUM, VI_SINE_VERT,
+    V_AXIS, V_COS, V_THRESHOLD, V_X,
 )
 
 ABOVE_TOL = 1e-9
@@ -52,37 +53,41 @@ axis (those whose sin β is below the tilt's sine); more, and the box tree serve
 assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' lists (an edge's certificate)"
 
 
-def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+def certificate_tables(s, t0: int, c0: int, i0: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """The certificates of `softproxy.mesh.MeshTables` s whose triangles are rows t0.. of T and
-    whose tables start at C[c0]: (its T_ADJ..T_BALL columns (triangles × 14), its part of C
-    (vertex records, then rings, fans, sin β tables, face lists and ball lists), the reach
-    (m) they hold over, the radius (m) of the ball certificates' resting ball)."""
+    whose tables start at C[c0] and CI[i0]: (its rows of TI (triangles × TI_COLUMNS), its part
+    of C (vertex records, ring vectors, sin β tables), its part of CI (vertex records, ring
+    rows, fans, the sin β tables' vertex ids, face lists and ball lists), the reach (m) they
+    hold over, the radius (m) of the ball certificates' resting ball)."""
     n, nv = s.triangles, len(s.vpos)
-    adj = np.where(s.adj >= 0, s.adj + t0, -1).astype(np.float64)
+    adj = np.where(s.adj >= 0, s.adj + t0, -1)
     verts = np.zeros((nv, VERTEX_WIDTH))
     verts[:, V_X:V_X + 3] = s.vpos
     verts[:, V_AXIS:V_COS + 1] = s.vcone
-    at = c0 + verts.size
-    parts = [verts]
-    # per vertex its ring (edge vector (m), a triangle on the edge), then its fan (ascending)
-    ring = s.ring.astype(np.float64)
-    ring[:, 3] += t0
-    verts[:, V_RING] = at + 4 * s.ring_start[:-1]
-    verts[:, V_RING + 1] = np.diff(s.ring_start)
-    at += ring.size
-    parts.append(ring)
-    verts[:, V_FAN] = at + s.fan_start[:-1]
-    verts[:, V_FAN + 1] = np.diff(s.fan_start)
-    at += len(s.fan)
-    parts.append(s.fan.astype(np.float64) + t0)
+    vint = np.zeros((nv, VERTEX_INTS), dtype=np.int64)
+    at, iat = c0 + verts.size, i0 + vint.size
+    floats, ints = [verts], [vint]
+    # per vertex its ring (edge vector (m) in C, a triangle on the edge in CI), then its fan (ascending)
+    vint[:, VI_RING] = at + 3 * s.ring_start[:-1]
+    vint[:, VI_RING_ROW] = iat + s.ring_start[:-1]
+    vint[:, VI_RING_NUM] = np.diff(s.ring_start)
+    floats.append(s.ring[:, :3].astype(np.float64))
+    ints.append(s.ring[:, 3].astype(np.int64) + t0)
+    at += 3 * len(s.ring)
+    iat += len(s.ring)
+    vint[:, VI_FAN] = iat + s.fan_start[:-1]
+    vint[:, VI_FAN_NUM] = np.diff(s.fan_start)
+    ints.append(s.fan.astype(np.int64) + t0)
+    iat += len(s.fan)
     radius, start, sines, ids = s.vtable
     counts = np.diff(start)
-    verts[:, V_SINES] = at + 2 * start[:-1]
-    verts[:, V_SINES + 1] = counts
-    table = np.empty((len(sines), 2))
-    table[:, 0], table[:, 1] = sines, ids
-    parts.append(table)
-    at += table.size
+    vint[:, VI_SINES] = at + start[:-1]
+    vint[:, VI_SINE_VERT] = iat + start[:-1]
+    vint[:, VI_SINE_NUM] = counts
+    floats.append(np.asarray(sines, dtype=np.float64))
+    ints.append(np.asarray(ids).astype(np.int64))
+    at += len(sines)
+    iat += len(sines)
     # the threshold on c² (c: the cosine of the plane's normal to the cone's axis) above which
     # every triangle near the vertex lies behind the plane by angle alone (2.0: never)
     least = np.ones(nv)
@@ -90,29 +95,30 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     s0 = least - 1e-12
     verts[:, V_THRESHOLD] = np.where(s0 > 0.0, 1.0 - s0 * s0, 2.0)
     # per face and side, the few triangles rising above its plane (-1: a concave patch)
-    clear = np.zeros((n, 4))
+    clear = np.zeros((n, 4), dtype=np.int64)
     m = s.clear.reshape(-1)                      # face 0 front, face 0 back, face 1 front, ...
     runs = np.maximum(m, 0)
-    first = at + np.cumsum(runs) - runs
+    first = iat + np.cumsum(runs) - runs
     clear[:, 0], clear[:, 2] = first[0::2], first[1::2]
     clear[:, 1], clear[:, 3] = m[0::2], m[1::2]
-    clear[:, [0, 2]] = np.where(clear[:, [1, 3]] < 0, 0.0, clear[:, [0, 2]])
+    clear[:, [0, 2]] = np.where(clear[:, [1, 3]] < 0, 0, clear[:, [0, 2]])
     flat = s.listed.reshape(-1, s.listed.shape[2])
-    parts.append(flat[np.arange(flat.shape[1])[None, :] < runs[:, None]].astype(np.float64) + t0)
-    at += int(runs.sum())
+    ints.append(flat[np.arange(flat.shape[1])[None, :] < runs[:, None]].astype(np.int64) + t0)
+    iat += int(runs.sum())
     # per face and side, its ball list: the plane list where that holds, else its own (-1: none)
     ball = clear.copy()
     b = s.ball_count.reshape(-1)
     own = (m < 0) & (b >= 0)
     bruns = np.where(own, b, 0)
     sides = ball.reshape(-1, 2)                  # a view: (start, count) per face and side, as m
-    sides[own, 0] = (at + np.cumsum(bruns) - bruns)[own]
+    sides[own, 0] = (iat + np.cumsum(bruns) - bruns)[own]
     sides[own, 1] = b[own]
     bflat = s.ball_listed.reshape(2 * n, s.ball_listed.shape[2])
-    parts.append(bflat[np.arange(bflat.shape[1])[None, :] < bruns[:, None]].astype(np.float64) + t0)
-    columns = np.column_stack([adj, s.tv.astype(np.float64), clear, ball])
-    assert columns.shape[1] == T_BALL + 4 - T_ADJ
-    return columns, np.concatenate([p.ravel() for p in parts]), float(s.kept), float(s.ball)
+    ints.append(bflat[np.arange(bflat.shape[1])[None, :] < bruns[:, None]].astype(np.int64) + t0)
+    columns = np.column_stack([adj, s.tv, clear, ball]).astype(np.int64)
+    assert columns.shape[1] == TI_COLUMNS
+    return (columns, np.concatenate([f.ravel() for f in floats]), np.concatenate([i.ravel() for i in ints]),
+            float(s.kept), float(s.ball))
 
 
 @njit(cache=True, error_model="numpy")
@@ -136,44 +142,45 @@ def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
 
 
 @njit(cache=True, error_model="numpy")
-def face_few(T, C, scan, i, side, at, lists=T_CLEAR):
-    """Row i's list on `side` (`lists`: T_CLEAR, the triangles rising above its plane; T_BALL,
+def face_few(TI, CI, scan, i, side, at, lists=TI_CLEAR):
+    """Row i's list on `side` (`lists`: TI_CLEAR, the triangles rising above its plane; TI_BALL,
     those a ball resting on it reaches), copied to scan[SCAN_FEW + at:]; the new count, or -1
     when it has none (a concave patch)."""
     col = lists if side > 0.0 else lists + 2
-    count = int(T[i, col + 1])
+    count = TI[i, col + 1]
     if count < 0 or at + count > FEW_SLOTS:
         return -1
-    start = int(T[i, col])
+    start = TI[i, col]
     for j in range(count):
-        scan[SCAN_FEW + at + j] = int(C[start + j])
+        scan[SCAN_FEW + at + j] = CI[start + j]
     return at + count
 
 
 @njit(cache=True, error_model="numpy")
-def _vertex_few(S, T, C, scan, k, hint, feature, nx, ny, nz):
+def _vertex_few(sh, k, hint, feature, nx, ny, nz):
     """`static_clear` when the nearest point is vertex `feature - VERTEX_A` of row `hint`: the fan lies
     behind the tangent plane when n is inside the vertex's cone (else every edge leaving it is
     tested); a triangle off the fan does when its vertices lie more than the plane's tilt
     below the cone (sin β, from the table); the fans of the few that may not and rise above
     the plane are listed."""
-    vertex = int(T[hint, T_TV + feature - VERTEX_A])
-    verts = int(S[k].verts)
-    rec = verts + VERTEX_WIDTH * vertex
+    S, C, CI, scan = sh.S, sh.C, sh.CI, sh.scan
+    vertex = sh.TI[hint, TI_TV + feature - VERTEX_A]
+    verts, iverts = S[k].vertadr, S[k].vertiadr
+    rec, irec = verts + VERTEX_WIDTH * vertex, iverts + VERTEX_INTS * vertex
     c = nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2]
     if c <= 0.0:
         return -1
     if c < C[rec + V_COS]:
-        r0 = int(C[rec + V_RING])
-        for j in range(r0, r0 + 4 * int(C[rec + V_RING + 1]), 4):
+        r0 = CI[irec + VI_RING]
+        for j in range(r0, r0 + 3 * CI[irec + VI_RING_NUM], 3):
             if nx * C[j] + ny * C[j + 1] + nz * C[j + 2] > ABOVE_TOL:
                 return -1
     if c * c > C[rec + V_THRESHOLD]:
         return 0
-    s0, sn = int(C[rec + V_SINES]), int(C[rec + V_SINES + 1])
+    s0, v0, sn = CI[irec + VI_SINES], CI[irec + VI_SINE_VERT], CI[irec + VI_SINE_NUM]
     tilt = math.sqrt(max(0.0, 1.0 - c * c)) + 1e-12  # c may round above 1 (NaN would certify all)
     m = 0
-    while m < sn and C[s0 + 2 * m] < tilt:  # bisect_left on sin β ascending
+    while m < sn and C[s0 + m] < tilt:  # bisect_left on sin β ascending
         m += 1
     if m > VERTEX_READ:
         return -1
@@ -182,11 +189,12 @@ def _vertex_few(S, T, C, scan, k, hint, feature, nx, ny, nz):
     stamp = scan[SCAN_COUNT]
     count = 0
     for j in range(m):
-        w = verts + VERTEX_WIDTH * int(C[s0 + 2 * j + 1])
+        v = CI[v0 + j]
+        w = verts + VERTEX_WIDTH * v
         if nx * C[w + V_X] + ny * C[w + V_X + 1] + nz * C[w + V_X + 2] > off:
-            f0 = int(C[w + V_FAN])
-            for f in range(f0, f0 + int(C[w + V_FAN + 1])):
-                i = int(C[f])
+            f0 = CI[iverts + VERTEX_INTS * v + VI_FAN]
+            for f in range(f0, f0 + CI[iverts + VERTEX_INTS * v + VI_FAN_NUM]):
+                i = CI[f]
                 if scan[SCAN_STAMPS + i] == stamp:
                     continue
                 scan[SCAN_STAMPS + i] = stamp
@@ -206,25 +214,25 @@ def static_clear(sh, k, hint, feature, nx, ny, nz, need):
     reach they were built for): then every triangle must be asked. A point p at distance d
     has no nearer triangle off the list when need >= 2d; a sphere of radius r touching at p
     and sliding by L on or above the plane enters none when need >= 2r + L."""
-    S, T, C, scan = sh.S, sh.T, sh.C, sh.scan
-    if need > S[k].kept:
+    T, TI, CI, scan = sh.T, sh.TI, sh.CI, sh.scan
+    if need > sh.S[k].kept:
         return -1
     dot0 = nx * T[hint, T_N] + ny * T[hint, T_N + 1] + nz * T[hint, T_N + 2]
     side0 = 1.0 if dot0 >= 0.0 else -1.0
     if feature == FACE:
-        return face_few(T, C, scan, hint, side0, 0)
+        return face_few(TI, CI, scan, hint, side0, 0)
     if feature >= VERTEX_A:
-        return _vertex_few(S, T, C, scan, k, hint, feature, nx, ny, nz)
-    other = int(T[hint, T_ADJ + feature - EDGE_AB])
+        return _vertex_few(sh, k, hint, feature, nx, ny, nz)
+    other = TI[hint, TI_ADJ + feature - EDGE_AB]
     if other < 0:
         return -1
     side1 = _convex_edge(T, hint, other, nx, ny, nz, side0, dot0)
     if side1 == 0.0:
         return -1
-    m = face_few(T, C, scan, hint, side0, 0)
+    m = face_few(TI, CI, scan, hint, side0, 0)
     if m < 0:
         return -1
-    return face_few(T, C, scan, other, side1, m)
+    return face_few(TI, CI, scan, other, side1, m)
 
 
 # ---------------------------------------------------------------------------------------

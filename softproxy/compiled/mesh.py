@@ -80,9 +80,9 @@ from softproxy.compiled.box_tree import (
 )
 from softproxy.compiled.certificate import ABOVE_TOL, face_few, static_clear
 from softproxy.compiled.layout import (
-    EDGE_AB, FACE, HINT_SLOTS, KEPT_DISTANCE, KEPT_NORMAL, KEPT_POINT, KEPT_ROW,
-    KEPT_WIDTH, NODE_WIDTH, P_RECORDS, RECORD_WIDTH, R_ROW, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_BALL, T_N,
-    T_PSEUDO, T_TV, VERTEX_A, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
+    EDGE_AB, FACE, HINT_SLOTS, KEPT_DISTANCE, KEPT_NORMAL, KEPT_POINT, KEPT_ROW, KEPT_WIDTH, NODE_WIDTH, P_RECORDS,
+    RECORD_WIDTH, R_ROW, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, SLOT_AGE, SLOT_HINT, SLOT_KEPT, TI_ADJ, TI_BALL, TI_TV, T_N,
+    T_PSEUDO, VERTEX_A, VERTEX_INTS, VERTEX_WIDTH, VI_RING, VI_RING_NUM, VI_RING_ROW, V_AXIS, V_COS,
 )
 from softproxy.compiled.patch import slot_patch
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
@@ -101,29 +101,32 @@ WALK_STEPS = 8
 
 
 @njit(cache=True, error_model="numpy")
-def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
+def _walk(sh, k, hint, d2, qx, qy, qz, feature, x, y, z):
     """From the hint's nearest point q to p on an edge or a vertex, step to a nearer triangle:
     across the edge (p may lie over the neighbour's face, or beyond it), or from a vertex to
     a triangle on an edge leaving it that rises above the tangent plane there (it holds a
     nearer point); while there is one, WALK_STEPS at most: the certificate of the face, edge
     or vertex reached then holds more often. Returns (d2, qx, qy, qz, feature, hint)."""
-    verts = int(S[k].verts)
+    T, TI, C, CI = sh.T, sh.TI, sh.C, sh.CI
+    verts, iverts = sh.S[k].vertadr, sh.S[k].vertiadr
     for _ in range(WALK_STEPS):
         if feature == FACE or d2 <= 0.0:
             break
         if feature < VERTEX_A:
-            step = int(T[hint, T_ADJ + feature - EDGE_AB])
+            step = TI[hint, TI_ADJ + feature - EDGE_AB]
         else:
-            rec = verts + VERTEX_WIDTH * int(T[hint, T_TV + feature - VERTEX_A])
+            vertex = TI[hint, TI_TV + feature - VERTEX_A]
+            rec, irec = verts + VERTEX_WIDTH * vertex, iverts + VERTEX_INTS * vertex
             dist = math.sqrt(d2)
             nx, ny, nz = (x - qx) / dist, (y - qy) / dist, (z - qz) / dist
             if nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2] >= C[rec + V_COS]:
                 break
             step = -1
-            r0 = int(C[rec + V_RING])
-            for j in range(r0, r0 + 4 * int(C[rec + V_RING + 1]), 4):
+            r0, rows = CI[irec + VI_RING], CI[irec + VI_RING_ROW]
+            for e in range(CI[irec + VI_RING_NUM]):
+                j = r0 + 3 * e
                 if nx * C[j] + ny * C[j + 1] + nz * C[j + 2] > ABOVE_TOL:
-                    step = int(C[j + 3])
+                    step = CI[rows + e]
                     break
         if step < 0:
             break
@@ -135,27 +138,28 @@ def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _from_hint(S, T, C, k, hint0, x, y, z):
+def _from_hint(sh, k, hint0, x, y, z):
     """The nearest point to p (geom frame) on row hint0, or on the triangle across the edge it
     lies on when that is nearer (p may lie over the neighbour's face), walked on from there
     (`_walk`) when it stepped across or lies on a vertex: (d2, qx, qy, qz, feature, row).
     Every distance query and sweep begins here."""
+    T = sh.T
     hint = hint0
     d2, qx, qy, qz, f = closest(T, hint, x, y, z)
     if EDGE_AB <= f < VERTEX_A:
-        other = int(T[hint, T_ADJ + f - EDGE_AB])
+        other = sh.TI[hint, TI_ADJ + f - EDGE_AB]
         if other >= 0:
             c2, rx, ry, rz, g = closest(T, other, x, y, z)
             if c2 < d2:
                 d2, qx, qy, qz, f, hint = c2, rx, ry, rz, g, other
     if (f != FACE and hint != hint0) or f >= VERTEX_A:
-        return _walk(S, T, C, k, hint, d2, qx, qy, qz, f, x, y, z)
+        return _walk(sh, k, hint, d2, qx, qy, qz, f, x, y, z)
     return d2, qx, qy, qz, f, hint
 
 
-Nearest = namedtuple("Nearest", "T C tree n base x y z")
-"""A nearest-triangle query on mesh tables T, C: mesh k's tree (`tree_of`: where it begins in
-C, its number of triangles, its nodes' base) and the point p (geom frame, m). Its walk's
+Nearest = namedtuple("Nearest", "T C rec n base x y z")
+"""A nearest-triangle query on mesh tables T, C: mesh k's tree (`tree_of`: where its records
+begin in C, its number of triangles, its nodes' base) and the point p (geom frame, m). Its walk's
 state: (best2 (m²), q, feature, row of T) of the nearest found so far."""
 
 
@@ -194,7 +198,7 @@ def _nearest_bound(q, s, node):
 @njit(cache=True, error_model="numpy", inline="always")
 def _nearest_leaf(q, s, leaf):
     """The nearest so far after the triangles of a leaf."""
-    j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
+    j0, j1 = leaf_records(q.rec, leaf, q.n)
     return _nearest_run(q, q.C, j0, j1, s)
 
 
@@ -214,19 +218,20 @@ def _ball_holds(T, i, sx, sy, sz, radius, cx, cy, cz, rho):
 
 
 @njit(cache=True, error_model="numpy")
-def _ball_few(S, T, C, scan, k, i, cx, cy, cz, rho):
+def _ball_few(sh, k, i, cx, cy, cz, rho):
     """The ball certificate of row i at c: how many triangles (listed in scan[SCAN_FEW:]) besides
     row i may come within rho (m) of c, and the unit normal of the side of row i that c is
     on; -1 when the ball of radius rho about c is not inside a ball resting on row i on that
     side, or the face has no ball list there."""
-    radius = S[k].ball
+    T = sh.T
+    radius = sh.S[k].ball
     if radius <= 0.0:  # none built: the mesh is coarse enough for its patches
         return -1, 0.0, 0.0, 0.0
     side = 1.0
     nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
     if nx * (cx - T[i, 0]) + ny * (cy - T[i, 1]) + nz * (cz - T[i, 2]) < 0.0:
         nx, ny, nz, side = -nx, -ny, -nz, -1.0
-    m = face_few(T, C, scan, i, side, 0, T_BALL)
+    m = face_few(sh.TI, sh.CI, sh.scan, i, side, 0, TI_BALL)
     if m < 0 or not _ball_holds(T, i, nx, ny, nz, radius, cx, cy, cz, rho):
         return -1, nx, ny, nz
     return m, nx, ny, nz
@@ -243,19 +248,19 @@ def _nearest(sh, k, sl, x, y, z):
     nearer; else the slot's patch when it holds the ball of the hint's distance, or the box
     tree walked nearest node first, leaving out every node farther than the best found (the
     hint's, to begin with)."""
-    S, SD, T, C, scan = sh.S, sh.SD, sh.T, sh.C, sh.scan
+    SD, T, scan = sh.SD, sh.T, sh.scan
     best2 = math.inf
     qx = qy = qz = 0.0
     bf = 0
     bi = int(SD[k].hint)
     at, m, cut = -1, 0, -1
     if bi >= 0:
-        best2, qx, qy, qz, bf, bi = _from_hint(S, T, C, k, bi, x, y, z)
+        best2, qx, qy, qz, bf, bi = _from_hint(sh, k, bi, x, y, z)
         if best2 > 0.0:
             best = math.sqrt(best2)
             m = static_clear(sh, k, bi, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, 2.0 * best)
             if m < 0:
-                m = _ball_few(S, T, C, scan, k, bi, x, y, z, best)[0]
+                m = _ball_few(sh, k, bi, x, y, z, best)[0]
             if m >= 0:
                 hint = bi
                 for j in range(m):
@@ -267,8 +272,8 @@ def _nearest(sh, k, sl, x, y, z):
                 SD[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
         at, m, cut = slot_patch(sh, k, sl, x, y, z, x, y, z, math.sqrt(best2))
-    tree, size, n, base = tree_of(S, C, k)
-    q = Nearest(T, C, tree, n, base, x, y, z)
+    size, n, base, rec = tree_of(sh.S, k)
+    q = Nearest(T, sh.C, rec, n, base, x, y, z)
     if at >= 0:
         j0 = at + P_RECORDS
         best2, qx, qy, qz, bf, bi = _nearest_run(q, sh.P, j0, j0 + m * RECORD_WIDTH, (best2, qx, qy, qz, bf, bi))
@@ -445,10 +450,10 @@ def mesh_walk_distance(sh, k, row, x, y, z):
     Unsigned: a walk may end on a nearest triangle of its own across the mesh, and p behind
     that one is not inside (a point proxy 4 cm from a sphere's far side was taken for
     resting on it, and floated 4 mm off the sphere with the device inside)."""
-    S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
+    S, T, xpos, xmat = sh.S, sh.T, sh.xpos, sh.xmat
     g = int(S[k].geom)
     lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
-    d2, qx, qy, qz, f, i = _from_hint(S, T, C, k, row, lx, ly, lz)
+    d2, qx, qy, qz, f, i = _from_hint(sh, k, row, lx, ly, lz)
     d, nx, ny, nz = _answer(S, T, k, lx, ly, lz, math.sqrt(d2), qx, qy, qz, f, i)
     if d < 0.0:
         d, nx, ny, nz = -d, -nx, -ny, -nz
@@ -456,7 +461,7 @@ def mesh_walk_distance(sh, k, row, x, y, z):
     return d, nx, ny, nz, i
 
 
-Sweeping = namedtuple("Sweeping", "T C scan tree n base stamp sweep slab reach length slack cull pnx pny pnz poff")
+Sweeping = namedtuple("Sweeping", "T C scan rec n base stamp sweep slab reach length slack cull pnx pny pnz poff")
 """A sweep's tree walk on mesh tables T, C and the scans' marks: mesh k's tree (`tree_of`), the scan's stamp, the
 sweep, how near (m) a triangle must come to it (`slab`), its reach and length (m), what its
 nodes' boxes were grown by (`slack`, m), and when `cull`, the plane p·x = poff it stays r
@@ -526,7 +531,7 @@ def _sweep_opened(q, s, node):
 @njit(cache=True, error_model="numpy", inline="always")
 def _sweep_leaf(q, s, leaf):
     """The earliest touch so far after the triangles of a leaf."""
-    j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
+    j0, j1 = leaf_records(q.rec, leaf, q.n)
     return _sweep_run(q, q.C, j0, j1, s)
 
 
@@ -614,7 +619,7 @@ def _sweep_ball(sh, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2):
     ax, ay, az, ux, uy, uz, r, _, _ = sweep
     reach = r + CONTACT_TOL
     S, T = sh.S, sh.T
-    m, sx, sy, sz = _ball_few(S, T, sh.C, sh.scan, k, hint, ax, ay, az, max(reach, math.sqrt(d2)))
+    m, sx, sy, sz = _ball_few(sh, k, hint, ax, ay, az, max(reach, math.sqrt(d2)))
     if m < 0:
         return False, (-1.0, 0.0, 0.0, 0.0)
     out = _few_run(T, sh.scan, m, hint, d2, qx, qy, qz, feature, sweep, far2,
@@ -687,7 +692,7 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
     cull, pnx, pny, pnz, poff = False, 0.0, 0.0, 0.0, 0.0
     hint0 = int(sh.SD[k].hint)
     if hint0 >= 0:
-        d2, qx, qy, qz, feature, hint = _from_hint(S, T, C, k, hint0, ax, ay, az)
+        d2, qx, qy, qz, feature, hint = _from_hint(sh, k, hint0, ax, ay, az)
         if d2 <= reach * reach and d2 > 1e-24:
             dist = math.sqrt(d2)
             nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
@@ -710,7 +715,7 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
             lam, mx, my, mz, f = sweep_triangle(T, hint, sweep, far2)
             if lam >= 0.0 and EDGE_AB <= f < VERTEX_A:
                 # touched on an edge: the neighbour across it may be touched first
-                other = int(T[hint, T_ADJ + f - EDGE_AB])
+                other = sh.TI[hint, TI_ADJ + f - EDGE_AB]
                 if other >= 0:
                     lam2, nx, ny, nz, f2 = sweep_triangle(T, other, sweep, far2)
                     if lam2 >= 0.0 and lam2 < lam:
@@ -721,7 +726,7 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
                 sx, sy, sz = ax + lam * ux, ay + lam * uy, az + lam * uz
                 c2, cx, cy, cz, cf = closest(T, hint, sx, sy, sz)
                 if cf >= VERTEX_A:
-                    walked = _walk(S, T, C, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
+                    walked = _walk(sh, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
                     if walked != hint:
                         lam2, nx, ny, nz, f2 = sweep_triangle(T, walked, sweep, far2)
                         if lam2 >= 0.0 and lam2 < lam:
@@ -755,9 +760,9 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
     # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
     # about one point)
     at, m, cut = slot_patch(sh, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
-    tree, size, n, base = tree_of(S, C, k)
+    size, n, base, rec = tree_of(S, k)
     slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
-    q = Sweeping(T, C, scan, tree, n, base, stamp, sweep, slab, reach, length, slack, cull, pnx, pny, pnz, poff)
+    q = Sweeping(T, C, scan, rec, n, base, stamp, sweep, slab, reach, length, slack, cull, pnx, pny, pnz, poff)
     s = (best_lam, bnx, bny, bnz, bi, far2)
     if at >= 0:
         j0 = at + P_RECORDS

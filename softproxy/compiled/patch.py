@@ -71,13 +71,13 @@ def slot_patch(sh, k, sl, ax, ay, az, bx, by, bz, need):
     hundreds (the too-full capsule: PATCH_KEEP beyond the query, stretched PATCH_MARGIN; the
     patch: PATCH_AHEAD)."""
     S, C, P = sh.S, sh.C, sh.P
-    if S[k].patch < 0:
+    if S[k].patchadr < 0:
         return -1, 0, -1
     if not finite(abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz) + need):
         # a query off the map (NaN, inf) never becomes a capsule: NaN compares false, and
         # every later query in the slot would take the patch for holding it
         return -1, 0, -1
-    at = int(S[k].patch) + PATCH_WIDTH * sl
+    at = int(S[k].patchadr) + PATCH_WIDTH * sl
     gap = capsule_gap(P, at, ax, ay, az, bx, by, bz)
     if gap + need > P[at + P_RADIUS]:
         f = at + P_FULL
@@ -165,7 +165,7 @@ def _cut(S, C, P, k, at, ax, ay, az, bx, by, bz, radius):
     at every level below its own): every triangle within the capsule lies in one of them, so
     a walk for a query inside it starts there, not at the root (a million triangles make
     seventeen levels, and the sphere lies within reach of two or three nodes of each)."""
-    tree, size, n, base = tree_of(S, C, k)
+    size, n, base, _ = tree_of(S, k)
     ux, uy, uz = bx - ax, by - ay, bz - az
     r2 = radius * radius
     level = np.empty(CUT_NODES, dtype=np.int64)
@@ -204,7 +204,7 @@ def _cut(S, C, P, k, at, ax, ay, az, bx, by, bz, radius):
         P[at + 1 + i] = level[i]
 
 
-Gathering = namedtuple("Gathering", "C tree n base ax ay az bx by bz ux uy uz least keys rows kept")
+Gathering = namedtuple("Gathering", "C rec n base ax ay az bx by bz ux uy uz least keys rows kept")
 """A patch's gathering from the box trees C: mesh k's tree (`tree_of`), the segment a..b (geom
 frame, m; u = b - a), the least radius (m) worth a patch, and the scratch of the records kept:
 a max-heap of their bounds (m²) and their rows in `kept`. Its walk's state: (r2, the radius²
@@ -237,7 +237,7 @@ def _gather_leaf(q, s, leaf):
     all kept so far; when full, the radius shrinks to the least bound left out."""
     C, ax, ay, az, bx, by, bz, keys, rows, kept = q.C, q.ax, q.ay, q.az, q.bx, q.by, q.bz, q.keys, q.rows, q.kept
     r2, m, _ = s
-    j0, j1 = leaf_records(C, q.tree, leaf, q.n)
+    j0, j1 = leaf_records(q.rec, leaf, q.n)
     for j in range(j0, j1, RECORD_WIDTH):
         ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
         hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
@@ -284,12 +284,12 @@ def _gather(S, C, P, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER
     full read on until the radius came down: the 1M grid's slowest sliding ticks spent 119 µs
     gathering, now 75). At most `room` nodes wait (FRONTIER); one it has no room for bounds
     the radius."""
-    tree, size, n, base = tree_of(S, C, k)
+    size, n, base, rec = tree_of(S, k)
     # a max-heap of the kept records' bounds (m²) and their rows in `kept`
     keys = np.empty(PATCH_RECORDS)
     rows = np.empty(PATCH_RECORDS, dtype=np.int64)
     kept = np.empty((PATCH_RECORDS, RECORD_WIDTH))
-    q = Gathering(C, tree, n, base, ax, ay, az, bx, by, bz, bx - ax, by - ay, bz - az, least, keys, rows, kept)
+    q = Gathering(C, rec, n, base, ax, ay, az, bx, by, bz, bx - ax, by - ay, bz - az, least, keys, rows, kept)
     (r2, m, given_up), _ = _gather_walk(size, FROM_ROOT, q, (radius * radius, 0, False), best_scratch(room))
     if given_up:
         return False
