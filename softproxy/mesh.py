@@ -21,7 +21,7 @@ those triangles ready, once, when a world is loaded (numpy; nothing here runs in
   KEPT_RADIUS proxy at load, and of a larger one by `prepare`; on a mesh too dense for a
   patch to hold a resting proxy (`dense`), per face and side where the plane's list fails,
   the few triangles a ball of the proxy's radius resting on the face reaches
-  (`softproxy.compiled.ball`). And the box tree the queries walk where no certificate
+  (`softproxy.mesh_balls`). And the box tree the queries walk where no certificate
   holds (`softproxy.mesh_tables.tree_nodes`).
 A watertight mesh has an inside (signed distance); an open or non-manifold one is a
 two-sided sheet (unsigned distance, both sides solid).
@@ -44,16 +44,15 @@ import numpy as np
 import trimesh
 from tqdm import tqdm
 
-from softproxy.compiled.ball import BALL_ABOVE, BALL_LIFT, ball_lists
-from softproxy.compiled.certificate import (
-    STATIC_ABOVE, VERTEX_READ, apex_frames, box_tree, face_lists, node_boxes, node_frames, point_frames,
-    vertex_tables,
-)
+from softproxy.compiled.certificate import STATIC_ABOVE, VERTEX_READ
 from softproxy.compiled.layout import GEOM_MESH, PATCH_RECORDS, T_INV
 from softproxy.compiled.patch import PATCH_KEEP
 from softproxy.compiled.tolerances import CONTACT_TOL
 from softproxy.geometry import Shape
+from softproxy.mesh_balls import BALL_ABOVE, BALL_LIFT, BallWalk, ball_lists
+from softproxy.mesh_certificates import FaceWalk, MeshArrays, VertexWalk, face_lists, vertex_tables
 from softproxy.mesh_tables import tree_nodes
+from softproxy.mesh_trees import BoxTree, apex_frames, box_tree, node_boxes, node_frames, point_frames
 
 KEPT_RADIUS = 0.005
 """Proxy radius (m) the kept certificates are built for at load, for every face and vertex at
@@ -323,8 +322,8 @@ class MeshTables:
         # slivers has none: its faces walked every vertex within 18 mm for nothing)
         short = np.unique(self.tv[~is_long])
         short_tree = box_tree(self.vpos[short], self.vpos[short], short)
-        frames = node_frames(long_tree[0], long_tree[3], self.vpos, self.tv, self.plane)
-        apexes = apex_frames(long_tree[0], long_tree[3], self.vpos, self.tv, frames)
+        frames = node_frames(long_tree.order, long_tree.size, self.vpos, self.tv, self.plane)
+        apexes = apex_frames(long_tree.order, long_tree.size, self.vpos, self.tv, frames)
         # a vertex's walk: one tree over every vertex, each with its reach boxes
         item_vertex, wlo, whi = reach_boxes(self.vpos, self.tv, self.tlo, self.thi, self.centre, edge, long_edge)
         at = self.vpos[item_vertex]
@@ -338,10 +337,11 @@ class MeshTables:
         sines = np.empty((nv, keep))
         ids = np.empty((nv, keep), dtype=np.int64)
         counts = np.empty(nv, dtype=np.int64)
-        common = (self.tlo, self.thi, self.centre, self.rhos)
-        vertex_trees = (self.fan_start, self.fan, edge, vorder, vlo, vhi, rlo, rhi, wlo, whi, vsize,
-                        *vframes, kept, long_edge)
-        face_trees = (*short_tree, *long_tree, kept, long_edge, *apexes)
+        mesh = MeshArrays(self.vpos, self.tv, self.tri, self.plane, self.tlo, self.thi, self.centre, self.rhos,
+                          self.fan_start, self.fan)
+        vertex_walk = VertexWalk(self.vcone, self.ring_start, self.ring_to, edge, BoxTree(vorder, vlo, vhi, vsize),
+                                 (rlo, rhi), (wlo, whi), vframes, kept, long_edge)
+        face_walk = FaceWalk(short_tree, long_tree, apexes, kept, long_edge)
         scratch = threading.local()  # per worker: a stamp per triangle and one per vertex
 
         def worker():
@@ -350,13 +350,11 @@ class MeshTables:
             return scratch
 
         def faces(s: int, e: int) -> int:
-            face_lists(np.arange(s, e), self.vpos, self.tv, self.plane, *common, self.fan_start, self.fan, *face_trees,
-                       worker().tstamp, s, clear[s:e], listed[s:e])
+            face_lists(np.arange(s, e), mesh, face_walk, worker().tstamp, s, clear[s:e], listed[s:e])
             return e - s
 
         def vertices(s: int, e: int) -> int:
-            vertex_tables(np.arange(s, e), self.vpos, self.tv, self.vcone, self.ring_start, self.ring_to, *common,
-                          *vertex_trees, worker().mark, s, sines[s:e], ids[s:e], counts[s:e])
+            vertex_tables(np.arange(s, e), mesh, vertex_walk, worker().mark, s, sines[s:e], ids[s:e], counts[s:e])
             return e - s
 
         # the ball certificates, once the plane's are known, where those do not hold: on the
@@ -369,13 +367,12 @@ class MeshTables:
         if built:
             held = np.flatnonzero(fine)
             short_triangles = box_tree(self.tlo[held], self.thi[held], held)
-            short_frames = node_frames(short_triangles[0], short_triangles[3], self.vpos, self.tv, self.plane)
+            short_frames = node_frames(short_triangles.order, short_triangles.size, self.vpos, self.tv, self.plane)
+            ball_walk = BallWalk(short_triangles, short_frames, long_tree, frames, radius)
 
         def balls(s: int, e: int) -> int:
             wanted = (clear[s:e] < 0) & fine[s:e, None]  # the face lists are done by now
-            ball_lists(np.arange(s, e), wanted, self.vpos, self.tv, self.tri, self.plane, self.tlo, self.thi,
-                       *short_triangles, *short_frames, *long_tree, *frames, radius, worker().tstamp, n + 2 * s,
-                       bcount[s:e], blisted[s:e])
+            ball_lists(np.arange(s, e), wanted, mesh, ball_walk, worker().tstamp, n + 2 * s, bcount[s:e], blisted[s:e])
             return e - s
 
         jobs = [(faces, s, min(n, s + BUILD_CHUNK)) for s in range(0, n, BUILD_CHUNK)]
@@ -424,7 +421,7 @@ def dense(tri: np.ndarray, radius: float) -> bool:
     """Whether a mesh (rows of T: `tri`) is too dense for the patches to hold a resting
     proxy of `radius` (m): the band within PATCH_KEEP of it on a flat surface, 2π radius
     PATCH_KEEP, holds more than PATCH_RECORDS triangles of the median area. Only such a mesh
-    gets ball certificates (`softproxy.compiled.ball`): elsewhere a patch answers as fast
+    gets ball certificates (`softproxy.mesh_balls`): elsewhere a patch answers as fast
     and the lists would only lengthen the load."""
     area = 0.5 / np.sqrt(tri[:, T_INV])  # T_INV = 1 / |AB × AC|²
     return bool(float(np.median(area)) * PATCH_RECORDS < 2.0 * np.pi * radius * PATCH_KEEP)

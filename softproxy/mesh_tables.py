@@ -18,11 +18,12 @@ from collections import namedtuple
 import numpy as np
 
 from softproxy.compiled.box_tree import TREE_MARGIN
-from softproxy.compiled.certificate import certificate_tables, node_frames
 from softproxy.compiled.layout import (
     EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, PATCH_WIDTH, P_FULL,
     P_RADIUS, RECORD_WIDTH, R_CENTRE, R_ROW, SCAN_STAMPS, TI_COLUMNS, T_COLUMNS, T_N,
 )
+from softproxy.mesh_certificates import certificate_tables
+from softproxy.mesh_trees import node_frames
 
 MeshTableArrays = namedtuple("MeshTableArrays", "T TI C CI")
 """A world's mesh tables: the triangles' floats (T) and indices (TI), the box trees' and

@@ -1,4 +1,4 @@
-"""The ball certificate (`softproxy.compiled.ball`) against brute force.
+"""The ball certificate (`softproxy.mesh_balls`) against brute force.
 
 On a concave patch finer than the proxy no plane certificate holds (hundreds of triangles
 rise above a face's plane within the proxy's reach), but a ball of the proxy's radius
@@ -9,7 +9,6 @@ against `mesh_oracle.Oracle`, on the inside of a sphere of 4 cm and on a saddle 
 """
 
 import functools
-import math
 import warnings
 
 import numpy as np
@@ -17,8 +16,8 @@ import pytest
 import trimesh
 
 from mesh_oracle import EXACT, mesh_model, mesh_of, oracle, point_triangle
-from softproxy.compiled.ball import BALL_ABOVE, BALL_SLACK
-from softproxy.compiled.certificate import ABOVE_TOL
+from softproxy.compiled.certificate import ABOVE_TOL, BALL_SLACK
+from softproxy.mesh_balls import BALL_ABOVE
 
 R = 0.005
 """The proxy's radius (m): the certificates are built for it at load."""

@@ -483,7 +483,8 @@ def test_node_frames_match_each_nodes_first_triangle_and_vertices(kind):
     its extents the least and greatest projection on them of its triangles' vertices (those
     of the leaves under it); a node with no triangle keeps zero axes and inverted extents."""
     from softproxy.benchmarks import meshes
-    from softproxy.compiled.certificate import LEAF, box_tree, node_frames
+    from softproxy.compiled.tree_walk import LEAF
+    from softproxy.mesh_trees import box_tree, node_frames
 
     v, f = getattr(meshes, kind)(1000)
     t = v[f]

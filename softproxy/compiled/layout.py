@@ -142,7 +142,7 @@ TI_TV = 3        # its vertices A, B, C (vertex ids of its mesh), 3..5
 TI_CLEAR = 6     # per side (front, back): where its list of triangles rising above its plane
                  # starts in CI and how many (-1: a concave patch, no certificate), 6..9
 TI_BALL = 10     # per side (front, back): where its ball list starts in CI and how many (-1: none;
-                 # softproxy.compiled.ball: the plane list where that holds), 10..13
+                 # softproxy.mesh_balls: the plane list where that holds), 10..13
 TI_COLUMNS = 14
 
 # -- mesh box trees and certificates: C (float64) and CI (int64) ------------------------------

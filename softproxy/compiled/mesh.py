@@ -74,11 +74,10 @@ from collections import namedtuple
 
 from numba import njit
 
-from softproxy.compiled.ball import BALL_SLACK
 from softproxy.compiled.box_tree import (
     TREE_MARGIN, leaf_records, node_entry, node_gap2, node_top, record_beyond2, record_gap2, record_top, tree_of,
 )
-from softproxy.compiled.certificate import ABOVE_TOL, face_few, static_clear
+from softproxy.compiled.certificate import ABOVE_TOL, BALL_SLACK, face_few, static_clear
 from softproxy.compiled.layout import (
     EDGE_AB, FACE, HINT_SLOTS, KEPT_DISTANCE, KEPT_NORMAL, KEPT_POINT, KEPT_ROW, KEPT_WIDTH, NODE_WIDTH, P_RECORDS,
     RECORD_WIDTH, R_ROW, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, SLOT_AGE, SLOT_HINT, SLOT_KEPT, TI_ADJ, TI_BALL, TI_TV, T_N,
@@ -210,7 +209,7 @@ _nearest_walk = depth_first(_nearest_bound, _nearest_leaf, limit=best_so_far)
 def _ball_holds(T, i, sx, sy, sz, radius, cx, cy, cz, rho):
     """Whether the ball of radius rho (m) about c lies inside a ball of `radius` (m) resting on
     row i's face on the side of unit normal s: c is within radius - rho of the face lifted
-    by radius (`softproxy.compiled.ball`)."""
+    by radius (`softproxy.mesh_balls`)."""
     room = radius - rho + BALL_SLACK
     if room < 0.0:
         return False

@@ -1,7 +1,7 @@
 """The ball certificate of a mesh face: the few triangles a ball resting on it can reach.
 
 Where more triangles rise above a face's plane than the kept plane certificate lists
-(`softproxy.compiled.certificate`: a concave patch, a saddle, a fine mesh curving within a
+(`softproxy.compiled.certificate`, `softproxy.mesh_certificates`: a concave patch, a saddle, a fine mesh curving within a
 proxy's reach), fewer may reach into a ball of radius R resting on the face: tangent to its
 plane on one side, at a point of the face. A sphere of radius r whose centre c lies within
 R - r of the face lifted by R along its normal (dist(c - R n, face) <= R - r) lies inside
@@ -15,28 +15,30 @@ not hold (a face whose plane list holds uses that list: every triangle a resting
 rises above the plane and lies within the plane certificate's reach). R is the proxy's
 radius built for plus BALL_LIFT, so that a proxy resting on the face, or floating up to
 2 BALL_LIFT above it, passes the test. The queries are in `softproxy.compiled.mesh`
-(`_ball_few`, `_ball_holds`).
+(`_ball_few`, `_ball_holds`), allowing BALL_SLACK (`softproxy.compiled.certificate`).
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.certificate import ABOVE_TOL, box_gap2, box_heights, oriented_heights
+from softproxy.compiled.certificate import ABOVE_TOL, BALL_SLACK
 from softproxy.compiled.layout import FEW_SLOTS
 from softproxy.compiled.tree_walk import LEAF, STACK
 from softproxy.compiled.triangle import closest, segments_gap2
+from softproxy.mesh_certificates import box_gap2, box_heights, oriented_heights
 
+BallWalk = namedtuple("BallWalk", "short short_frames long long_frames radius")
+"""What `ball_lists` walks: the box trees over the short and the long triangles with their
+nodes' `Frames` (`softproxy.mesh_trees`), and the resting ball's radius (m)."""
 BALL_LIFT = 1e-5
 """How much larger (m) the resting ball is than the proxy it was built for: a proxy of that
 radius whose centre floats up to twice this above the face is still inside it (a proxy held
 a lift tolerance off its surface, a sphere sliding on a facet's tangent plane)."""
-BALL_SLACK = ABOVE_TOL
-"""The resting ball is grown by this (m) when its list is built, and a query's test allows
-as much: vertices are float32 in MuJoCo (≈4e-9 m at 5 cm), a list is a superset."""
 BALL_ABOVE = FEW_SLOTS
 """Most triangles a ball list holds (a query copies it to the certificates' scratch run);
 more, and the face has no ball certificate on that side: its queries walk the box tree."""
@@ -132,10 +134,10 @@ def _may_reach(lo, hi, top, flo, fhi, ulo, uhi, radius, spare):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def ball_lists(faces, wanted, V, F, tri, plane, tlo, thi, sorder, slo, shi, ssize, saxes, sext, lorder, llo, lhi,
-               lsize, laxes, lext, radius, tstamp, stamp0, count, listed):
-    """Per face of `faces` (ids) and side (front, back) where wanted[j, side], the triangles
-    that a ball of `radius` (m) resting on that side of the face reaches (within radius +
+def ball_lists(faces, wanted, mesh, walk, tstamp, stamp0, count, listed):
+    """Per face of `faces` (ids) of `mesh` (`softproxy.mesh_certificates.MeshArrays`) and side
+    (front, back) where wanted[j, side], the triangles that a ball of `walk.radius` (m, a
+    BallWalk) resting on that side of the face reaches (within radius +
     BALL_SLACK of the face lifted by radius, `_reaches`): their number in count[j, side] and
     the triangles in listed[j, side], or -1 when more than BALL_ABOVE do or the walk opens
     more than BALL_BUDGET leaves. Two box trees over the triangles, the short ones
@@ -146,6 +148,12 @@ def ball_lists(faces, wanted, V, F, tri, plane, tlo, thi, sorder, slo, shi, ssiz
     boxes no resting ball reaches (`_may_reach`: near the face only as far as they rise above
     its plane). `tstamp` (one int per triangle) is scratch, stamped from stamp0 + 2 j + side
     + 1 on."""
+    V, F, tri, plane, tlo, thi = mesh.V, mesh.F, mesh.tri, mesh.plane, mesh.tlo, mesh.thi
+    sorder, slo, shi, ssize = walk.short
+    saxes, sext = walk.short_frames
+    lorder, llo, lhi, lsize = walk.long
+    laxes, lext = walk.long_frames
+    radius = walk.radius
     stack = np.empty(STACK, np.int64)
     reach = radius + BALL_SLACK
     reach2 = reach * reach
