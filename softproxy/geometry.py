@@ -31,7 +31,7 @@ import numpy as np
 from softproxy.compiled import shapes as kernels
 from softproxy.compiled.dispatch import EntryPoints
 from softproxy.compiled.layout import (
-    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, SHAPE, SHAPE_DATA, Shapes,
+    GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, SHAPE, Shapes,
 )
 
 
@@ -166,10 +166,8 @@ class EllipsoidShape(Shape):
 class ShapeSet(list):
     """The shapes of one world, in order, and the engine's tables of them.
 
-    `S`: one `SHAPE` record per shape (its model), `SD` one `SHAPE_DATA` record (what its
-    queries keep); `T`, `TI`, `C`, `CI`: the mesh tables, `P`, `scan`: what the mesh queries
-    keep (all None without meshes, so a world of primitives never compiles the mesh kernels);
-    `xpos`, `xmat`: MuJoCo's geom poses,
+    `S`: one `SHAPE` record per shape; `T`, `C`: the mesh tables (None without meshes, so a
+    world of primitives never compiles the mesh kernels); `xpos`, `xmat`: MuJoCo's geom poses,
     `cvel` its bodies' velocities (views into mjData, read by the kernels). A list, so it
     reads like the list of shapes."""
 
@@ -206,17 +204,14 @@ class ShapeSet(list):
             r.static, r.convex, r.planar = s.static, s.convex, s.flat
             r.rbound = s.rbound
             r.geom_size[:] = s.size
-        SD = np.zeros(len(self), dtype=SHAPE_DATA).view(np.recarray)
-        SD.hint = SD.feature = -1
-        self.S, self.SD = S, SD
-        self.T = self.TI = self.C = self.CI = self.P = self.scan = None
+            r.hint = r.feature = -1
+        self.S = S
+        self.T = self.C = None
         if any(s.gtype == GEOM_MESH for s in self):
-            from softproxy.mesh_tables import mesh_query_data, mesh_tables
+            from softproxy.mesh_tables import mesh_tables
 
-            self.T, self.TI, self.C, self.CI = mesh_tables(self, S)
-            self.P, self.scan = mesh_query_data(S, SD, self.T)
-        self.tables = Shapes(self.S, self.SD, self.T, self.TI, self.C, self.CI, self.P, self.scan, self.xpos, self.xmat,
-                             self.cvel)
+            self.T, self.C = mesh_tables(self, S)
+        self.tables = Shapes(self.S, self.T, self.C, self.xpos, self.xmat, self.cvel)
 
     def prepare(self, radius: float) -> None:
         """Get every shape ready for a proxy of `radius` (m); rebuild the tables if a mesh grew."""

@@ -10,19 +10,19 @@ those triangles ready, once, when a world is loaded (numpy; nothing here runs in
   duplicate triangles dropped, winding made consistent, inverted normals flipped, open and
   non-manifold meshes reported, each defect a `MeshWarning` naming geom, mesh and file.
 - `MeshShape`, the `Shape` of a mesh geom, builds what `softproxy.mesh_tables.mesh_tables`
-  and `softproxy.compiled.certificate.certificate_tables` pack into the tables T and C. Per
+  and `softproxy.mesh_certificates.certificate_tables` pack into the tables T and C. Per
   triangle: its corners, edges, plane, the angle-weighted pseudo-normals of its face, edges
   and vertices (they sign the distance on a watertight mesh; Bærentzen & Aanæs 2005), its
   vertex normals (force shading) and the triangles across its edges. Per vertex: its fan,
   the edges leaving it and the cone of tangent planes that hold its fan behind them. And
   the kept certificates: per face and side the few triangles near it rising above its plane
-  (`_face_tables`), per vertex the vertices near it by how far below its cone they lie
-  (`_vertex_tables`), built for every face and vertex at once over the reach of a
+  (`softproxy.mesh_certificates.face_lists`), per vertex the vertices near it by how far
+  below its cone they lie (`vertex_tables`), built for every face and vertex at once over the reach of a
   KEPT_RADIUS proxy at load, and of a larger one by `prepare`; on a mesh too dense for a
   patch to hold a resting proxy (`dense`), per face and side where the plane's list fails,
   the few triangles a ball of the proxy's radius resting on the face reaches
   (`softproxy.mesh_balls`). And the box tree the queries walk where no certificate
-  holds (`softproxy.mesh_tables.tree_nodes`).
+  holds (`softproxy.mesh_trees`, `softproxy.mesh_tables.tree_nodes`).
 A watertight mesh has an inside (signed distance); an open or non-manifold one is a
 two-sided sheet (unsigned distance, both sides solid).
 """

@@ -3,7 +3,7 @@
 The queries that read them are `softproxy.compiled.certificate` (what a certificate proves,
 and how a query reads one); `softproxy.mesh.MeshShape` builds them for every face and vertex
 at load (and for a larger proxy in `prepare`) with `face_lists` and `vertex_tables`, and
-`certificate_tables` packs them into the mesh tables TI, C and CI (`softproxy.mesh_tables`).
+`certificate_tables` packs them into the mesh tables T and C (`softproxy.mesh_tables`).
 Compiled (numba): the walks of the box trees (`softproxy.mesh_trees`) run in threads, a
 chunk of faces or vertices each. Nothing here runs in the tick.
 """
@@ -18,8 +18,7 @@ from numba import njit
 
 from softproxy.compiled.certificate import ABOVE_TOL, STATIC_ABOVE
 from softproxy.compiled.layout import (
-    TI_COLUMNS, VERTEX_INTS, VERTEX_WIDTH, VI_FAN, VI_FAN_NUM, VI_RING, VI_RING_NUM, VI_RING_ROW, VI_SINES,
-    VI_SINE_NUM, VI_SINE_VERT, V_AXIS, V_COS, V_THRESHOLD, V_X,
+    T_ADJ, T_BALL, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN, V_RING, V_SINES, V_THRESHOLD, V_X,
 )
 from softproxy.compiled.tree_walk import LEAF, STACK, heap_offer, heap_pop
 
@@ -65,41 +64,37 @@ of its long triangles may come within reach: its fan is searched for one, unless
 more than this many triangles (a cap's hub), when it is taken unchecked."""
 
 
-def certificate_tables(s, t0: int, c0: int, i0: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, float, float]:
     """The certificates of `softproxy.mesh.MeshTables` s whose triangles are rows t0.. of T and
-    whose tables start at C[c0] and CI[i0]: (its rows of TI (triangles × TI_COLUMNS), its part
-    of C (vertex records, ring vectors, sin β tables), its part of CI (vertex records, ring
-    rows, fans, the sin β tables' vertex ids, face lists and ball lists), the reach (m) they
-    hold over, the radius (m) of the ball certificates' resting ball)."""
+    whose tables start at C[c0]: (its T_ADJ..T_BALL columns (triangles × 14), its part of C
+    (vertex records, then rings, fans, sin β tables, face lists and ball lists), the reach
+    (m) they hold over, the radius (m) of the ball certificates' resting ball)."""
     n, nv = s.triangles, len(s.vpos)
-    adj = np.where(s.adj >= 0, s.adj + t0, -1)
+    adj = np.where(s.adj >= 0, s.adj + t0, -1).astype(np.float64)
     verts = np.zeros((nv, VERTEX_WIDTH))
     verts[:, V_X:V_X + 3] = s.vpos
     verts[:, V_AXIS:V_COS + 1] = s.vcone
-    vint = np.zeros((nv, VERTEX_INTS), dtype=np.int64)
-    at, iat = c0 + verts.size, i0 + vint.size
-    floats, ints = [verts], [vint]
-    # per vertex its ring (edge vector (m) in C, a triangle on the edge in CI), then its fan (ascending)
-    vint[:, VI_RING] = at + 3 * s.ring_start[:-1]
-    vint[:, VI_RING_ROW] = iat + s.ring_start[:-1]
-    vint[:, VI_RING_NUM] = np.diff(s.ring_start)
-    floats.append(s.ring[:, :3].astype(np.float64))
-    ints.append(s.ring[:, 3].astype(np.int64) + t0)
-    at += 3 * len(s.ring)
-    iat += len(s.ring)
-    vint[:, VI_FAN] = iat + s.fan_start[:-1]
-    vint[:, VI_FAN_NUM] = np.diff(s.fan_start)
-    ints.append(s.fan.astype(np.int64) + t0)
-    iat += len(s.fan)
+    at = c0 + verts.size
+    parts = [verts]
+    # per vertex its ring (edge vector (m), a triangle on the edge), then its fan (ascending)
+    ring = s.ring.astype(np.float64)
+    ring[:, 3] += t0
+    verts[:, V_RING] = at + 4 * s.ring_start[:-1]
+    verts[:, V_RING + 1] = np.diff(s.ring_start)
+    at += ring.size
+    parts.append(ring)
+    verts[:, V_FAN] = at + s.fan_start[:-1]
+    verts[:, V_FAN + 1] = np.diff(s.fan_start)
+    at += len(s.fan)
+    parts.append(s.fan.astype(np.float64) + t0)
     radius, start, sines, ids = s.vtable
     counts = np.diff(start)
-    vint[:, VI_SINES] = at + start[:-1]
-    vint[:, VI_SINE_VERT] = iat + start[:-1]
-    vint[:, VI_SINE_NUM] = counts
-    floats.append(np.asarray(sines, dtype=np.float64))
-    ints.append(np.asarray(ids).astype(np.int64))
-    at += len(sines)
-    iat += len(sines)
+    verts[:, V_SINES] = at + 2 * start[:-1]
+    verts[:, V_SINES + 1] = counts
+    table = np.empty((len(sines), 2))
+    table[:, 0], table[:, 1] = sines, ids
+    parts.append(table)
+    at += table.size
     # the threshold on c² (c: the cosine of the plane's normal to the cone's axis) above which
     # every triangle near the vertex lies behind the plane by angle alone (2.0: never)
     least = np.ones(nv)
@@ -107,30 +102,29 @@ def certificate_tables(s, t0: int, c0: int, i0: int) -> tuple[np.ndarray, np.nda
     s0 = least - 1e-12
     verts[:, V_THRESHOLD] = np.where(s0 > 0.0, 1.0 - s0 * s0, 2.0)
     # per face and side, the few triangles rising above its plane (-1: a concave patch)
-    clear = np.zeros((n, 4), dtype=np.int64)
+    clear = np.zeros((n, 4))
     m = s.clear.reshape(-1)                      # face 0 front, face 0 back, face 1 front, ...
     runs = np.maximum(m, 0)
-    first = iat + np.cumsum(runs) - runs
+    first = at + np.cumsum(runs) - runs
     clear[:, 0], clear[:, 2] = first[0::2], first[1::2]
     clear[:, 1], clear[:, 3] = m[0::2], m[1::2]
-    clear[:, [0, 2]] = np.where(clear[:, [1, 3]] < 0, 0, clear[:, [0, 2]])
+    clear[:, [0, 2]] = np.where(clear[:, [1, 3]] < 0, 0.0, clear[:, [0, 2]])
     flat = s.listed.reshape(-1, s.listed.shape[2])
-    ints.append(flat[np.arange(flat.shape[1])[None, :] < runs[:, None]].astype(np.int64) + t0)
-    iat += int(runs.sum())
+    parts.append(flat[np.arange(flat.shape[1])[None, :] < runs[:, None]].astype(np.float64) + t0)
+    at += int(runs.sum())
     # per face and side, its ball list: the plane list where that holds, else its own (-1: none)
     ball = clear.copy()
     b = s.ball_count.reshape(-1)
     own = (m < 0) & (b >= 0)
     bruns = np.where(own, b, 0)
     sides = ball.reshape(-1, 2)                  # a view: (start, count) per face and side, as m
-    sides[own, 0] = (iat + np.cumsum(bruns) - bruns)[own]
+    sides[own, 0] = (at + np.cumsum(bruns) - bruns)[own]
     sides[own, 1] = b[own]
     bflat = s.ball_listed.reshape(2 * n, s.ball_listed.shape[2])
-    ints.append(bflat[np.arange(bflat.shape[1])[None, :] < bruns[:, None]].astype(np.int64) + t0)
-    columns = np.column_stack([adj, s.tv, clear, ball]).astype(np.int64)
-    assert columns.shape[1] == TI_COLUMNS
-    return (columns, np.concatenate([f.ravel() for f in floats]), np.concatenate([i.ravel() for i in ints]),
-            float(s.kept), float(s.ball))
+    parts.append(bflat[np.arange(bflat.shape[1])[None, :] < bruns[:, None]].astype(np.float64) + t0)
+    columns = np.column_stack([adj, s.tv.astype(np.float64), clear, ball])
+    assert columns.shape[1] == T_BALL + 4 - T_ADJ
+    return columns, np.concatenate([p.ravel() for p in parts]), float(s.kept), float(s.ball)
 
 
 @njit(cache=True, error_model="numpy")

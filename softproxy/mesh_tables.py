@@ -1,33 +1,25 @@
 """The mesh tables at load: every mesh of a world packed into T and C for the compiled queries.
 
 `mesh_tables` packs, for every mesh a world holds, what `softproxy.mesh.MeshShape` built
-into the arrays the run-time queries read (`softproxy.compiled.mesh`): T and TI, one row per
-triangle (floats, indices), and C and CI, per mesh its box tree (`tree_nodes`), its records
-(each triangle's plane and the rectangle that holds it, `rectangles`) and its kept
-certificates (`softproxy.compiled.certificate`; floats, indices): the model, constant for a
-run. `mesh_query_data` makes
-what the queries keep between ticks: the hint slots' patches P and the scans' marks.
-Plain numpy, once per world.
+into the two arrays the run-time queries read (`softproxy.compiled.mesh`): T, one row per
+triangle, and C, per mesh its box tree (`tree_nodes`), its records (each triangle's plane and
+the rectangle that holds it, `rectangles`) and its kept certificates
+(`softproxy.compiled.certificate`). Plain numpy, once per world.
 """
 
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 
 from softproxy.compiled.box_tree import TREE_MARGIN
 from softproxy.compiled.layout import (
-    EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, PATCH_WIDTH, P_FULL,
-    P_RADIUS, RECORD_WIDTH, R_CENTRE, R_ROW, SCAN_STAMPS, TI_COLUMNS, T_COLUMNS, T_N,
+    C_STAMPS, EDGE_WIDTH, GEOM_MESH, HINT_SLOTS, NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, PATCH_WIDTH, P_FULL,
+    P_RADIUS, RECORD_WIDTH, R_CENTRE, R_ROW, TREE_NODES, T_COLUMNS, T_N,
 )
 from softproxy.mesh_certificates import certificate_tables
 from softproxy.mesh_trees import node_frames
-
-MeshTableArrays = namedtuple("MeshTableArrays", "T TI C CI")
-"""A world's mesh tables: the triangles' floats (T) and indices (TI), the box trees' and
-certificates' floats (C) and indices (CI) (`softproxy.compiled.layout`)."""
 
 
 def tree_nodes(order, nlo, nhi, size, V, F, plane):
@@ -66,16 +58,18 @@ def _rectangles(tri: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return out
 
 
-def mesh_tables(shapes, S: np.ndarray) -> MeshTableArrays:
-    """The mesh tables (T, TI, C, CI) of the `softproxy.mesh.MeshShape`s among `shapes`, and
-    their rows of the shape table S filled in (where their triangles, box tree, certificates
-    and patches live). Geoms of one mesh asset (one `MeshTables`) share its rows of T and TI
-    and its parts of C and CI; each keeps its own pose, and its hint, kept answers and patches
-    in the data. A world with no mesh gets empty tables (the kernels' types stay the same)."""
+def mesh_tables(shapes, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh tables (T, C) of the `softproxy.mesh.MeshShape`s among `shapes`, and their
+    rows of the shape table S filled in (where their triangles and box tree live). Geoms of
+    one mesh asset (one `MeshTables`) share its rows of T and its part of C; each keeps its
+    own pose, hint and kept answers in S. A world with no mesh gets empty tables (the
+    kernels' types stay the same)."""
     meshes = [(k, s) for k, s in enumerate(shapes) if s.gtype == GEOM_MESH]
     assets = list({id(s.tables): s.tables for _, s in meshes}.values())
-    rows, index_rows, floats, ints, where = [], [], [], [], {}
-    t0 = c0 = i0 = 0
+    ntri = sum(a.triangles for a in assets)
+    rows, parts, where = [], [], {}
+    t0 = 0
+    c0 = C_STAMPS + ntri  # the scan counter, the certificates' scratch, a stamp per triangle, then the trees
     for a in assets:
         n = a.triangles
         order, size, nodes = a.tree
@@ -85,50 +79,47 @@ def mesh_tables(shapes, S: np.ndarray) -> MeshTableArrays:
         nodes[:, N_HI:N_HI + 3] += grow
         nodes[:, N_EXT:N_EXT + 3] -= grow
         nodes[:, N_EXT + 3:N_EXT + 6] += grow
+        first = c0 + TREE_NODES + nodes.size  # where this asset's records begin in C
         records = np.empty((n, RECORD_WIDTH))
         records[:, 0:4] = a.plane[order]
         records[:, R_CENTRE:R_ROW] = _rectangles(a.tri, a.edges)[order]
         records[:, R_ROW] = order + t0
-        bvh, rec = c0, c0 + nodes.size
-        floats += [nodes.ravel(), records.ravel()]
-        c0 = rec + records.size
+        parts += [np.array([size, first], dtype=np.float64), nodes.ravel(), records.ravel()]
         del records, nodes
-        columns, kept, kept_ints, reach, ball = certificate_tables(a, t0, c0, i0)
-        rows.append(np.concatenate([a.tri, a.edges.reshape(n, 3 * EDGE_WIDTH), a.pn.reshape(n, 21), a.vn], axis=1))
-        index_rows.append(columns)
-        where[id(a)] = (t0, n, bvh, size, rec, c0, i0, reach, ball)
-        floats.append(kept)
-        ints.append(kept_ints)
+        tree = c0
+        c0 = first + n * RECORD_WIDTH
+        columns, kept, reach, ball = certificate_tables(a, t0, c0)
+        rows.append(np.concatenate([a.tri, a.edges.reshape(n, 3 * EDGE_WIDTH), a.pn.reshape(n, 21), a.vn, columns],
+                                   axis=1))
+        where[id(a)] = (t0, n, tree, c0, reach, ball)
+        parts.append(kept)
         c0 += len(kept)
-        i0 += len(kept_ints)
         t0 += n
-    for j, (k, s) in enumerate(meshes):
-        t0, n, bvh, size, rec, verts, iverts, reach, ball = where[id(s.tables)]
-        S[k].faceadr, S[k].facenum = t0, n
-        S[k].bvhadr, S[k].bvhleaves, S[k].recadr = bvh, size, rec
-        S[k].vertadr, S[k].vertiadr = verts, iverts
-        S[k].patchadr = j * HINT_SLOTS * PATCH_WIDTH
+    for k, s in meshes:
+        t0, n, tree, verts, reach, ball = where[id(s.tables)]
+        S[k].t0, S[k].nt, S[k].tree = t0, n, tree
         S[k].signed = s.signed
         S[k].shading = s.shading
+        S[k].hint = S[k].feature = -1
+        S[k].key[:, :] = math.nan  # no hint slot used, none kept
+        S[k].verts = verts
         S[k].kept = reach
         S[k].ball = ball
-    T = np.concatenate(rows) if rows else np.zeros((0, T_COLUMNS))
-    TI = np.concatenate(index_rows) if index_rows else np.zeros((0, TI_COLUMNS), dtype=np.int64)
-    assert T.shape[1] == T_COLUMNS and TI.shape[1] == TI_COLUMNS
-    C = np.concatenate(floats) if floats else np.zeros(0)
-    CI = np.concatenate(ints) if ints else np.zeros(0, dtype=np.int64)
-    assert len(C) == c0 and len(CI) == i0 and len(T) < 2 ** 53
-    return MeshTableArrays(np.ascontiguousarray(T), np.ascontiguousarray(TI), C, CI)
-
-
-def mesh_query_data(S: np.ndarray, SD: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """What the mesh queries keep, as loaded: each mesh shape's data (`SD`) with no hint and no
-    hint slot used, its patches (P) holding nothing and none found too full, and the scans'
-    marks (int64: the scan count, a certificate's list, a mark per row of T) all zero."""
-    meshes = S.type == GEOM_MESH
-    SD.hint[meshes] = SD.feature[meshes] = -1
-    SD.key[meshes] = math.nan  # no hint slot used, none kept
-    patches = np.zeros((int(meshes.sum()) * HINT_SLOTS, PATCH_WIDTH))
-    patches[:, P_RADIUS] = -1.0  # holds nothing yet
-    patches[:, P_FULL + 6] = -1.0  # nor was found too full
-    return patches.ravel(), np.zeros(SCAN_STAMPS + len(T), dtype=np.int64)
+        S[k].patch = c0
+        patches = np.zeros((HINT_SLOTS, PATCH_WIDTH))
+        patches[:, P_RADIUS] = -1.0  # holds nothing yet
+        patches[:, P_FULL + 6] = -1.0  # nor was found too full
+        parts.append(patches.ravel())
+        c0 += patches.size
+    T = np.concatenate(rows) if len(rows) != 1 else rows[0]
+    if not rows:
+        T = np.zeros((0, T_COLUMNS))
+    assert T.shape[1] == T_COLUMNS
+    C = np.empty(c0)
+    C[:C_STAMPS + ntri] = 0.0
+    at = C_STAMPS + ntri
+    for g in parts:
+        C[at:at + len(g)] = g
+        at += len(g)
+    assert at == c0 and len(C) < 2 ** 53
+    return np.ascontiguousarray(T), C

@@ -33,21 +33,21 @@ from softproxy.proxy import GodObject
 def start_from(shape, tri: int) -> None:
     """Make triangle `tri` the hint the next query of `shape` starts from, its kept answers
     forgotten (as after a query that ended on that triangle somewhere else)."""
-    record = shape.set.SD[shape.row]
-    record.hint = int(shape.set.S[shape.row].faceadr) + tri
+    record = shape.set.S[shape.row]
+    record.hint = int(shape.set.S[shape.row].t0) + tri
     record.key[:, :] = math.nan
 
 
 def forget_queries(shape) -> None:
     """Put a mesh shape's query state back as it was loaded: no hint, no slot used, no patch
     held, no capsule found too full (the shared test meshes carry the last test's)."""
-    record = shape.set.SD[shape.row]
+    record = shape.set.S[shape.row]
     record.hint = record.feature = -1
     record.key[:, :] = math.nan
-    at, P = int(shape.set.S[shape.row].patchadr), shape.set.P
-    P[at:at + HINT_SLOTS * PATCH_WIDTH] = 0.0
+    at, C = int(record.patch), shape.set.C
+    C[at:at + HINT_SLOTS * PATCH_WIDTH] = 0.0
     for k in range(HINT_SLOTS):
-        P[at + PATCH_WIDTH * k + P_RADIUS] = P[at + PATCH_WIDTH * k + P_FULL + 6] = -1.0
+        C[at + PATCH_WIDTH * k + P_RADIUS] = C[at + PATCH_WIDTH * k + P_FULL + 6] = -1.0
 
 
 def check_distance(o: Oracle, shape, points, context=()):
@@ -339,9 +339,9 @@ def test_hint_and_kept_answers_change_nothing():
         s.distance(*p)
     for p, u in queries[::5]:
         after = s.sweep(*p, *u, 0.005), s.distance(*p)
-        start_from(s, -1 - int(shapes.S[s.row].faceadr))  # no hint
+        start_from(s, -1 - int(shapes.S[s.row].t0))  # no hint
         fresh = s.sweep(*p, *u, 0.005)
-        start_from(s, -1 - int(shapes.S[s.row].faceadr))
+        start_from(s, -1 - int(shapes.S[s.row].t0))
         fresh = fresh, s.distance(*p)
         assert (after[0] is None) == (fresh[0] is None)
         if after[0] is not None:
@@ -642,9 +642,9 @@ def patches(shape) -> list[tuple[float, int, tuple]]:
     """(radius (m), count, the capsule found too full: its ends (geom frame) and radius (m),
     -1: none) of each hint slot's patch of a mesh shape."""
 
-    at, P = int(shape.set.S[shape.row].patchadr), shape.set.P
-    return [(P[at + PATCH_WIDTH * k + P_RADIUS], int(P[at + PATCH_WIDTH * k + P_COUNT]),
-             tuple(P[at + PATCH_WIDTH * k + P_FULL:at + PATCH_WIDTH * k + P_FULL + 7].tolist()))
+    at, C = int(shape.set.S[shape.row].patch), shape.set.C
+    return [(C[at + PATCH_WIDTH * k + P_RADIUS], int(C[at + PATCH_WIDTH * k + P_COUNT]),
+             tuple(C[at + PATCH_WIDTH * k + P_FULL:at + PATCH_WIDTH * k + P_FULL + 7].tolist()))
             for k in range(HINT_SLOTS)]
 
 
@@ -661,8 +661,8 @@ def test_a_query_off_the_map_leaves_the_patches_as_they_were():
     u = np.array([2e-4, 1e-4, 0.0])
     check_distance(o, s, [p])
     o.check_sweep(p, u, r, s.sweep(*p, *u, r))
-    at, P = int(s.set.S[s.row].patchadr), s.set.P
-    before = P[at:at + HINT_SLOTS * PATCH_WIDTH].copy()
+    at, C = int(s.set.S[s.row].patch), s.set.C
+    before = C[at:at + HINT_SLOTS * PATCH_WIDTH].copy()
     rng = np.random.default_rng(4)
     for bad in (math.nan, math.inf, -math.inf):
         for k in range(3):
@@ -671,7 +671,7 @@ def test_a_query_off_the_map_leaves_the_patches_as_they_were():
             s.sweep(*q, *np.where(np.arange(3) == k, bad, u), r)  # a direction off the map
             s.sweep(*np.where(np.arange(3) == k, bad, q), *u, r)  # a start off the map
             s.distance(*np.where(np.arange(3) == k, bad, q))
-    assert np.array_equal(P[at:at + HINT_SLOTS * PATCH_WIDTH], before)
+    assert np.array_equal(C[at:at + HINT_SLOTS * PATCH_WIDTH], before)
     for i in range(40):
         q = p + rng.normal(size=3) * 1e-4
         check_distance(o, s, [q], i)
@@ -696,10 +696,10 @@ def test_a_vanishing_proxy_leaves_the_mesh_queries_exact():
     god = GodObject(shapes, 4.027865658967583e-290, mu, 0.8 * mu, (0.0, 0.0, 0.09))
     for q in np.array(path) * 0.07:
         god.update(*q)
-    at, P = int(s.set.S[s.row].patchadr), s.set.P
+    at, C = int(s.set.S[s.row].patch), s.set.C
     for k in range(HINT_SLOTS):
         for c in (at + PATCH_WIDTH * k, at + PATCH_WIDTH * k + P_FULL):  # the patch's, the too full one
-            assert not np.isnan(P[c:c + 7]).any(), (k, P[c:c + 7])
+            assert not np.isnan(C[c:c + 7]).any(), (k, C[c:c + 7])
     check_distance(o, s, around(o, np.random.default_rng(5), 200))
 
 
@@ -724,13 +724,13 @@ def test_a_query_names_the_triangle_it_answers_from():
         beside = (np.array(p) + rng.normal(size=3) * 1e-4).tolist()  # in the same hint slot
         for q in (p, beside, p):  # afresh, afresh, then p's kept answer
             dist = s.distance(*q)[0]
-            assert abs(to_triangle(q, int(shapes.SD[s.row].feature)) - abs(dist)) <= EXACT, q
+            assert abs(to_triangle(q, int(shapes.S[s.row].feature)) - abs(dist)) <= EXACT, q
         u = rng.normal(size=3) * 0.02
         hit = s.sweep(*p, *u, 0.003) if abs(dist) > 0.003 else None  # from clear of the surface
         if hit is not None:
             touched += 1
             at = np.array(p) + hit[0] * u
-            assert abs(to_triangle(at, int(shapes.SD[s.row].feature)) - 0.003) <= EXACT, p
+            assert abs(to_triangle(at, int(shapes.S[s.row].feature)) - 0.003) <= EXACT, p
     assert touched > 10
 
 

@@ -262,7 +262,7 @@ def test_two_geoms_of_one_asset_share_one_build():
     a, b = shapes
     assert a.tables is b.tables
     assert len(shapes.T) == a.triangles
-    assert shapes.S[a.row].faceadr == shapes.S[b.row].faceadr
+    assert shapes.S[a.row].t0 == shapes.S[b.row].t0
     rng = np.random.default_rng(8)
     for g, shape in ((0, a), (1, b)):
         o = Oracle(*world_mesh(m, d, g), True)
@@ -317,7 +317,7 @@ def test_fingers_on_one_mesh_agree_with_each_finger_alone():
             out.append((god.x, god.y, god.z))
     assert all(god.contact for god in gods)
     s = mesh_of(shapes)
-    slots = shapes.SD[s.row].key
+    slots = shapes.S[s.row].key
     used = slots[~np.isnan(slots[:, 0]), :3]  # a slot never used has no last query
     own = [np.linalg.norm(used - (god.x, god.y, god.z), axis=1).argmin() for god in gods]
     assert len(set(own)) == len(gods)
@@ -533,10 +533,10 @@ def from_tree(shape, hint: int = -1) -> None:
     """The next query of `shape` starts from triangle `hint` (-1: none, so it goes straight to
     the box tree), its kept answers forgotten, and it keeps no patches (the tree answers
     what the hint does not)."""
-    record = shape.set.SD[shape.row]
-    record.hint = -1 if hint < 0 else int(shape.set.S[shape.row].faceadr) + hint
+    record = shape.set.S[shape.row]
+    record.hint = -1 if hint < 0 else int(record.t0) + hint
     record.key[:, :] = math.nan
-    shape.set.S[shape.row].patchadr = -1
+    record.patch = -1
 
 
 def noisy_ball(triangles: int):
@@ -731,8 +731,8 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
     A, B, Cv = (t.vpos[t.tv[:, k]] for k in range(3))
     centre = (A + B + Cv) / 3.0
     circum = np.max([np.linalg.norm(X - centre, axis=1) for X in (A, B, Cv)], axis=0)
-    S, C, P, k = s.set.S, s.set.C, s.set.P, s.row
-    at, t0 = int(S[k].patchadr), int(S[k].faceadr)
+    S, C, k = s.set.S, s.set.C, s.row
+    at, t0 = int(S[k].patch), int(S[k].t0)
     rng = np.random.default_rng(7)
     shrunk = whole = 0
     for i in range(24):
@@ -740,10 +740,10 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
         a = np.array([x, y, (x * x + y * y) / 0.2 + rng.uniform(0.0, 0.006)])
         b = a + rng.normal(size=3) * [0.0, 1e-4, 2e-3][i % 3]
         radius = rng.uniform(0.0005, 0.004)
-        assert _gather(S, C, P, k, at, *a, *b, radius, 0.0)
-        m, held = int(P[at + P_COUNT]), P[at + P_RADIUS]
-        keys = P[at + P_KEYS:at + P_KEYS + m]
-        rows = P[at + P_RECORDS + R_ROW:at + P_RECORDS + RECORD_WIDTH * m:RECORD_WIDTH].astype(np.int64) - t0
+        assert _gather(S, C, k, at, *a, *b, radius, 0.0)
+        m, held = int(C[at + P_COUNT]), C[at + P_RADIUS]
+        keys = C[at + P_KEYS:at + P_KEYS + m]
+        rows = C[at + P_RECORDS + R_ROW:at + P_RECORDS + RECORD_WIDTH * m:RECORD_WIDTH].astype(np.int64) - t0
         # the brute force, on the triangles a ball about a may hold (a bound, not the engine's)
         near = np.flatnonzero(np.linalg.norm(centre - a, axis=1) - circum <= radius + np.linalg.norm(b - a))
         d = np.full(len(A), np.inf)
@@ -767,9 +767,9 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
         a = np.array([x, y, (x * x + y * y) / 0.2 + rng.uniform(0.0, 0.006)])
         b = a + rng.normal(size=3) * [0.0, 1e-4, 2e-3][i % 3]
         radius = rng.uniform(0.0005, 0.004)
-        assert _gather(S, C, P, k, at, *a, *b, radius, 0.0, 3)
-        m, held = int(P[at + P_COUNT]), P[at + P_RADIUS]
-        rows = P[at + P_RECORDS + R_ROW:at + P_RECORDS + RECORD_WIDTH * m:RECORD_WIDTH].astype(np.int64) - t0
+        assert _gather(S, C, k, at, *a, *b, radius, 0.0, 3)
+        m, held = int(C[at + P_COUNT]), C[at + P_RADIUS]
+        rows = C[at + P_RECORDS + R_ROW:at + P_RECORDS + RECORD_WIDTH * m:RECORD_WIDTH].astype(np.int64) - t0
         near = np.flatnonzero(np.linalg.norm(centre - a, axis=1) - circum <= radius + np.linalg.norm(b - a))
         d = np.full(len(A), np.inf)
         d[near] = segment_triangles(a, b, A[near], B[near], Cv[near])
@@ -777,10 +777,10 @@ def test_a_patch_holds_every_triangle_nearer_than_its_radius():
         short += m < PATCH_RECORDS and held < radius
     assert short >= 4
     # asked to hold at least more than it can: the patch is left as it was
-    before = P[at:at + PATCH_WIDTH].copy()
+    before = C[at:at + PATCH_WIDTH].copy()
     a = np.array([0.0, 0.0, 0.005])
-    assert not _gather(S, C, P, k, at, *a, *a, 0.006, 0.0055)
-    assert np.array_equal(P[at:at + PATCH_WIDTH], before)
+    assert not _gather(S, C, k, at, *a, *a, 0.006, 0.0055)
+    assert np.array_equal(C[at:at + PATCH_WIDTH], before)
 
 
 def test_a_query_inside_a_too_full_capsule_keeps_it():
@@ -832,8 +832,8 @@ def test_a_finger_held_still_gathers_a_close_patch():
             if i == 1:
                 held = patches(s)
         used = [(radius, count) for radius, count, _ in patches(s) if count > 0]
-        at, P = int(s.set.S[s.row].patchadr), s.set.P
-        tried = [P[at + PATCH_WIDTH * k + P_FULL + 9] for k in range(HINT_SLOTS)]
+        at, C = int(s.set.S[s.row].patch), s.set.C
+        tried = [C[at + PATCH_WIDTH * k + P_FULL + 9] for k in range(HINT_SLOTS)]
         if close:
             assert len(used) == 1 and r + PATCH_CLOSE / 2 <= used[0][0] <= r + 2 * PATCH_CLOSE, used
             assert patches(s) == held and not any(tried)  # gathered once, read since
@@ -861,7 +861,7 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
         s, o, a, n, t = dish_floor(spacing)
         # r above the floor (z = x² / 0.2 m), within the dish's tilt (~1 µm)
         path = [a + x * t + (r + 1e-6 + x * x / 0.2) * n for x in np.arange(251) * 1.2e-5]
-        at, P = int(s.set.S[s.row].patchadr), s.set.P
+        at, C = int(s.set.S[s.row].patch), s.set.C
         stretched = close = 0.0
         for i in range(250):
             p, u = path[i], path[i + 1] - path[i]
@@ -874,13 +874,13 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
             o.check_sweep(p, u, r, s.sweep(*p, *u, r), context=i)
             for k in range(HINT_SLOTS):
                 c = at + PATCH_WIDTH * k + (P_FULL if too_full else 0)
-                if P[c + 6] > 0.0:
-                    stretched = max(stretched, float(np.linalg.norm(P[c + 3:c + 6] - P[c:c + 3])))
+                if C[c + 6] > 0.0:
+                    stretched = max(stretched, float(np.linalg.norm(C[c + 3:c + 6] - C[c:c + 3])))
                     if too_full:
-                        assert P[c + 6] <= r + 1.2e-5 + 1e-6 + PATCH_KEEP, (i, k, P[c + 6])
+                        assert C[c + 6] <= r + 1.2e-5 + 1e-6 + PATCH_KEEP, (i, k, C[c + 6])
                 c = at + PATCH_WIDTH * k
-                if too_full and 0.0 < P[c + 6] < r + 2 * PATCH_CLOSE:
-                    close = max(close, float(np.linalg.norm(P[c + 3:c + 6] - P[c:c + 3])))
+                if too_full and 0.0 < C[c + 6] < r + 2 * PATCH_CLOSE:
+                    close = max(close, float(np.linalg.norm(C[c + 3:c + 6] - C[c:c + 3])))
         # then 4 mm across the slide, coming down 5 µm into the rising floor at the end: its
         # end lies ~1 mm off the stretched capsule, which must be that much wider to hold it
         w = np.cross(n, t)
@@ -891,13 +891,13 @@ def test_a_sliding_finger_stretches_its_capsules_ahead():
             g = s.geom
             local = (np.array([q, q + e]) - s.set.xpos[g]) @ s.set.xmat[g].reshape(3, 3)
             noted = [at + PATCH_WIDTH * k + P_FULL for k in range(HINT_SLOTS)]
-            noted = [c for c in noted if np.allclose(P[c:c + 3], local[0], atol=1e-12)]
+            noted = [c for c in noted if np.allclose(C[c:c + 3], local[0], atol=1e-12)]
             assert len(noted) == 1, noted
             c = noted[0]
-            ends = P[c:c + 3], P[c + 3:c + 6]
+            ends = C[c:c + 3], C[c + 3:c + 6]
             along = np.clip(np.dot(local[1] - ends[0], ends[1] - ends[0]) / np.sum((ends[1] - ends[0]) ** 2), 0, 1)
             off = np.linalg.norm(local[1] - ends[0] - along * (ends[1] - ends[0]))
-            assert off > 5 * PATCH_KEEP and off + r <= P[c + 6], (off, P[c + 6])
+            assert off > 5 * PATCH_KEEP and off + r <= C[c + 6], (off, C[c + 6])
         # a round capsule's segment is its query's: at most a tick's 12 µm
         if too_full:
             assert 0.9 * PATCH_MARGIN < stretched < 1.1 * PATCH_MARGIN, stretched
@@ -939,14 +939,14 @@ def test_record_bounds_hold_and_are_as_thin_as_a_sliver():
     (slivers 7 mm long, a fifth of a millimetre wide at the rim), a point a few millimetres
     over a cap is bounded near only the slivers truly near it. A ball about each sliver
     would be as wide as the cap and rule out none of a third of the fan."""
-    from softproxy.compiled.layout import RECORD_WIDTH, R_ROW
+    from softproxy.compiled.layout import RECORD_WIDTH, R_ROW, TREE_RECORDS
     from softproxy.compiled.box_tree import record_gap2
 
     s, _ = tree_shape(*sliver_part())
     t = s.tables
     A, B, Cv = (t.vpos[t.tv[:, k]] for k in range(3))
     S, C, k = s.set.S, s.set.C, s.row
-    first, t0, n = int(S[k].recadr), int(S[k].faceadr), int(S[k].facenum)
+    first, t0, n = int(C[int(S[k].tree) + TREE_RECORDS]), int(S[k].t0), int(S[k].nt)
     records = first + RECORD_WIDTH * np.arange(n)
     rows = C[records + R_ROW].astype(np.int64) - t0
     A, B, Cv = A[rows], B[rows], Cv[rows]

@@ -1,6 +1,6 @@
 """A mesh's box tree at run time: the bounds of its nodes and records.
 
-Node j of mesh k lives at C[S.bvhadr + NODE_WIDTH (j - 1)] (`softproxy.compiled.layout`):
+Node j of mesh k lives at C[S.tree + TREE_NODES + NODE_WIDTH (j - 1)] (`softproxy.compiled.layout`):
 its axis-aligned box and its box oriented by its first triangle; a leaf's records carry each
 triangle's plane and the rectangle in that plane that holds it. Here: the gap (m) from a
 point or a segment to a node or a record, the fraction at which a sphere's segment enters a
@@ -16,7 +16,7 @@ import math
 from numba import njit
 
 from softproxy.compiled.layout import (
-    NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, RECORD_WIDTH,
+    NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, RECORD_WIDTH, TREE_NODES, TREE_RECORDS, TREE_SIZE,
 )
 from softproxy.compiled.tree_walk import LEAF
 
@@ -153,18 +153,20 @@ def node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
 
 
 @njit(cache=True, error_model="numpy")
-def tree_of(S, k):
-    """Mesh k's box tree: its number of leaves, the mesh's number of triangles, `base`, from
-    which node j is at C[base + NODE_WIDTH j], and where its records begin in C."""
-    return S[k].bvhleaves, S[k].facenum, S[k].bvhadr - NODE_WIDTH, S[k].recadr
+def tree_of(S, C, k):
+    """Mesh k's box tree: where it begins in C, its number of leaves, the mesh's number of
+    triangles, and `base`, from which node j's record is at base + NODE_WIDTH j."""
+    tree = int(S[k].tree)
+    return tree, int(C[tree + TREE_SIZE]), int(S[k].nt), tree + TREE_NODES - NODE_WIDTH
 
 
 @njit(cache=True, error_model="numpy")
-def leaf_records(rec, leaf, n):
+def leaf_records(C, tree, leaf, n):
     """The records (C[j0:j1]) of the triangles of leaf number `leaf` (node size + leaf) of a
-    tree of n triangles whose records begin at C[rec]."""
+    tree of n triangles at C[tree]."""
     first = leaf * LEAF
     last = min(first + LEAF, n)
+    rec = int(C[tree + TREE_RECORDS])
     return rec + first * RECORD_WIDTH, rec + max(last, first) * RECORD_WIDTH
 
 

@@ -19,7 +19,7 @@ that plane enter any of them. So a query reads only the triangles near q that re
   meet, reads none of them, and on a convex patch none is read whatever the triangles' shape.
 `softproxy.mesh.MeshShape` builds the lists and tables for every face and vertex at load
 (and for a larger proxy in `prepare`; `softproxy.mesh_certificates`, which packs them into
-the mesh tables TI, C and CI) and `static_clear` asks them. Where they do not hold (a concave patch, a reach beyond
+the mesh tables T and C) and `static_clear` asks them. Where they do not hold (a concave patch, a reach beyond
 the one they were built for), the caller asks the ball certificate (`softproxy.mesh_balls`)
 on a dense mesh, or walks its box tree.
 """
@@ -31,9 +31,8 @@ import math
 from numba import njit
 
 from softproxy.compiled.layout import (
-    EDGE_AB, FACE, FEW_SLOTS, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, TI_ADJ, TI_CLEAR, TI_TV, T_N, VERTEX_A,
-    VERTEX_INTS, VERTEX_WIDTH, VI_FAN, VI_FAN_NUM, VI_RING, VI_RING_NUM, VI_SINES, VI_SINE_NUM, VI_SINE_VERT,
-    V_AXIS, V_COS, V_THRESHOLD, V_X,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, FEW_SLOTS, T_ADJ, T_CLEAR, T_N, T_TV, VERTEX_A, VERTEX_WIDTH, V_AXIS,
+    V_COS, V_FAN, V_RING, V_SINES, V_THRESHOLD, V_X,
 )
 
 ABOVE_TOL = 1e-9
@@ -76,94 +75,91 @@ def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
 
 
 @njit(cache=True, error_model="numpy")
-def face_few(TI, CI, scan, i, side, at, lists=TI_CLEAR):
-    """Row i's list on `side` (`lists`: TI_CLEAR, the triangles rising above its plane; TI_BALL,
-    those a ball resting on it reaches), copied to scan[SCAN_FEW + at:]; the new count, or -1
-    when it has none (a concave patch)."""
+def face_few(T, C, i, side, at, lists=T_CLEAR):
+    """Row i's list on `side` (`lists`: T_CLEAR, the triangles rising above its plane; T_BALL,
+    those a ball resting on it reaches), copied to C[C_FEW + at:]; the new count, or -1 when
+    it has none (a concave patch)."""
     col = lists if side > 0.0 else lists + 2
-    count = TI[i, col + 1]
-    if count < 0 or at + count > FEW_SLOTS:
+    count = int(T[i, col + 1])
+    if count < 0 or at + count > C_STAMPS - C_FEW:
         return -1
-    start = TI[i, col]
+    start = int(T[i, col])
     for j in range(count):
-        scan[SCAN_FEW + at + j] = CI[start + j]
+        C[C_FEW + at + j] = C[start + j]
     return at + count
 
 
 @njit(cache=True, error_model="numpy")
-def _vertex_few(sh, k, hint, feature, nx, ny, nz):
+def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     """`static_clear` when the nearest point is vertex `feature - VERTEX_A` of row `hint`: the fan lies
     behind the tangent plane when n is inside the vertex's cone (else every edge leaving it is
     tested); a triangle off the fan does when its vertices lie more than the plane's tilt
     below the cone (sin β, from the table); the fans of the few that may not and rise above
     the plane are listed."""
-    S, C, CI, scan = sh.S, sh.C, sh.CI, sh.scan
-    vertex = sh.TI[hint, TI_TV + feature - VERTEX_A]
-    verts, iverts = S[k].vertadr, S[k].vertiadr
-    rec, irec = verts + VERTEX_WIDTH * vertex, iverts + VERTEX_INTS * vertex
+    vertex = int(T[hint, T_TV + feature - VERTEX_A])
+    verts = int(S[k].verts)
+    rec = verts + VERTEX_WIDTH * vertex
     c = nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2]
     if c <= 0.0:
         return -1
     if c < C[rec + V_COS]:
-        r0 = CI[irec + VI_RING]
-        for j in range(r0, r0 + 3 * CI[irec + VI_RING_NUM], 3):
+        r0 = int(C[rec + V_RING])
+        for j in range(r0, r0 + 4 * int(C[rec + V_RING + 1]), 4):
             if nx * C[j] + ny * C[j + 1] + nz * C[j + 2] > ABOVE_TOL:
                 return -1
     if c * c > C[rec + V_THRESHOLD]:
         return 0
-    s0, v0, sn = CI[irec + VI_SINES], CI[irec + VI_SINE_VERT], CI[irec + VI_SINE_NUM]
+    s0, sn = int(C[rec + V_SINES]), int(C[rec + V_SINES + 1])
     tilt = math.sqrt(max(0.0, 1.0 - c * c)) + 1e-12  # c may round above 1 (NaN would certify all)
     m = 0
-    while m < sn and C[s0 + m] < tilt:  # bisect_left on sin β ascending
+    while m < sn and C[s0 + 2 * m] < tilt:  # bisect_left on sin β ascending
         m += 1
     if m > VERTEX_READ:
         return -1
     off = nx * C[rec + V_X] + ny * C[rec + V_X + 1] + nz * C[rec + V_X + 2] + ABOVE_TOL
-    scan[SCAN_COUNT] += 1
-    stamp = scan[SCAN_COUNT]
+    C[C_STAMP] += 1.0
+    stamp = C[C_STAMP]
     count = 0
     for j in range(m):
-        v = CI[v0 + j]
-        w = verts + VERTEX_WIDTH * v
+        w = verts + VERTEX_WIDTH * int(C[s0 + 2 * j + 1])
         if nx * C[w + V_X] + ny * C[w + V_X + 1] + nz * C[w + V_X + 2] > off:
-            f0 = CI[iverts + VERTEX_INTS * v + VI_FAN]
-            for f in range(f0, f0 + CI[iverts + VERTEX_INTS * v + VI_FAN_NUM]):
-                i = CI[f]
-                if scan[SCAN_STAMPS + i] == stamp:
+            f0 = int(C[w + V_FAN])
+            for f in range(f0, f0 + int(C[w + V_FAN + 1])):
+                i = int(C[f])
+                if C[C_STAMPS + i] == stamp:
                     continue
-                scan[SCAN_STAMPS + i] = stamp
+                C[C_STAMPS + i] = stamp
                 if count == STATIC_ABOVE:
                     return -1
-                scan[SCAN_FEW + count] = i
+                C[C_FEW + count] = i
                 count += 1
     return count
 
 
 @njit(cache=True, error_model="numpy")
-def static_clear(sh, k, hint, feature, nx, ny, nz, need):
-    """How many triangles (rows of T, listed in sh.scan[SCAN_FEW:]) within
+def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
+    """How many triangles (rows of T, listed in C[C_FEW:]) within
     `need` (m) of the nearest point on `feature` of row `hint` may reach above the tangent
     plane there (normal n, geom frame, out of the hint); every other triangle that near lies
     behind it. -1 when the certificates do not hold (a concave patch, or need beyond the
     reach they were built for): then every triangle must be asked. A point p at distance d
     has no nearer triangle off the list when need >= 2d; a sphere of radius r touching at p
     and sliding by L on or above the plane enters none when need >= 2r + L."""
-    T, TI, CI, scan = sh.T, sh.TI, sh.CI, sh.scan
-    if need > sh.S[k].kept:
+    if need > S[k].kept:
         return -1
     dot0 = nx * T[hint, T_N] + ny * T[hint, T_N + 1] + nz * T[hint, T_N + 2]
     side0 = 1.0 if dot0 >= 0.0 else -1.0
     if feature == FACE:
-        return face_few(TI, CI, scan, hint, side0, 0)
+        return face_few(T, C, hint, side0, 0)
     if feature >= VERTEX_A:
-        return _vertex_few(sh, k, hint, feature, nx, ny, nz)
-    other = TI[hint, TI_ADJ + feature - EDGE_AB]
+        return _vertex_few(S, T, C, k, hint, feature, nx, ny, nz)
+    other = int(T[hint, T_ADJ + feature - EDGE_AB])
     if other < 0:
         return -1
     side1 = _convex_edge(T, hint, other, nx, ny, nz, side0, dot0)
     if side1 == 0.0:
         return -1
-    m = face_few(TI, CI, scan, hint, side0, 0)
+    m = face_few(T, C, hint, side0, 0)
     if m < 0:
         return -1
-    return face_few(TI, CI, scan, other, side1, m)
+    return face_few(T, C, other, side1, m)

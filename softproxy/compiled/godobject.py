@@ -763,7 +763,7 @@ def _warm_planes(sh, fm, fd, x, y, z, warm):
         # through the proxy in _move_once)
         if count == 0 or _plane_of(warm, count, s, nx, ny, nz) < 0:
             warm[count, 0], warm[count, 1], warm[count, 2], warm[count, 3], warm[count, 4] = nx, ny, nz, 0.0, s
-            warm[count, 5] = shape_feature(sh, s)
+            warm[count, 5] = shape_feature(S, s)
             count += 1
     return count
 
@@ -873,11 +873,12 @@ def _rest_nearest(sh, fm, fd, near, x, y, z, gx, gy, gz, pl):
     patch of 0.14 mm triangles), and rolling round an edge it creeps (SLIDE_HITS): this asks
     a distance at the goal, one to four sweeps and a distance at the end. A corner (the end
     overlaps another shape) is left to sliding."""
+    S = sh.S
     r = fm.radius
     s, d, nx, ny, nz = _nearest(sh, fd, near, gx, gy, gz)
     if s < 0 or d >= r:
         return False, x, y, z
-    f = shape_feature(sh, s)  # before the sweep below queries s again
+    f = shape_feature(S, s)  # before the sweep below queries s again
     px, py, pz = gx + (r - d) * nx, gy + (r - d) * ny, gz + (r - d) * nz
     ex, ey, ez = px - fd.ball[0], py - fd.ball[1], pz - fd.ball[2]
     if ex * ex + ey * ey + ez * ez > fd.ball_room * fd.ball_room:  # past the shapes gathered
@@ -979,7 +980,7 @@ def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, fol
                     f = float(walked)
                 else:
                     d, mx, my, mz = shape_distance(sh, si, x, y, z)
-                    f = shape_feature(sh, si)
+                    f = shape_feature(S, si)
                 if d - r <= LIFT_TOL:
                     if S[si].convex or 1.0 - along(pl, i, mx, my, mz) <= LIFT_TOL / r:
                         # on its shape's surface; on a mesh, on the next facet in its plane
@@ -1041,7 +1042,7 @@ def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, fol
             if done:
                 n = 1
                 break
-        n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(sh, s))
+        n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(S, s))
         found, qx, qy, qz = _project(gx, gy, gz, pl, n)
         if not found:
             break
@@ -1059,7 +1060,7 @@ def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, fol
             if not has_first:
                 has_first = True
                 hx, hy, hz = x, y, z
-            n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(sh, s))
+            n = _add_plane(pl, n, nx, ny, nz, nx * x + ny * y + nz * z, s, shape_feature(S, s))
     nr = 0  # keep only the planes the proxy still rests on (the loop may end before it checked)
     for i in range(n):
         if _rests_on(sh, fm, fd, pl, i, x, y, z, on_surfaces):

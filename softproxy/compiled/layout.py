@@ -9,11 +9,7 @@ finger is two records: its model (`FINGER_MODEL`, what a run holds constant: rad
 friction, stiffness, clamps, the torsion law) and its data (`FINGER_DATA`, what a tick
 changes); the kernels name them `fm` and `fd`. Poses are read straight from
 MuJoCo's `geom_xpos` (ngeom × 3) and `geom_xmat` (ngeom × 9, row-major: r00 r01 r02 r10 … r22).
-A shape is two records too: `SHAPE` (its type, geom, size and where its mesh tables are)
-and `SHAPE_DATA` (where its last queries ended, its hint slots). A mesh's triangles and box
-trees are flat tables with named column offsets, floats (T, C) and indices (TI, CI), constant
-for a run; what its queries keep between ticks is data: the hint slots' patches (P) and the
-scans' marks (`scan`).
+A mesh's triangles and grid are flat float tables (T, C) with named column offsets.
 """
 
 from collections import namedtuple
@@ -25,14 +21,11 @@ MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos")
 """MuJoCo as the tick's coupling reads and writes it: the mjModel and mjData addresses (for
 mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied (nbody × 6,
 N and N·m), xipos (nbody × 3, m)."""
-Shapes = namedtuple("Shapes", "S SD T TI C CI P scan xpos xmat cvel")
-"""The shapes as every query reads them (`sh` in the kernels): their SHAPE records (model) and
-SHAPE_DATA records (data); the mesh tables, constant for a run: the triangle tables T (floats)
-and TI (indices), the box trees and certificates C (floats) and CI (indices); what the mesh
-queries keep: the hint slots' patches P and the scans' marks `scan` (the mesh arrays None in
-a world without meshes); and their poses, views
-of mjData: geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9), cvel (nbody × 6: the touched
-body's spin drags the torsion). `softproxy.geometry.ShapeSet.tables` holds one."""
+Shapes = namedtuple("Shapes", "S T C xpos xmat cvel")
+"""The shapes as every query reads them (`sh` in the kernels): their SHAPE records, the mesh
+triangle table T and the mesh grids C (None in a world without meshes), and their poses,
+views of mjData: geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9), cvel (nbody × 6: the
+touched body's spin drags the torsion). `softproxy.geometry.ShapeSet.tables` holds one."""
 Fingers = namedtuple("Fingers", "model data near scratch")
 """A table of fingers as the kernels take it (`fg`): their FINGER_MODEL and FINGER_DATA records,
 each one's near shapes (rows of the shape table) and the god-object's scratch.
@@ -61,7 +54,7 @@ KEPT_WIDTH = 8
 """Columns of a kept query: the point (3, from KEPT_POINT), the distance, the normal (3, from
 KEPT_NORMAL), the row of T of its nearest point."""
 HINT_SLOTS = 16
-"""Hint slots per mesh shape in SHAPE_DATA["key"]: the queries of each finger on one mesh keep to
+"""Hint slots per mesh shape in SHAPE["key"]: the queries of each finger on one mesh keep to
 their own (`softproxy.compiled.mesh._slot`), two a finger (its proxy's and its frictionless
 proxy's)."""
 SLOT_HINT, SLOT_AGE, SLOT_KEPT = 3, 4, 5
@@ -80,35 +73,25 @@ SHAPE = np.dtype([
     ("rbound", np.float64),   # bounding radius (m), inf for a plane
     ("geom_size", np.float64, 3),  # MuJoCo's geom_size row (m): sphere radius; capsule and cylinder radius,
                                    # half-length; box half-sizes; ellipsoid semi-axes
-    # a mesh: where its triangles, box tree and certificates live in the mesh tables T, TI, C
-    # and CI (`softproxy.compiled.mesh`), the tree in the geom frame
-    ("faceadr", np.int64),    # its first row of T and TI
-    ("facenum", np.int64),    # its number of triangles
-    ("bvhadr", np.int64),     # where its box tree's nodes begin in C (node 1, NODE_WIDTH floats a node)
-    ("bvhleaves", np.int64),  # its box tree's number of leaves (a power of two)
-    ("recadr", np.int64),     # where its box tree's records begin in C (RECORD_WIDTH floats a triangle)
-    ("vertadr", np.int64),    # where its vertex records begin in C (VERTEX_WIDTH floats a vertex)
-    ("vertiadr", np.int64),   # and in CI (VERTEX_INTS a vertex)
-    ("patchadr", np.int64),   # where its patches begin in P: one per hint slot, PATCH_WIDTH floats each (-1: none)
+    # a mesh: where its triangles and its box tree live in the mesh tables T and C
+    # (`softproxy.compiled.mesh`), the tree in the geom frame; then what its queries keep
+    ("t0", np.int64),         # its first row of T
+    ("nt", np.int64),         # its number of triangles
+    ("tree", np.int64),       # where its box tree begins in C (TREE_SIZE, TREE_RECORDS, then the nodes)
     ("signed", np.bool_),     # watertight: signed distance; open: unsigned
     ("shading", np.bool_),    # force shading (interpolated vertex normals)
-    ("kept", np.float64),     # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
-    ("ball", np.float64),     # the radius (m) of its ball certificates' resting ball (0: none)
-], align=True)
-"""A shape's model, constant for a run (`sh.S`); `softproxy.geometry.ShapeSet.build` fills one
-per shape (`softproxy.mesh_tables` a mesh's addresses). Poses are read from MuJoCo."""
-
-SHAPE_DATA = np.dtype([
-    ("hint", np.int64),       # a mesh: row of T nearest the last distance query or touched last, -1 for none
-    ("feature", np.int64),    # a mesh: row of T of the last answer: a distance's nearest point, a sweep's touch (-1: none)
+    ("hint", np.int64),       # row of T nearest the last distance query or touched last, -1 for none
+    ("feature", np.int64),    # row of T of the last answer: a distance's nearest point, a sweep's touch (-1: none)
     # its hint slots: per slot the last query's point and hint and the last two distance
     # queries kept, newest first: the point (geom frame, m; NaN for none), signed distance
     # (m), outward normal (geom frame), the row of T of the nearest point
     ("key", np.float64, (HINT_SLOTS, SLOT_WIDTH)),
+    ("verts", np.int64),      # where its vertex records begin in C (VERTEX_WIDTH floats per vertex)
+    ("patch", np.int64),      # where its patches begin in C: one per hint slot, PATCH_WIDTH floats each (-1: none)
+    ("kept", np.float64),     # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
+    ("ball", np.float64),     # the radius (m) of its ball certificates' resting ball (0: none)
 ], align=True)
-"""What a shape's queries keep from one to the next (`sh.SD`): where the last ones ended on a
-mesh, and its hint slots. `softproxy.geometry.ShapeSet.build` sets it as loaded: no hint, no
-slot used."""
+"""A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
 
 FACE = 0
 EDGE_AB, EDGE_BC, EDGE_CA = 1, 2, 3
@@ -134,66 +117,52 @@ T_EDGES = 22     # edges AB, BC, CA: 3 × (start, unit direction, length), colum
 EDGE_WIDTH = 7
 T_PSEUDO = 43    # pseudo-normals of the features: face, edges AB BC CA, vertices A B C (3 each), 43..63
 T_VN = 64        # vertex normals at A, B, C for force shading, 64..72
-T_COLUMNS = 73
+# the kept certificates' per-triangle part (softproxy.compiled.certificate)
+T_ADJ = 73       # the rows across edges AB, BC, CA (-1: an open edge), 73..75
+T_TV = 76        # its vertices A, B, C (vertex ids of its mesh), 76..78
+T_CLEAR = 79     # per side (front, back): where its list of triangles rising above its plane
+                 # starts in C and how many (-1: a concave patch, no certificate), 79..82
+T_BALL = 83      # per side (front, back): where its ball list starts in C and how many (-1: none;
+                 # softproxy.mesh_balls: the plane list where that holds), 83..86
+T_COLUMNS = 87
 
-# -- mesh triangle index table TI: one int64 row per triangle, its kept certificates' part ----
-TI_ADJ = 0       # the rows across edges AB, BC, CA (-1: an open edge), 0..2
-TI_TV = 3        # its vertices A, B, C (vertex ids of its mesh), 3..5
-TI_CLEAR = 6     # per side (front, back): where its list of triangles rising above its plane
-                 # starts in CI and how many (-1: a concave patch, no certificate), 6..9
-TI_BALL = 10     # per side (front, back): where its ball list starts in CI and how many (-1: none;
-                 # softproxy.mesh_balls: the plane list where that holds), 10..13
-TI_COLUMNS = 14
-
-# -- mesh box trees and certificates: C (float64) and CI (int64) ------------------------------
-"""C holds, constant for a run, per mesh asset its box tree (`softproxy.compiled.mesh`) and the
-float part of its kept certificates (`softproxy.compiled.certificate`); CI their indices. The
-tree: from C[S.bvhadr] its nodes, NODE_WIDTH floats each (node j of 1 .. 2 S.bvhleaves - 1 at
-S.bvhadr + NODE_WIDTH (j - 1); node j's children 2j and 2j + 1, leaf j node bvhleaves + j
-holding the records of the LEAF (`softproxy.compiled.tree_walk`) triangles from j LEAF on);
-from C[S.recadr] its records, RECORD_WIDTH floats per triangle in the tree's order: the
-triangle's plane (nx, ny, nz, offset), the rectangle in that plane that holds it (centre, unit
-axis along its longest edge, half-length along that axis and half-width across it; m) and its
-row of T (a float: a patch copies records whole, `softproxy.compiled.patch`; exact below
-2**53), so that a leaf's bounds are read in one sequential pass and only the triangles they
-cannot rule out are opened. A rectangle, not a ball: a CAD sliver 7 mm long and 50 µm wide
-is as wide as its ball only along itself."""
+# -- mesh grids C: one float64 array (indices stored as floats, exact below 2**53) ----------
+C_STAMP = 0
+"""C[0]: the number of the last scan; C[C_STAMPS + row of T]: the scan that last read that
+triangle (a sweep's scan reads the hint first and skips it in the tree);
+C[C_FEW:C_STAMPS]: the triangles a certificate leaves to read (scratch, one query's).
+Then per mesh its box tree (`softproxy.compiled.mesh`): from C[S.tree] the number of leaves
+(a power of two, TREE_SIZE) and where its records begin (TREE_RECORDS), then its nodes,
+NODE_WIDTH floats each (node j of 1 .. 2 size - 1 at TREE_NODES + NODE_WIDTH (j - 1); node
+j's children 2j and 2j + 1, leaf j node size + j holding the records of the LEAF
+(`softproxy.compiled.certificate`) triangles from j LEAF on), then its records, RECORD_WIDTH floats per triangle in
+the tree's order: the triangle's plane (nx, ny, nz, offset), the rectangle in that plane
+that holds it (centre, unit axis along its longest edge, half-length along that axis and
+half-width across it; m) and its row of T, so that a leaf's bounds are read in one
+sequential pass and only the triangles they cannot rule out are opened. A rectangle, not a
+ball: a CAD sliver 7 mm long and 50 µm wide is as wide as its ball only along itself."""
 RECORD_WIDTH = 13
 R_CENTRE, R_ROW = 4, 12  # the rectangle (centre, axis, half-length, half-width) from 4; the row
+TREE_SIZE, TREE_RECORDS, TREE_NODES = 0, 1, 2
 # a node: its axis-aligned box (lower, upper corner; m), the three axes of its oriented box
 # (the first triangle's normal, its longest edge, their cross product) and its extents
 # along each (lower, upper; m); an empty node's boxes are inverted (+inf..-inf)
 N_LO, N_HI, N_AXES, N_EXT = 0, 3, 6, 15
 NODE_WIDTH = 21
-# a mesh's vertex records (softproxy.compiled.certificate): in C from C[S.vertadr], VERTEX_WIDTH a vertex
+C_FEW = 1
+FEW_SLOTS = 16   # two faces' lists at an edge, STATIC_ABOVE (softproxy.compiled.certificate) each
+C_STAMPS = C_FEW + FEW_SLOTS
+# a mesh's vertex records in C (softproxy.compiled.certificate), from C[S_VERTS]:
 V_X = 0          # the vertex (m, geom frame), 0..2
 V_AXIS = 3       # its cone: axis (unit), cosine (2.0: no cone), 3..6
 V_COS = 6
-V_THRESHOLD = 7  # 1 - (least sin β - margin)² (2.0: nothing certified by angle alone)
-VERTEX_WIDTH = 8
-# and in CI from CI[S.vertiadr], VERTEX_INTS a vertex: where its lists start and how many
-VI_RING = 0      # its ring, per edge leaving it: the edge's vector (3 floats in C from VI_RING, m)
-VI_RING_ROW = 1  # and a row of T on that edge (in CI from VI_RING_ROW)
-VI_RING_NUM = 2
-VI_FAN = 3       # its fan, the rows of T around it (in CI), and how many
-VI_FAN_NUM = 4
-VI_SINES = 5     # its sin β table, ascending (in C from VI_SINES)
-VI_SINE_VERT = 6  # and each entry's vertex id (in CI from VI_SINE_VERT)
-VI_SINE_NUM = 7
-VERTEX_INTS = 8
+V_RING = 7       # where its ring starts in C and how many: per edge leaving it (vector (m), a row of T on it)
+V_FAN = 9        # where its fan starts and how many: the rows of T around it
+V_SINES = 11     # where its sin β table starts and how many: (sin β ascending, vertex id)
+V_THRESHOLD = 13  # 1 - (least sin β - margin)² (2.0: nothing certified by angle alone)
+VERTEX_WIDTH = 14
 
-# -- the scans' marks: one int64 array, data (`softproxy.compiled.mesh`, `certificate`) -------
-SCAN_COUNT = 0
-SCAN_FEW = 1
-FEW_SLOTS = 16   # two faces' lists at an edge, STATIC_ABOVE (softproxy.compiled.certificate) each
-SCAN_STAMPS = SCAN_FEW + FEW_SLOTS
-"""The scans' marks (`sh.scan`, int64): scan[SCAN_COUNT], the number of the last scan;
-scan[SCAN_STAMPS + row of T], the scan that last read that triangle (a sweep's scan reads the
-hint first and skips it in the tree); scan[SCAN_FEW:SCAN_STAMPS], the triangles a certificate
-leaves to read (one query's)."""
-
-# -- the hint slots' patches P: one float64 array, data (`softproxy.compiled.patch`) ---------
-# a patch (one per hint slot of a mesh shape, from P[S.patchadr + PATCH_WIDTH slot]): a capsule
+# a patch (one per hint slot of a mesh shape, from C[S.patch + PATCH_WIDTH slot]): a capsule
 # (its segment's ends (2 × 3, geom frame), radius; m) and how many records it holds; a
 # capsule found too full (ends, radius, and the shortest segment and least radius of the
 # queries found too full in it; m; and 1 once a patch for a finger held still in it was

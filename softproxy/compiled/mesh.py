@@ -79,9 +79,9 @@ from softproxy.compiled.box_tree import (
 )
 from softproxy.compiled.certificate import ABOVE_TOL, BALL_SLACK, face_few, static_clear
 from softproxy.compiled.layout import (
-    EDGE_AB, FACE, HINT_SLOTS, KEPT_DISTANCE, KEPT_NORMAL, KEPT_POINT, KEPT_ROW, KEPT_WIDTH, NODE_WIDTH, P_RECORDS,
-    RECORD_WIDTH, R_ROW, SCAN_COUNT, SCAN_FEW, SCAN_STAMPS, SLOT_AGE, SLOT_HINT, SLOT_KEPT, TI_ADJ, TI_BALL, TI_TV, T_N,
-    T_PSEUDO, VERTEX_A, VERTEX_INTS, VERTEX_WIDTH, VI_RING, VI_RING_NUM, VI_RING_ROW, V_AXIS, V_COS,
+    C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, HINT_SLOTS, KEPT_DISTANCE, KEPT_NORMAL, KEPT_POINT, KEPT_ROW,
+    KEPT_WIDTH, NODE_WIDTH, P_RECORDS, RECORD_WIDTH, R_ROW, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_BALL, T_N,
+    T_PSEUDO, T_TV, VERTEX_A, VERTEX_WIDTH, V_AXIS, V_COS, V_RING,
 )
 from softproxy.compiled.patch import slot_patch
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
@@ -100,32 +100,29 @@ WALK_STEPS = 8
 
 
 @njit(cache=True, error_model="numpy")
-def _walk(sh, k, hint, d2, qx, qy, qz, feature, x, y, z):
+def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
     """From the hint's nearest point q to p on an edge or a vertex, step to a nearer triangle:
     across the edge (p may lie over the neighbour's face, or beyond it), or from a vertex to
     a triangle on an edge leaving it that rises above the tangent plane there (it holds a
     nearer point); while there is one, WALK_STEPS at most: the certificate of the face, edge
     or vertex reached then holds more often. Returns (d2, qx, qy, qz, feature, hint)."""
-    T, TI, C, CI = sh.T, sh.TI, sh.C, sh.CI
-    verts, iverts = sh.S[k].vertadr, sh.S[k].vertiadr
+    verts = int(S[k].verts)
     for _ in range(WALK_STEPS):
         if feature == FACE or d2 <= 0.0:
             break
         if feature < VERTEX_A:
-            step = TI[hint, TI_ADJ + feature - EDGE_AB]
+            step = int(T[hint, T_ADJ + feature - EDGE_AB])
         else:
-            vertex = TI[hint, TI_TV + feature - VERTEX_A]
-            rec, irec = verts + VERTEX_WIDTH * vertex, iverts + VERTEX_INTS * vertex
+            rec = verts + VERTEX_WIDTH * int(T[hint, T_TV + feature - VERTEX_A])
             dist = math.sqrt(d2)
             nx, ny, nz = (x - qx) / dist, (y - qy) / dist, (z - qz) / dist
             if nx * C[rec + V_AXIS] + ny * C[rec + V_AXIS + 1] + nz * C[rec + V_AXIS + 2] >= C[rec + V_COS]:
                 break
             step = -1
-            r0, rows = CI[irec + VI_RING], CI[irec + VI_RING_ROW]
-            for e in range(CI[irec + VI_RING_NUM]):
-                j = r0 + 3 * e
+            r0 = int(C[rec + V_RING])
+            for j in range(r0, r0 + 4 * int(C[rec + V_RING + 1]), 4):
                 if nx * C[j] + ny * C[j + 1] + nz * C[j + 2] > ABOVE_TOL:
-                    step = CI[rows + e]
+                    step = int(C[j + 3])
                     break
         if step < 0:
             break
@@ -137,48 +134,46 @@ def _walk(sh, k, hint, d2, qx, qy, qz, feature, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def _from_hint(sh, k, hint0, x, y, z):
+def _from_hint(S, T, C, k, hint0, x, y, z):
     """The nearest point to p (geom frame) on row hint0, or on the triangle across the edge it
     lies on when that is nearer (p may lie over the neighbour's face), walked on from there
     (`_walk`) when it stepped across or lies on a vertex: (d2, qx, qy, qz, feature, row).
     Every distance query and sweep begins here."""
-    T = sh.T
     hint = hint0
     d2, qx, qy, qz, f = closest(T, hint, x, y, z)
     if EDGE_AB <= f < VERTEX_A:
-        other = sh.TI[hint, TI_ADJ + f - EDGE_AB]
+        other = int(T[hint, T_ADJ + f - EDGE_AB])
         if other >= 0:
             c2, rx, ry, rz, g = closest(T, other, x, y, z)
             if c2 < d2:
                 d2, qx, qy, qz, f, hint = c2, rx, ry, rz, g, other
     if (f != FACE and hint != hint0) or f >= VERTEX_A:
-        return _walk(sh, k, hint, d2, qx, qy, qz, f, x, y, z)
+        return _walk(S, T, C, k, hint, d2, qx, qy, qz, f, x, y, z)
     return d2, qx, qy, qz, f, hint
 
 
-Nearest = namedtuple("Nearest", "T C rec n base x y z")
-"""A nearest-triangle query on mesh tables T, C: mesh k's tree (`tree_of`: where its records
-begin in C, its number of triangles, its nodes' base) and the point p (geom frame, m). Its walk's
+Nearest = namedtuple("Nearest", "T C tree n base x y z")
+"""A nearest-triangle query on mesh tables T, C: mesh k's tree (`tree_of`: where it begins in
+C, its number of triangles, its nodes' base) and the point p (geom frame, m). Its walk's
 state: (best2 (m²), q, feature, row of T) of the nearest found so far."""
 
 
 @njit(cache=True, error_model="numpy")
-def _nearest_run(q, R, j0, j1, s):
-    """The nearest so far to p among the triangles of the records R[j0:j1] (a tree's in C, or
-    a patch's copies in P) and the one found before (the state s: best2 (m²), q, feature bf,
-    row bi; bi itself is not read again)."""
-    T, x, y, z = q.T, q.x, q.y, q.z
+def _nearest_run(q, j0, j1, s):
+    """The nearest so far to p among the triangles of the records C[j0:j1] and the one found
+    before (the state s: best2 (m²), q, feature bf, row bi; bi itself is not read again)."""
+    T, C, x, y, z = q.T, q.C, q.x, q.y, q.z
     best2, qx, qy, qz, bf, bi = s
     best = math.sqrt(best2)
     for j in range(j0, j1, RECORD_WIDTH):
-        h = R[j] * x + R[j + 1] * y + R[j + 2] * z - R[j + 3]
+        h = C[j] * x + C[j + 1] * y + C[j + 2] * z - C[j + 3]
         if h >= best or -h >= best:
             continue  # its plane is already farther than the best
         # or the rectangle in its plane that holds it: the height over the plane and how far
         # the foot lies beyond the rectangle bound it
-        if h * h + record_beyond2(R, j, x - R[j + 4], y - R[j + 5], z - R[j + 6]) >= best2:
+        if h * h + record_beyond2(C, j, x - C[j + 4], y - C[j + 5], z - C[j + 6]) >= best2:
             continue
-        i = int(R[j + R_ROW])
+        i = int(C[j + R_ROW])
         if i == bi:
             continue
         d2, rx, ry, rz, f = closest(T, i, x, y, z)
@@ -197,8 +192,8 @@ def _nearest_bound(q, s, node):
 @njit(cache=True, error_model="numpy", inline="always")
 def _nearest_leaf(q, s, leaf):
     """The nearest so far after the triangles of a leaf."""
-    j0, j1 = leaf_records(q.rec, leaf, q.n)
-    return _nearest_run(q, q.C, j0, j1, s)
+    j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
+    return _nearest_run(q, j0, j1, s)
 
 
 _nearest_walk = depth_first(_nearest_bound, _nearest_leaf, limit=best_so_far)
@@ -217,27 +212,26 @@ def _ball_holds(T, i, sx, sy, sz, radius, cx, cy, cz, rho):
 
 
 @njit(cache=True, error_model="numpy")
-def _ball_few(sh, k, i, cx, cy, cz, rho):
-    """The ball certificate of row i at c: how many triangles (listed in scan[SCAN_FEW:]) besides
+def _ball_few(S, T, C, k, i, cx, cy, cz, rho):
+    """The ball certificate of row i at c: how many triangles (listed in C[C_FEW:]) besides
     row i may come within rho (m) of c, and the unit normal of the side of row i that c is
     on; -1 when the ball of radius rho about c is not inside a ball resting on row i on that
     side, or the face has no ball list there."""
-    T = sh.T
-    radius = sh.S[k].ball
+    radius = S[k].ball
     if radius <= 0.0:  # none built: the mesh is coarse enough for its patches
         return -1, 0.0, 0.0, 0.0
     side = 1.0
     nx, ny, nz = T[i, T_N], T[i, T_N + 1], T[i, T_N + 2]
     if nx * (cx - T[i, 0]) + ny * (cy - T[i, 1]) + nz * (cz - T[i, 2]) < 0.0:
         nx, ny, nz, side = -nx, -ny, -nz, -1.0
-    m = face_few(sh.TI, sh.CI, sh.scan, i, side, 0, TI_BALL)
+    m = face_few(T, C, i, side, 0, T_BALL)
     if m < 0 or not _ball_holds(T, i, nx, ny, nz, radius, cx, cy, cz, rho):
         return -1, nx, ny, nz
     return m, nx, ny, nz
 
 
 @njit(cache=True, error_model="numpy")
-def _nearest(sh, k, sl, x, y, z):
+def _nearest(S, T, C, k, sl, x, y, z):
     """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame),
     for a query of hint slot sl.
 
@@ -247,43 +241,41 @@ def _nearest(sh, k, sl, x, y, z):
     nearer; else the slot's patch when it holds the ball of the hint's distance, or the box
     tree walked nearest node first, leaving out every node farther than the best found (the
     hint's, to begin with)."""
-    SD, T, scan = sh.SD, sh.T, sh.scan
     best2 = math.inf
     qx = qy = qz = 0.0
     bf = 0
-    bi = int(SD[k].hint)
+    bi = int(S[k].hint)
     at, m, cut = -1, 0, -1
     if bi >= 0:
-        best2, qx, qy, qz, bf, bi = _from_hint(sh, k, bi, x, y, z)
+        best2, qx, qy, qz, bf, bi = _from_hint(S, T, C, k, bi, x, y, z)
         if best2 > 0.0:
             best = math.sqrt(best2)
-            m = static_clear(sh, k, bi, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, 2.0 * best)
+            m = static_clear(S, T, C, k, bi, bf, (x - qx) / best, (y - qy) / best, (z - qz) / best, 2.0 * best)
             if m < 0:
-                m = _ball_few(sh, k, bi, x, y, z, best)[0]
+                m = _ball_few(S, T, C, k, bi, x, y, z, best)[0]
             if m >= 0:
                 hint = bi
                 for j in range(m):
-                    i = scan[SCAN_FEW + j]
+                    i = int(C[C_FEW + j])
                     if i != hint:
                         d2, rx, ry, rz, f = closest(T, i, x, y, z)
                         if d2 < best2:
                             best2, qx, qy, qz, bf, bi = d2, rx, ry, rz, f, i
-                SD[k].hint = bi
+                S[k].hint = bi
                 return math.sqrt(best2), qx, qy, qz, bf, bi
-        at, m, cut = slot_patch(sh, k, sl, x, y, z, x, y, z, math.sqrt(best2))
-    size, n, base, rec = tree_of(sh.S, k)
-    q = Nearest(T, sh.C, rec, n, base, x, y, z)
+        at, m, cut = slot_patch(S, C, k, sl, x, y, z, x, y, z, math.sqrt(best2))
+    tree, size, n, base = tree_of(S, C, k)
+    q = Nearest(T, C, tree, n, base, x, y, z)
     if at >= 0:
         j0 = at + P_RECORDS
-        best2, qx, qy, qz, bf, bi = _nearest_run(q, sh.P, j0, j0 + m * RECORD_WIDTH, (best2, qx, qy, qz, bf, bi))
-        SD[k].hint = bi
+        best2, qx, qy, qz, bf, bi = _nearest_run(q, j0, j0 + m * RECORD_WIDTH, (best2, qx, qy, qz, bf, bi))
+        S[k].hint = bi
         return math.sqrt(best2), qx, qy, qz, bf, bi
     # the box tree, nearest node first (from the cut, when the slot noted one); a node whose
     # boxes lie farther than the best found holds nothing nearer
-    P = sh.P
-    s, _ = _nearest_walk(size, P[cut:] if cut >= 0 else P[:0], q, (best2, qx, qy, qz, bf, bi), depth_scratch())
+    s, _ = _nearest_walk(size, C[cut:] if cut >= 0 else C[:0], q, (best2, qx, qy, qz, bf, bi), depth_scratch())
     best2, qx, qy, qz, bf, bi = s
-    SD[k].hint = bi
+    S[k].hint = bi
     return math.sqrt(best2), qx, qy, qz, bf, bi
 
 
@@ -317,17 +309,17 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
 
 
 @njit(cache=True, error_model="numpy")
-def _local_distance(sh, k, sl, x, y, z):
+def _local_distance(S, T, C, k, sl, x, y, z):
     """Signed distance (m) and outward normal at p, geom frame, for a query of hint slot sl."""
-    best, qx, qy, qz, feature, i = _nearest(sh, k, sl, x, y, z)
-    return _answer(sh.S, sh.T, k, x, y, z, best, qx, qy, qz, feature, i)
+    best, qx, qy, qz, feature, i = _nearest(S, T, C, k, sl, x, y, z)
+    return _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i)
 
 
 @njit(cache=True, error_model="numpy")
-def _keep(SD, k, sl, x, y, z, d, nx, ny, nz, row):
+def _keep(S, k, sl, x, y, z, d, nx, ny, nz, row):
     """Keep the answer (signed distance (m), outward normal, row of T of the nearest point)
     at p (geom frame) as the newest of the two of mesh k's hint slot sl, the older dropped."""
-    key = SD[k].key
+    key = S[k].key
     for c in range(KEPT_WIDTH):
         key[sl, SLOT_KEPT + KEPT_WIDTH + c] = key[sl, SLOT_KEPT + c]
     c = SLOT_KEPT + KEPT_POINT
@@ -338,13 +330,13 @@ def _keep(SD, k, sl, x, y, z, d, nx, ny, nz, row):
 
 
 @njit(cache=True, error_model="numpy")
-def _slot(SD, k, x, y, z):
+def _slot(S, k, x, y, z):
     """The hint slot of mesh k a query at p (geom frame) keeps its state in, and the hint it
     starts from: the slot whose last query was nearest p, if within SLOT_NEAR, else the one
     used longest ago; the hint of the nearest slot (a finger's own, when each finger keeps to
     its part of the mesh), or the mesh's last hint when no slot holds one. So fingers on one
     mesh do not take each other's hints and kept answers."""
-    key = SD[k].key
+    key = S[k].key
     best, best2 = -1, math.inf
     old, oldest = 0, math.inf
     for s in range(HINT_SLOTS):
@@ -358,15 +350,15 @@ def _slot(SD, k, x, y, z):
         if d2 < best2 and key[s, SLOT_HINT] >= 0.0:
             best, best2 = s, d2
     if best < 0:
-        return old, int(SD[k].hint)
+        return old, int(S[k].hint)
     hint = int(key[best, SLOT_HINT])
     return (best if best2 <= SLOT_NEAR * SLOT_NEAR else old), hint
 
 
 @njit(cache=True, error_model="numpy")
-def _touch(SD, k, sl, x, y, z, hint):
+def _touch(S, k, sl, x, y, z, hint):
     """Slot sl of mesh k was used last, by a query at p (geom frame) that ended on row `hint`."""
-    key = SD[k].key
+    key = S[k].key
     newest = 0.0
     for s in range(HINT_SLOTS):
         if key[s, SLOT_AGE] > newest:
@@ -395,27 +387,27 @@ def _to_world(xmat, g, x, y, z):
 @njit(cache=True, error_model="numpy")
 def mesh_distance(sh, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
-    the outward unit normal, world frame; SD[k].feature is then the row of T of the nearest
+    the outward unit normal, world frame; S[k].feature is then the row of T of the nearest
     point. Each hint slot (`_slot`) keeps its last two answers, keyed by the point in the
     geom frame, where the triangles never move (the god-object asks again about the point it
     holds, about the point it moved to, and about a sweep's start whose nearest point the
     sweep proved)."""
-    S, SD, xpos, xmat = sh.S, sh.SD, sh.xpos, sh.xmat
+    S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
     lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
-    sl, hint = _slot(SD, k, lx, ly, lz)
-    key = SD[k].key
+    sl, hint = _slot(S, k, lx, ly, lz)
+    key = S[k].key
     a, b = SLOT_KEPT, SLOT_KEPT + KEPT_WIDTH
     if not (lx == key[sl, a] and ly == key[sl, a + 1] and lz == key[sl, a + 2]):
         if lx == key[sl, b] and ly == key[sl, b + 1] and lz == key[sl, b + 2]:
             for c in range(KEPT_WIDTH):  # the older one: swap the two
                 key[sl, a + c], key[sl, b + c] = key[sl, b + c], key[sl, a + c]
         else:
-            SD[k].hint = hint
-            d, nx, ny, nz = _local_distance(sh, k, sl, lx, ly, lz)
-            _keep(SD, k, sl, lx, ly, lz, d, nx, ny, nz, SD[k].hint)
-            _touch(SD, k, sl, lx, ly, lz, SD[k].hint)
-    SD[k].feature = int(key[sl, a + KEPT_ROW])
+            S[k].hint = hint
+            d, nx, ny, nz = _local_distance(S, T, C, k, sl, lx, ly, lz)
+            _keep(S, k, sl, lx, ly, lz, d, nx, ny, nz, S[k].hint)
+            _touch(S, k, sl, lx, ly, lz, S[k].hint)
+    S[k].feature = int(key[sl, a + KEPT_ROW])
     n = a + KEPT_NORMAL
     nx, ny, nz = _to_world(xmat, g, key[sl, n], key[sl, n + 1], key[sl, n + 2])
     return key[sl, a + KEPT_DISTANCE], nx, ny, nz
@@ -449,10 +441,10 @@ def mesh_walk_distance(sh, k, row, x, y, z):
     Unsigned: a walk may end on a nearest triangle of its own across the mesh, and p behind
     that one is not inside (a point proxy 4 cm from a sphere's far side was taken for
     resting on it, and floated 4 mm off the sphere with the device inside)."""
-    S, T, xpos, xmat = sh.S, sh.T, sh.xpos, sh.xmat
+    S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
     lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
-    d2, qx, qy, qz, f, i = _from_hint(sh, k, row, lx, ly, lz)
+    d2, qx, qy, qz, f, i = _from_hint(S, T, C, k, row, lx, ly, lz)
     d, nx, ny, nz = _answer(S, T, k, lx, ly, lz, math.sqrt(d2), qx, qy, qz, f, i)
     if d < 0.0:
         d, nx, ny, nz = -d, -nx, -ny, -nz
@@ -460,8 +452,8 @@ def mesh_walk_distance(sh, k, row, x, y, z):
     return d, nx, ny, nz, i
 
 
-Sweeping = namedtuple("Sweeping", "T C scan rec n base stamp sweep slab reach length slack cull pnx pny pnz poff")
-"""A sweep's tree walk on mesh tables T, C and the scans' marks: mesh k's tree (`tree_of`), the scan's stamp, the
+Sweeping = namedtuple("Sweeping", "T C tree n base stamp sweep slab reach length slack cull pnx pny pnz poff")
+"""A sweep's tree walk on mesh tables T, C: mesh k's tree (`tree_of`), the scan's stamp, the
 sweep, how near (m) a triangle must come to it (`slab`), its reach and length (m), what its
 nodes' boxes were grown by (`slack`, m), and when `cull`, the plane p·x = poff it stays r
 above. Its walk's state: the earliest touch so far (lam, normal, row of T; -1 for none) and
@@ -469,40 +461,39 @@ far² (m², how far a triangle may lie from the start and be touched before it).
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_run(q, R, j0, j1, s):
-    """Sweep the sphere against the triangles of the records R[j0:j1] (a tree's in C, or a
-    patch's copies in P) not read yet this scan;
+def _sweep_run(q, j0, j1, s):
+    """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
     returns the state: the earliest hit so far (lam, normal, row of T; -1 for none) and the
     new far². Only the part of the segment before the earliest hit so far (lam < best_lam) is
     tested; when `cull`, not the triangles whose rectangle lies wholly behind the plane p·x =
     poff (a tangent plane the sphere stays r above all the way)."""
-    T, scan, stamp, sweep, slab, reach, length = q.T, q.scan, q.stamp, q.sweep, q.slab, q.reach, q.length
+    T, C, stamp, sweep, slab, reach, length = q.T, q.C, q.stamp, q.sweep, q.slab, q.reach, q.length
     best_lam, bnx, bny, bnz, bi, far2 = s
     ax, ay, az, ux, uy, uz, r, _, _ = sweep
     bx, by, bz = ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz  # where that part ends
     for j in range(j0, j1, RECORD_WIDTH):
         # a segment that stays more than r off the plane, on one side, never reaches it
-        h0 = R[j] * ax + R[j + 1] * ay + R[j + 2] * az - R[j + 3]
-        hd = R[j] * ux + R[j + 1] * uy + R[j + 2] * uz
+        h0 = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
+        hd = C[j] * ux + C[j + 1] * uy + C[j + 2] * uz
         h1 = h0 + best_lam * hd
         if (h0 > slab and h1 > slab) or (h0 < -slab and h1 < -slab):
             continue
         # nor one that stays r off it and does not touch the triangle at the start (sliding
         # over a flat patch): the rectangle in its plane that holds it bounds its distance
         if (h0 >= r and h1 >= r) or (h0 <= -r and h1 <= -r):
-            beyond2 = record_beyond2(R, j, ax - R[j + 4], ay - R[j + 5], az - R[j + 6])
+            beyond2 = record_beyond2(C, j, ax - C[j + 4], ay - C[j + 5], az - C[j + 6])
             if beyond2 > 0.0 and h0 * h0 + beyond2 > slab * slab:
                 continue
         # nor one that stays more than r off the rectangle in its plane that holds it along
         # the part of the segment before the earliest touch found
-        if record_gap2(R, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
+        if record_gap2(C, j, ax, ay, az, bx, by, bz, h0, h1) > slab * slab:
             continue
-        if q.cull and record_top(R, j, q.pnx, q.pny, q.pnz) <= q.poff:
+        if q.cull and record_top(C, j, q.pnx, q.pny, q.pnz) <= q.poff:
             continue
-        i = int(R[j + R_ROW])
-        if scan[SCAN_STAMPS + i] == stamp:
+        i = int(C[j + R_ROW])
+        if C[C_STAMPS + i] == stamp:
             continue
-        scan[SCAN_STAMPS + i] = stamp
+        C[C_STAMPS + i] = stamp
         lam, mx, my, mz, _ = sweep_triangle(T, i, sweep, far2)
         if lam >= 0.0 and lam < best_lam:
             best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, i
@@ -530,8 +521,8 @@ def _sweep_opened(q, s, node):
 @njit(cache=True, error_model="numpy", inline="always")
 def _sweep_leaf(q, s, leaf):
     """The earliest touch so far after the triangles of a leaf."""
-    j0, j1 = leaf_records(q.rec, leaf, q.n)
-    return _sweep_run(q, q.C, j0, j1, s)
+    j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
+    return _sweep_run(q, j0, j1, s)
 
 
 _sweep_walk = depth_first(_sweep_bound, _sweep_leaf, limit=best_so_far, opened=_sweep_opened, rebound=True)
@@ -541,32 +532,32 @@ entry was is entered again up to that touch)."""
 
 
 @njit(cache=True, error_model="numpy")
-def _hit(sh, k, g, tri, lam, nx, ny, nz, sweep):
+def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, sweep):
     """The touch of row `tri` at fraction lam: its normal (geom frame) shaded when asked (while
     the shaded one still opposes the motion) and turned into the world frame; the triangle
     becomes the hint and the answer's feature."""
     ax, ay, az, ux, uy, uz, r, _, graze = sweep
-    sh.SD[k].hint = sh.SD[k].feature = tri
-    if sh.S[k].shading:
+    S[k].hint = S[k].feature = tri
+    if S[k].shading:
         qx, qy, qz = ax + lam * ux - r * nx, ay + lam * uy - r * ny, az + lam * uz - r * nz
-        sx, sy, sz = shade(sh.T, tri, qx, qy, qz, nx, ny, nz)
+        sx, sy, sz = shade(T, tri, qx, qy, qz, nx, ny, nz)
         if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
             nx, ny, nz = sx, sy, sz
-    nx, ny, nz = _to_world(sh.xmat, g, nx, ny, nz)
+    nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
     return lam, nx, ny, nz
 
 
 @njit(cache=True, error_model="numpy")
-def _few_run(T, scan, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
+def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
     """The earliest touch (lam, normal, row; row -1 for none) among the m triangles in
-    scan[SCAN_FEW:] and the hint's own (lam < 0: none); when sd2 >= 0, also the start's nearest
+    C[C_FEW:] and the hint's own (lam < 0: none); when sd2 >= 0, also the start's nearest
     point among them and the hint's (sd2, q, feature sf): (…, sd2, q, sf, its row)."""
     ax, ay, az, ux, uy, uz, r, _, _ = sweep
     best_lam, bi = (lam, hint) if lam >= 0.0 else (1.0, -1)
     si = hint
     slab = r + CONTACT_TOL + 1e-12
     for j in range(m):
-        i = scan[SCAN_FEW + j]
+        i = int(C[C_FEW + j])
         if i == hint:
             continue
         if sd2 >= 0.0:  # before the slab test: a triangle the segment never reaches may still be nearest
@@ -585,31 +576,31 @@ def _few_run(T, scan, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my,
 
 
 @njit(cache=True, error_model="numpy")
-def _few_answer(sh, k, sl, g, best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si, sweep):
+def _few_answer(S, T, k, xmat, sl, g, best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si, sweep):
     """`mesh_sweep`'s answer from `_few_run`'s: the touch (`_hit`), and the start's nearest
     point kept for `mesh_distance` when it was asked for (sd2 >= 0)."""
     ax, ay, az = sweep.ax, sweep.ay, sweep.az
     if sd2 >= 0.0:
-        d, nx, ny, nz = _answer(sh.S, sh.T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
-        _keep(sh.SD, k, sl, ax, ay, az, d, nx, ny, nz, si)
-        sh.SD[k].hint = si
+        d, nx, ny, nz = _answer(S, T, k, ax, ay, az, math.sqrt(sd2), sqx, sqy, sqz, sf, si)
+        _keep(S, k, sl, ax, ay, az, d, nx, ny, nz, si)
+        S[k].hint = si
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
-    return _hit(sh, k, g, bi, best_lam, mx, my, mz, sweep)
+    return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, sweep)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_few(sh, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
-    """The end of `mesh_sweep` when a certificate left the m triangles in scan[SCAN_FEW:] to read
+def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
+    """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
     besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When
     sd2 >= 0 the start's nearest point is the hint's (sd2, q, feature sf) or one of theirs,
     and its answer is kept for `mesh_distance`."""
-    out = _few_run(sh.T, sh.scan, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz)
-    return _few_answer(sh, k, sl, g, *out, sweep)
+    out = _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz)
+    return _few_answer(S, T, k, xmat, sl, g, *out, sweep)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_ball(sh, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2):
+def _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2):
     """`mesh_sweep` by the ball certificate of the start's nearest row `hint` (at d2, q,
     `feature`), for a sweep not moving into it: the earliest touch among its ball list, when
     the sphere (and the start's ball of radius its distance) lies inside a ball resting on
@@ -617,49 +608,48 @@ def _sweep_ball(sh, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2):
     test is convex along the segment). (True, answer) or (False, …) when it does not hold."""
     ax, ay, az, ux, uy, uz, r, _, _ = sweep
     reach = r + CONTACT_TOL
-    S, T = sh.S, sh.T
-    m, sx, sy, sz = _ball_few(sh, k, hint, ax, ay, az, max(reach, math.sqrt(d2)))
+    m, sx, sy, sz = _ball_few(S, T, C, k, hint, ax, ay, az, max(reach, math.sqrt(d2)))
     if m < 0:
         return False, (-1.0, 0.0, 0.0, 0.0)
-    out = _few_run(T, sh.scan, m, hint, d2, qx, qy, qz, feature, sweep, far2,
+    out = _few_run(T, C, m, hint, d2, qx, qy, qz, feature, sweep, far2,
                    -1.0, 0.0, 0.0, 0.0)
     lam = out[0] if out[4] >= 0 else 1.0
     if not _ball_holds(T, hint, sx, sy, sz, S[k].ball, ax + lam * ux, ay + lam * uy, az + lam * uz, reach):
         return False, (-1.0, 0.0, 0.0, 0.0)
-    return True, _few_answer(sh, k, sl, g, *out, sweep)
+    return True, _few_answer(S, T, k, xmat, sl, g, *out, sweep)
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_certified(sh, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz, span, sweep, far2):
+def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz, span, sweep, far2):
     """`mesh_sweep` of a sphere staying r above the tangent plane (normal n) at the start's
     nearest point q on row `hint` (at d2, `feature`), by the kept certificates: the triangles
     rising above that plane within `span` (m), or where too many do, a ball resting on the
     hint's face that holds the sphere all the way (a concave patch finer than the proxy: only
     the neighbours rising into that ball). (True, answer) or (False, …) when neither holds."""
-    m = static_clear(sh, k, hint, feature, nx, ny, nz, span)
+    m = static_clear(S, T, C, k, hint, feature, nx, ny, nz, span)
     if m >= 0:
-        return True, _sweep_few(sh, k, sl, g, m, hint, d2, qx, qy, qz, feature, sweep, far2, -1.0, 0.0, 0.0, 0.0)
-    return _sweep_ball(sh, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2)
+        return True, _sweep_few(S, T, C, xmat, k, sl, g, m, hint, d2, qx, qy, qz, feature, sweep, far2, -1.0, 0.0, 0.0, 0.0)
+    return _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2)
 
 
 @njit(cache=True, error_model="numpy")
 def mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none (`_sweep`), from
-    and into the hint slot of its start (`_slot`). After a touch SD[k].feature is the row of T
+    and into the hint slot of its start (`_slot`). After a touch S[k].feature is the row of T
     touched (`_hit`)."""
-    SD, xpos, xmat = sh.SD, sh.xpos, sh.xmat
-    g = int(sh.S[k].geom)
+    S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
+    g = int(S[k].geom)
     ax, ay, az = _to_geom(xmat, g, x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2])
-    sl, hint = _slot(SD, k, ax, ay, az)
-    SD[k].hint = hint
-    out = _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r)
-    _touch(SD, k, sl, ax, ay, az, SD[k].hint)
+    sl, hint = _slot(S, k, ax, ay, az)
+    S[k].hint = hint
+    out = _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r)
+    _touch(S, k, sl, ax, ay, az, S[k].hint)
     return out
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
+def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     a (geom frame) by d (m, world) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none.
 
@@ -683,26 +673,25 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
     reach = r + CONTACT_TOL
     far = reach + length
     far2 = far * far
-    S, T, C, scan = sh.S, sh.T, sh.C, sh.scan
     g = int(S[k].geom)
-    ux, uy, uz = _to_geom(sh.xmat, g, dx, dy, dz)
+    ux, uy, uz = _to_geom(xmat, g, dx, dy, dz)
     sweep = Sweep(ax, ay, az, ux, uy, uz, r, dd, graze)
     best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
     cull, pnx, pny, pnz, poff = False, 0.0, 0.0, 0.0, 0.0
-    hint0 = int(sh.SD[k].hint)
+    hint0 = int(S[k].hint)
     if hint0 >= 0:
-        d2, qx, qy, qz, feature, hint = _from_hint(sh, k, hint0, ax, ay, az)
+        d2, qx, qy, qz, feature, hint = _from_hint(S, T, C, k, hint0, ax, ay, az)
         if d2 <= reach * reach and d2 > 1e-24:
             dist = math.sqrt(d2)
             nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
             into = nx * ux + ny * uy + nz * uz
             if pressed(dist, into, r, graze):  # pressed into the one it touches: nothing comes earlier
-                return _hit(sh, k, g, hint, 0.0, nx, ny, nz, sweep)
+                return _hit(S, T, k, xmat, g, hint, 0.0, nx, ny, nz, sweep)
             if dist >= r - CONTACT_TOL and dist + into >= r - CONTACT_TOL:
                 # moving along or away, r above the hint's tangent plane from start to end (a
                 # sphere that dips below it may overlap a triangle behind it): only the
                 # triangles reaching above it can be touched
-                held, out = _sweep_certified(sh, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
+                held, out = _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
                                              2.0 * reach + length, sweep, far2)
                 if held:
                     return out
@@ -714,7 +703,7 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
             lam, mx, my, mz, f = sweep_triangle(T, hint, sweep, far2)
             if lam >= 0.0 and EDGE_AB <= f < VERTEX_A:
                 # touched on an edge: the neighbour across it may be touched first
-                other = sh.TI[hint, TI_ADJ + f - EDGE_AB]
+                other = int(T[hint, T_ADJ + f - EDGE_AB])
                 if other >= 0:
                     lam2, nx, ny, nz, f2 = sweep_triangle(T, other, sweep, far2)
                     if lam2 >= 0.0 and lam2 < lam:
@@ -725,18 +714,18 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
                 sx, sy, sz = ax + lam * ux, ay + lam * uy, az + lam * uz
                 c2, cx, cy, cz, cf = closest(T, hint, sx, sy, sz)
                 if cf >= VERTEX_A:
-                    walked = _walk(sh, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
+                    walked = _walk(S, T, C, k, hint, c2, cx, cy, cz, cf, sx, sy, sz)[5]
                     if walked != hint:
                         lam2, nx, ny, nz, f2 = sweep_triangle(T, walked, sweep, far2)
                         if lam2 >= 0.0 and lam2 < lam:
                             lam, mx, my, mz, f, hint = lam2, nx, ny, nz, f2, walked
             if lam >= 0.0:
                 if lam == 0.0:
-                    return _hit(sh, k, g, hint, 0.0, mx, my, mz, sweep)
+                    return _hit(S, T, k, xmat, g, hint, 0.0, mx, my, mz, sweep)
                 # up to the touch the sphere stays r above the tangent plane there
-                m = static_clear(sh, k, hint, f, mx, my, mz, 2.0 * reach + lam * length)
+                m = static_clear(S, T, C, k, hint, f, mx, my, mz, 2.0 * reach + lam * length)
                 if m >= 0:
-                    return _sweep_few(sh, k, sl, g, m, hint, -1.0, 0.0, 0.0, 0.0, 0, sweep, far2, lam, mx, my, mz)
+                    return _sweep_few(S, T, C, xmat, k, sl, g, m, hint, -1.0, 0.0, 0.0, 0.0, 0, sweep, far2, lam, mx, my, mz)
                 best_lam, bnx, bny, bnz, bi = lam, mx, my, mz, hint
                 far = reach + lam * length  # only the segment before this touch matters now
                 far2 = far * far
@@ -746,33 +735,32 @@ def _sweep(sh, k, sl, ax, ay, az, dx, dy, dz, r):
                 dist = math.sqrt(d2)
                 nx, ny, nz = (ax - qx) / dist, (ay - qy) / dist, (az - qz) / dist
                 if dist + nx * ux + ny * uy + nz * uz >= r - CONTACT_TOL:
-                    held, out = _sweep_certified(sh, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
+                    held, out = _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz,
                                                  dist + reach + length, sweep, far2)
                     if held:
                         return out
     slab = reach + 1e-12
-    scan[SCAN_COUNT] += 1
-    stamp = scan[SCAN_COUNT]
+    C[C_STAMP] += 1.0
+    stamp = C[C_STAMP]
     if bi >= 0:
-        scan[SCAN_STAMPS + bi] = stamp
+        C[C_STAMPS + bi] = stamp
     # the slot's patch, when it holds every triangle within the slab of the segment before
     # the earliest touch found (a finger pressed into a concave patch sweeps ten times a tick
     # about one point)
-    at, m, cut = slot_patch(sh, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
-    size, n, base, rec = tree_of(S, k)
+    at, m, cut = slot_patch(S, C, k, sl, ax, ay, az, ax + best_lam * ux, ay + best_lam * uy, az + best_lam * uz, slab)
+    tree, size, n, base = tree_of(S, C, k)
     slack = 2.0 * TREE_MARGIN * (1.0 + S[k].rbound)
-    q = Sweeping(T, C, scan, rec, n, base, stamp, sweep, slab, reach, length, slack, cull, pnx, pny, pnz, poff)
+    q = Sweeping(T, C, tree, n, base, stamp, sweep, slab, reach, length, slack, cull, pnx, pny, pnz, poff)
     s = (best_lam, bnx, bny, bnz, bi, far2)
     if at >= 0:
         j0 = at + P_RECORDS
-        s = _sweep_run(q, sh.P, j0, j0 + m * RECORD_WIDTH, s)
+        s = _sweep_run(q, j0, j0 + m * RECORD_WIDTH, s)
     else:
         # the box tree (from the cut, when the slot noted one): the nodes the segment
         # enters, grown by the reach, earliest entry first; a node entered after the
         # earliest touch found holds no earlier one
-        P = sh.P
-        s, _ = _sweep_walk(size, P[cut:] if cut >= 0 else P[:0], q, s, depth_scratch())
+        s, _ = _sweep_walk(size, C[cut:] if cut >= 0 else C[:0], q, s, depth_scratch())
     best_lam, bnx, bny, bnz, bi, far2 = s
     if bi < 0:
         return (-1.0, 0.0, 0.0, 0.0)
-    return _hit(sh, k, g, bi, best_lam, bnx, bny, bnz, sweep)
+    return _hit(S, T, k, xmat, g, bi, best_lam, bnx, bny, bnz, sweep)

@@ -57,12 +57,12 @@ tree walk it saves: ~3 µs an update)."""
 
 
 @njit(cache=True, error_model="numpy")
-def slot_patch(sh, k, sl, ax, ay, az, bx, by, bz, need):
-    """Where the patch of mesh k's hint slot sl is in sh.P, and how many of its records (the
+def slot_patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
+    """Where the patch of mesh k's hint slot sl is in C, and how many of its records (the
     first ones) may lie within `need` (m) of the segment a..b (geom frame; a point when
     a = b), gathered now if its capsule does not hold the query's, and -1; or (-1, 0, cut)
     when so many triangles are there that the box tree serves the query instead, from the
-    nodes of the cut at P[cut] (-1: from the root, as when the shape keeps no patches:
+    nodes of the cut at C[cut] (-1: from the root, as when the shape keeps no patches:
     S.patch -1).
 
     A capsule gathered or found too full where the slot has slid since its last one is
@@ -70,24 +70,23 @@ def slot_patch(sh, k, sl, ax, ay, az, bx, by, bz, need):
     slides on, so a strip a few triangles wide serves as long a slide as a round capsule of
     hundreds (the too-full capsule: PATCH_KEEP beyond the query, stretched PATCH_MARGIN; the
     patch: PATCH_AHEAD)."""
-    S, C, P = sh.S, sh.C, sh.P
-    if S[k].patchadr < 0:
+    if S[k].patch < 0:
         return -1, 0, -1
     if not finite(abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz) + need):
         # a query off the map (NaN, inf) never becomes a capsule: NaN compares false, and
         # every later query in the slot would take the patch for holding it
         return -1, 0, -1
-    at = int(S[k].patchadr) + PATCH_WIDTH * sl
-    gap = capsule_gap(P, at, ax, ay, az, bx, by, bz)
-    if gap + need > P[at + P_RADIUS]:
+    at = int(S[k].patch) + PATCH_WIDTH * sl
+    gap = capsule_gap(C, at, ax, ay, az, bx, by, bz)
+    if gap + need > C[at + P_RADIUS]:
         f = at + P_FULL
         qx, qy, qz = bx - ax, by - ay, bz - az
         length = math.sqrt(qx * qx + qy * qy + qz * qz)
-        inside = capsule_gap(P, f, ax, ay, az, bx, by, bz) + need <= P[f + 6]
+        inside = capsule_gap(C, f, ax, ay, az, bx, by, bz) + need <= C[f + 6]
         # inside a capsule found too full, the tree serves the query, unless every query
         # found too full in it was much wider or longer than this one (a long sweep's), as
         # a smaller capsule may not be too full
-        close = inside and need + 2.0 * PATCH_KEEP >= P[f + 8] and length + 2.0 * PATCH_KEEP >= P[f + 7]
+        close = inside and need + 2.0 * PATCH_KEEP >= C[f + 8] and length + 2.0 * PATCH_KEEP >= C[f + 7]
         if close:
             # a finger held still asks about one place tick after tick (its frictionless
             # proxy's sweep along the planes it is pressed into): a patch only PATCH_CLOSE
@@ -95,48 +94,48 @@ def slot_patch(sh, k, sl, ax, ay, az, bx, by, bz, need):
             # (a fan of slivers). A sliding finger asks twice about one place at the turn of a
             # tick, and outgrows such a patch a tick later: where it has moved on from the
             # last one, the patch is stretched ahead along the slide
-            key = sh.SD[k].key
+            key = S[k].key
             ex, ey, ez = ax - key[sl, 0], ay - key[sl, 1], az - key[sl, 2]  # from its last query
-            if P[f + 9] != 0.0 or length > PATCH_STILL or ex * ex + ey * ey + ez * ez > PATCH_STILL * PATCH_STILL:
+            if C[f + 9] != 0.0 or length > PATCH_STILL or ex * ex + ey * ey + ez * ez > PATCH_STILL * PATCH_STILL:
                 return -1, 0, at + P_CUT
         # a patch gathered now is stretched ahead along the slot's slide; the query's end
         # strays `gap` off it
-        cx, cy, cz, gap = _ahead(P, at, P[at + P_RADIUS] > 0.0, ax, ay, az, bx, by, bz, PATCH_AHEAD)
+        cx, cy, cz, gap = _ahead(C, at, C[at + P_RADIUS] > 0.0, ax, ay, az, bx, by, bz, PATCH_AHEAD)
         if close:
-            if not _gather(S, C, P, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_CLOSE,
+            if not _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_CLOSE,
                            need + gap + 0.5 * PATCH_CLOSE):
-                P[f + 9] = 1.0  # too full even that close: no more tries in this capsule
+                C[f + 9] = 1.0  # too full even that close: no more tries in this capsule
                 return -1, 0, at + P_CUT
-            return _read(P, at, gap, need)
+            return _read(C, at, gap, need)
         keep = PATCH_KEEP_AHEAD if cx != bx or cy != by or cz != bz else PATCH_KEEP
-        if _gather(S, C, P, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_MARGIN, need + gap + keep):
-            return _read(P, at, gap, need)
+        if _gather(S, C, k, at, ax, ay, az, cx, cy, cz, need + gap + PATCH_MARGIN, need + gap + keep):
+            return _read(C, at, gap, need)
         if inside:  # noted in it (its cut holds this capsule's triangles too)
-            P[f + 7], P[f + 8] = min(P[f + 7], length), min(P[f + 8], need)
+            C[f + 7], C[f + 8] = min(C[f + 7], length), min(C[f + 8], need)
         else:
             # the capsule found too full, PATCH_KEEP beyond the query and stretched
             # PATCH_MARGIN ahead: its cut lies deeper in the tree than a round one's of
             # PATCH_MARGIN, and serves as long a slide
-            cx, cy, cz, off = _ahead(P, f, P[f + 6] > 0.0, ax, ay, az, bx, by, bz, PATCH_MARGIN)
-            P[f], P[f + 1], P[f + 2], P[f + 3], P[f + 4], P[f + 5] = ax, ay, az, cx, cy, cz
-            P[f + 6], P[f + 7], P[f + 8], P[f + 9] = need + off + PATCH_KEEP, length, need, 0.0
-            _cut(S, C, P, k, at + P_CUT, ax, ay, az, cx, cy, cz, need + off + PATCH_KEEP)
+            cx, cy, cz, off = _ahead(C, f, C[f + 6] > 0.0, ax, ay, az, bx, by, bz, PATCH_MARGIN)
+            C[f], C[f + 1], C[f + 2], C[f + 3], C[f + 4], C[f + 5] = ax, ay, az, cx, cy, cz
+            C[f + 6], C[f + 7], C[f + 8], C[f + 9] = need + off + PATCH_KEEP, length, need, 0.0
+            _cut(S, C, k, at + P_CUT, ax, ay, az, cx, cy, cz, need + off + PATCH_KEEP)
         return -1, 0, at + P_CUT
-    return _read(P, at, gap, need)
+    return _read(C, at, gap, need)
 
 
 @njit(cache=True, error_model="numpy")
-def _read(P, at, gap, need):
+def _read(C, at, gap, need):
     """(at, how many of the patch's first records to read, -1) for a query `need` (m) wide
-    whose segment strays `gap` (m) from the patch's at P[at]."""
-    m = int(P[at + P_COUNT])
+    whose segment strays `gap` (m) from the patch's at C[at]."""
+    m = int(C[at + P_COUNT])
     # a triangle within `need` of the query's segment is within gap + need of the patch's, so
     # its key is no more: the keys ascend, the first ones up to that are read
     limit = (gap + need) * (gap + need)
     lo, hi = 0, m
     while lo < hi:
         mid = (lo + hi) // 2
-        if P[at + P_KEYS + mid] <= limit:
+        if C[at + P_KEYS + mid] <= limit:
             lo = mid + 1
         else:
             hi = mid
@@ -144,12 +143,12 @@ def _read(P, at, gap, need):
 
 
 @njit(cache=True, error_model="numpy")
-def _ahead(P, at, kept, ax, ay, az, bx, by, bz, ahead):
+def _ahead(C, at, kept, ax, ay, az, bx, by, bz, ahead):
     """The far end c of a capsule for the query a..b stretched `ahead` (m) along the way its
-    slot travelled since the capsule at P[at] began (when `kept`, and it is 1 µm to 4 mm
+    slot travelled since the capsule at C[at] began (when `kept`, and it is 1 µm to 4 mm
     back: a finger sliding, not one held still or a slot taken over elsewhere), and how far
     (m) b lies off a..c; (b, 0) when not stretched."""
-    tx, ty, tz = ax - P[at], ay - P[at + 1], az - P[at + 2]
+    tx, ty, tz = ax - C[at], ay - C[at + 1], az - C[at + 2]
     tt = math.sqrt(tx * tx + ty * ty + tz * tz)
     if not kept or not 1e-6 < tt < 4e-3:
         return bx, by, bz, 0.0
@@ -159,13 +158,13 @@ def _ahead(P, at, kept, ax, ay, az, bx, by, bz, ahead):
 
 
 @njit(cache=True, error_model="numpy")
-def _cut(S, C, P, k, at, ax, ay, az, bx, by, bz, radius):
-    """Fill the cut at P[at] with the nodes of mesh k's box tree, at the deepest level where at
+def _cut(S, C, k, at, ax, ay, az, bx, by, bz, radius):
+    """Fill the cut at C[at] with the nodes of mesh k's box tree, at the deepest level where at
     most CUT_NODES come within `radius` (m) of the segment a..b (geom frame; a leaf counted
     at every level below its own): every triangle within the capsule lies in one of them, so
     a walk for a query inside it starts there, not at the root (a million triangles make
     seventeen levels, and the sphere lies within reach of two or three nodes of each)."""
-    size, n, base, _ = tree_of(S, k)
+    tree, size, n, base = tree_of(S, C, k)
     ux, uy, uz = bx - ax, by - ay, bz - az
     r2 = radius * radius
     level = np.empty(CUT_NODES, dtype=np.int64)
@@ -199,13 +198,13 @@ def _cut(S, C, P, k, at, ax, ay, az, bx, by, bz, radius):
             break
         level, below = below, level
         m = q
-    P[at] = m
+    C[at] = m
     for i in range(m):
-        P[at + 1 + i] = level[i]
+        C[at + 1 + i] = level[i]
 
 
-Gathering = namedtuple("Gathering", "C rec n base ax ay az bx by bz ux uy uz least keys rows kept")
-"""A patch's gathering from the box trees C: mesh k's tree (`tree_of`), the segment a..b (geom
+Gathering = namedtuple("Gathering", "C tree n base ax ay az bx by bz ux uy uz least keys rows kept")
+"""A patch's gathering on the mesh grids C: mesh k's tree (`tree_of`), the segment a..b (geom
 frame, m; u = b - a), the least radius (m) worth a patch, and the scratch of the records kept:
 a max-heap of their bounds (m²) and their rows in `kept`. Its walk's state: (r2, the radius²
 (m²) gathered out to so far; how many records are kept; whether it gave up: the radius fell
@@ -237,7 +236,7 @@ def _gather_leaf(q, s, leaf):
     all kept so far; when full, the radius shrinks to the least bound left out."""
     C, ax, ay, az, bx, by, bz, keys, rows, kept = q.C, q.ax, q.ay, q.az, q.bx, q.by, q.bz, q.keys, q.rows, q.kept
     r2, m, _ = s
-    j0, j1 = leaf_records(q.rec, leaf, q.n)
+    j0, j1 = leaf_records(C, q.tree, leaf, q.n)
     for j in range(j0, j1, RECORD_WIDTH):
         ha = C[j] * ax + C[j + 1] * ay + C[j + 2] * az - C[j + 3]
         hb = C[j] * bx + C[j + 1] * by + C[j + 2] * bz - C[j + 3]
@@ -269,8 +268,8 @@ _gather_walk = best_first(_gather_bound, _gather_leaf, limit=best_so_far, done=_
 
 
 @njit(cache=True, error_model="numpy")
-def _gather(S, C, P, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
-    """Fill the patch at P[at] with the records of mesh k's triangles nearest the segment a..b
+def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
+    """Fill the patch at C[at] with the records of mesh k's triangles nearest the segment a..b
     (geom frame), out to `radius` (m) from it, or to less where more than PATCH_RECORDS lie
     that near: then those whose lower bound on the distance is least are kept, and the
     capsule's radius becomes the least bound of those left out, so the patch holds every
@@ -284,26 +283,26 @@ def _gather(S, C, P, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER
     full read on until the radius came down: the 1M grid's slowest sliding ticks spent 119 µs
     gathering, now 75). At most `room` nodes wait (FRONTIER); one it has no room for bounds
     the radius."""
-    size, n, base, rec = tree_of(S, k)
+    tree, size, n, base = tree_of(S, C, k)
     # a max-heap of the kept records' bounds (m²) and their rows in `kept`
     keys = np.empty(PATCH_RECORDS)
     rows = np.empty(PATCH_RECORDS, dtype=np.int64)
     kept = np.empty((PATCH_RECORDS, RECORD_WIDTH))
-    q = Gathering(C, rec, n, base, ax, ay, az, bx, by, bz, bx - ax, by - ay, bz - az, least, keys, rows, kept)
+    q = Gathering(C, tree, n, base, ax, ay, az, bx, by, bz, bx - ax, by - ay, bz - az, least, keys, rows, kept)
     (r2, m, given_up), _ = _gather_walk(size, FROM_ROOT, q, (radius * radius, 0, False), best_scratch(room))
     if given_up:
         return False
     order = np.argsort(keys[:m])
     for i in range(m):
         h = order[i]
-        P[at + P_KEYS + i] = keys[h]
+        C[at + P_KEYS + i] = keys[h]
         o = at + P_RECORDS + RECORD_WIDTH * i
         for c in range(RECORD_WIDTH):
-            P[o + c] = kept[rows[h], c]
-    P[at], P[at + 1], P[at + 2] = ax, ay, az
-    P[at + P_END], P[at + P_END + 1], P[at + P_END + 2] = bx, by, bz
+            C[o + c] = kept[rows[h], c]
+    C[at], C[at + 1], C[at + 2] = ax, ay, az
+    C[at + P_END], C[at + P_END + 1], C[at + P_END + 2] = bx, by, bz
     # just under the least bound left out, so that a triangle at exactly that bound is not
     # taken for held
-    P[at + P_RADIUS] = math.sqrt(r2) * (1.0 - 1e-12) if m == PATCH_RECORDS or r2 < radius * radius else radius
-    P[at + P_COUNT] = m
+    C[at + P_RADIUS] = math.sqrt(r2) * (1.0 - 1e-12) if m == PATCH_RECORDS or r2 < radius * radius else radius
+    C[at + P_COUNT] = m
     return True

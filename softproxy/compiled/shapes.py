@@ -171,11 +171,11 @@ def _ellipsoid_local(a, b, c, x, y, z):
 
 
 @njit(cache=True, error_model="numpy")
-def shape_feature(sh, k):
+def shape_feature(S, k):
     """The feature of shape k its last distance query or touching sweep ended on: on a mesh
     the row of T of the triangle, as a float for a plane's column; -1.0 for any other shape
     (its surface is one feature)."""
-    return float(sh.SD[k].feature) if int(sh.S[k].type) == GEOM_MESH else -1.0
+    return float(S[k].feature) if int(S[k].type) == GEOM_MESH else -1.0
 
 
 @njit(cache=True, error_model="numpy")
