@@ -434,7 +434,9 @@ class FingerParams:
                         "moves at <= ~5 m/s)", low=0.0, high=1e4, open_low=True) = 20.0
     soft_start: quantity("s", "after placement the force clamp ramps from 0 to max_force over this (a minute "
                          "is already no force at all to a user)", low=0.0, high=60.0) = 0.1
-    device_finger: count("which finger of the device drives this one", low=0) = 0
+    device: count("which device drives this one: its index among the scene's [[device]] tables (or the "
+                  "--device flags), in order; 0 with one device", low=0) = 0
+    device_finger: count("which finger of its device drives this one", low=0) = 0
     offset: vector3("device-to-world offset, each component inside the workspace", "m",
                     low=-WORKSPACE_LIMIT, high=WORKSPACE_LIMIT) = (0.0, 0.0, 0.0)
     scale: quantity("", "device-to-world workspace scale (1e3 maps 1 mm to 1 m)", low=0.0, high=1e3,
@@ -624,6 +626,10 @@ class DeviceTableAny(BaseModel):
     type: Annotated[Name, Field(description="the device type, e.g. \"sim\", \"hid\"")] = "sim"
 
 
+MAX_DEVICES = 16
+"""Most devices one servo loop drives (two hands need two; more is a mistake in a scene)."""
+
+
 class SceneFile(Table):
     """A scene TOML file: the MJCF beside it and what the haptic side needs (softproxy.scene)."""
 
@@ -633,7 +639,9 @@ class SceneFile(Table):
     measure: Optional[MeasureTable] = None
     finger_defaults: FingerDefaults = Field(default_factory=FingerDefaults)
     finger: Annotated[list[FingerTable], Field(min_length=1, description="one [[finger]] table per finger")]
-    device: DeviceTableAny = Field(default_factory=DeviceTableAny)
+    device: Union[DeviceTableAny, Annotated[list[DeviceTableAny], Field(min_length=1, max_length=MAX_DEVICES)]] = Field(
+        default_factory=DeviceTableAny, description="[device]: the device; or [[device]], one table per device, "
+        "each finger naming its own by `device` (an index)")
     haptics: HapticsTable = Field(default_factory=HapticsTable)
 
 
@@ -921,7 +929,10 @@ def json_schemas() -> dict[str, dict]:
     plugin = {"type": "object", "description": "the table of a device type installed as a plugin",
               "properties": {"type": {"type": "string", "not": {"enum": list(DEVICE_TABLES)}}}, "required": ["type"]}
     shipped = {k: v for k, v in device.items() if k != "$defs"}
-    scene["properties"]["device"] = {"description": DeviceTableAny.__doc__, "anyOf": [shipped, plugin]}
+    one = {"anyOf": [shipped, plugin]}
+    several = {"type": "array", "items": one, "minItems": 1, "maxItems": MAX_DEVICES,
+               "description": "[[device]]: one table per device; a finger names its device by index (`device`)"}
+    scene["properties"]["device"] = {"description": DeviceTableAny.__doc__, "anyOf": [one, several]}
     schemas = {"scene.schema.json": scene, "hid_profile.schema.json": HidProfileFile.model_json_schema(),
                "device.schema.json": device}
     for name, js in schemas.items():

@@ -44,6 +44,7 @@ from softproxy.compiled.dispatch import entry
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
 from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, StatRings
 from softproxy.device import Device, check_device, DeviceSample
+from softproxy.device_group import DeviceGroup
 from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
@@ -119,23 +120,27 @@ JOIN_S = 1.0
 block before it sends zero force and closes the device regardless."""
 
 
-def _claim(device, loop: "ServoLoop") -> None:
-    """Make `loop` the one open loop of `device`; ValueError if another open loop drives it."""
+def _claim(devices, loop: "ServoLoop") -> None:
+    """Make `loop` the one open loop of each of `devices`; ValueError (claiming none) if another
+    open loop drives one of them."""
     with _claims_lock:
-        ref = _claims.get(id(device))
-        other = ref() if ref is not None else None
-        if other is not None and not other.closed and other.device is device:
-            raise ValueError(f"device {type(device).__name__} is already driven by an open ServoLoop: "
-                             "close that loop (or leave its with block) before building another on it")
-        _claims[id(device)] = weakref.ref(loop)
+        for device in devices:
+            ref = _claims.get(id(device))
+            other = ref() if ref is not None else None
+            if other is not None and not other.closed and any(d is device for d in other.devices):
+                raise ValueError(f"device {type(device).__name__} is already driven by an open ServoLoop: "
+                                 "close that loop (or leave its with block) before building another on it")
+        for device in devices:
+            _claims[id(device)] = weakref.ref(loop)
 
 
-def _release(device, loop: "ServoLoop") -> None:
-    """`loop` closed: `device` is free for another."""
+def _release(devices, loop: "ServoLoop") -> None:
+    """`loop` closed: `devices` are free for another."""
     with _claims_lock:
-        ref = _claims.get(id(device))
-        if ref is not None and ref() in (loop, None):
-            del _claims[id(device)]
+        for device in devices:
+            ref = _claims.get(id(device))
+            if ref is not None and ref() in (loop, None):
+                del _claims[id(device)]
 
 
 @atexit.register
@@ -158,7 +163,7 @@ def _compiled_io(device):
 
 
 class ServoLoop:
-    """Couples fingers to a world through one device at a fixed rate (Hz).
+    """Couples fingers to a world through one device, or several, at a fixed rate (Hz).
 
     Use it as `with ServoLoop(...) as loop:` (or call `close()`): leaving sends zero force and
     closes the device. A loop left open is closed by an exit hook when the interpreter exits,
@@ -168,22 +173,55 @@ class ServoLoop:
     `handle_signals=False` leaves the signals alone). A device belongs to one open loop at
     a time (ValueError otherwise).
 
+    Several devices (a list, or a `softproxy.device_group.DeviceGroup`) are read and sent in
+    the same tick as one `DeviceGroup`: a finger is driven by finger `device_finger` of device
+    `FingerParams.device` (its index in the list), a device that fails zeroes its own fingers
+    only (`softproxy.device_group`), and each finger's clamps (`max_force`, `max_torque`) are
+    lowered to its own device's limits when the loop is built. One device: every finger's
+    `device` is 0.
+
     The loop sets `world.model.opt.timestep` to its period (1 / rate_hz): MuJoCo takes exactly
     one step per servo tick, which the coupling needs (each tick the proxies follow the bodies
     where that step put them). A model's own timestep is replaced; for a finer MuJoCo step,
     raise the rate.
     """
 
-    def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
+    def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device | list[Device],
+                 rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
                  overrun_watchdog: bool | None = None, handle_signals: bool = True, passivity: bool = True) -> None:
         if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
             raise ValueError(f"rate_hz must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g}, got {rate_hz!r}")
+        if isinstance(device, (list, tuple)):
+            device = device[0] if len(device) == 1 else DeviceGroup(device)
         check_device(device)
+        group = device if isinstance(device, DeviceGroup) else None
+        self.devices = list(group.devices) if group is not None else [device]
+        """The devices the loop drives (one, or the members of its DeviceGroup `device`)."""
+        rows = []  # each finger's row of the device's samples (the group's finger)
         for f in fingers:
-            if f.params.device_finger >= device.fingers:
-                raise ValueError(f"finger {f.params.name!r} uses device finger {f.params.device_finger}, "
+            p = f.params
+            if group is not None:
+                try:
+                    rows.append(group.row(p.device, p.device_finger))
+                except ValueError as exc:
+                    raise ValueError(f"finger {p.name!r}: {exc}") from None
+            elif p.device != 0:
+                raise ValueError(f"finger {p.name!r} is driven by device {p.device}, but the loop drives one device "
+                                 f"(device 0): give the loop a list of devices")
+            elif p.device_finger >= device.fingers:
+                raise ValueError(f"finger {p.name!r} uses device finger {p.device_finger}, "
                                  f"but the device drives {device.fingers}")
+            else:
+                rows.append(p.device_finger)
+        if group is not None:
+            # each finger's clamp lowered to its own device's limits: the loop's guard clamps to
+            # the largest device's, and the body must get the reaction of what its device is sent
+            for f in fingers:
+                member = group.devices[f.params.device]
+                f.max_force = min(f.max_force, as_limit(member.max_force))
+                f.max_torque = min(f.max_torque, as_limit(member.max_torque))
+        for f in fingers:
             if f.god.shapes is not world.shapes:
                 raise ValueError(f"finger {f.params.name!r} touches shapes of its own, not the world's: "
                                  "build it over world.shapes")
@@ -214,7 +252,7 @@ class ServoLoop:
         self.audit = audit
         self._started = False
         self.closed = False
-        _claim(device, self)  # before compiling; a loop dropped unclosed leaves a dead reference: the device is free
+        _claim(self.devices, self)  # before compiling; a loop dropped unclosed leaves a dead reference: the device is free
         self.handle_signals = handle_signals
         self._signals = None  # this loop's claim on softproxy.termination's handlers: its release
         self._unregister_fatal = None  # ... and on the emergency path of a MuJoCo error in a kernel
@@ -223,7 +261,8 @@ class ServoLoop:
         self.sensors = []  # fingertip sensor channels (softproxy.fingertip_sensors): tick(loop) each tick
         self.rows = FingerRows.gather(fingers) if fingers else FingerRows(world.shapes, 0)
         """The fingers' records, one table: the fingers are views of its rows."""
-        self._device_of = np.array([f.params.device_finger for f in fingers], dtype=np.int64)
+        self._rows = rows
+        self._device_of = np.array(rows, dtype=np.int64)
         self.io = _compiled_io(device)
         """The device's read and send as compiled code (`softproxy.device_kernel.CompiledIO`),
         or None: the device is then called from Python every tick."""
@@ -243,7 +282,7 @@ class ServoLoop:
         # (sent_force then sent_torque: six float64 in a row)
         self._sent = memoryview(self.rows.data.view(np.ndarray).view(np.uint8)).cast("d")
         size, at = self.rows.data.dtype.itemsize, self.rows.data.dtype.fields["sent_force"][1]
-        self._sent_slots = [((i * size + at) // 8, f.params.device_finger) for i, f in enumerate(fingers)]
+        self._sent_slots = [((i * size + at) // 8, j) for i, j in enumerate(rows)]
         self.error = None  # what ended a run_in_thread, if it failed
         self._thread = None  # the thread inside run() (or started to run it), while one is
         self._idle = threading.Event()  # clear while run() is in progress, in whatever thread
@@ -341,8 +380,7 @@ class ServoLoop:
                 f.placed = False
             return
         usable = self._usable_samples()
-        for f in self.fingers:
-            j = f.params.device_finger
+        for f, j in zip(self.fingers, self._rows):
             if not usable[j]:
                 f.placed = False  # placed at its first good sample instead
             else:
@@ -601,9 +639,9 @@ class ServoLoop:
         error is counted; a BaseException (KeyboardInterrupt, an application's SystemExit out
         of `send`) is raised again once every finger has had its zero."""
         device, first = self.device, None
-        for f in self.fingers:
+        for j in self._rows:
             try:
-                device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+                device.send(j, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
             except Exception as exc:
                 self._send_failed(exc)
             except BaseException as exc:
@@ -660,7 +698,7 @@ class ServoLoop:
                 except Exception as exc:  # the zero force went out first; say what closing said
                     self.last_device_error = f"closing the device: {exc or type(exc).__name__}"
                 finally:
-                    _release(self.device, self)
+                    _release(self.devices, self)
                     if self._signals is not None:
                         self._signals()
                     if self._unregister_fatal is not None:
