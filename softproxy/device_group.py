@@ -42,7 +42,7 @@ def _clamped(limit, x: float, y: float, z: float) -> tuple[float, float, float]:
 class DeviceGroup:
     """Several devices driven by one servo loop as one `Device` (see the module docstring).
 
-    `faults[k]`: reads of member k that failed; `last_errors[k]`: what it last said ("" none)."""
+    `read_failures[k]`: reads of member k that failed; `last_errors[k]`: what it last said ("" none)."""
 
     def __init__(self, devices) -> None:
         devices = list(devices)
@@ -61,7 +61,7 @@ class DeviceGroup:
         self.fingers = n
         self._member = [(k, j) for k, d in enumerate(devices) for j in range(int(d.fingers))]
         self._spans = [(self.offsets[k], self.offsets[k] + int(d.fingers)) for k, d in enumerate(devices)]
-        self.faults = [0] * len(devices)
+        self.read_failures = [0] * len(devices)
         self.last_errors = [""] * len(devices)
 
     def row(self, device: int, finger: int) -> int:
@@ -114,7 +114,7 @@ class DeviceGroup:
                 d.read(t, sub)
             except Exception as exc:  # this member's fingers hold; the others render
                 failed += 1
-                self.faults[k] += 1
+                self.read_failures[k] += 1
                 self.last_errors[k] = str(exc) or type(exc).__name__
                 for s in sub:
                     if isinstance(s, DeviceSample):

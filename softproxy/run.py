@@ -283,7 +283,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     result["notes"] = notes
     if isinstance(original, DeviceGroup):  # each device's own read failures (its fingers held meanwhile)
         result["devices"] = [{"device": type(d).__name__, "read_failures": n, "last_error": e}
-                             for d, n, e in zip(original.devices, original.faults, original.last_errors)]
+                             for d, n, e in zip(original.devices, original.read_failures, original.last_errors)]
     result["tick_us"] = loop.stats.summary_us()
     result["deadline_misses"] = loop.stats.misses if realtime else None
     result["faults"] = dict(loop.faults)

@@ -825,6 +825,10 @@ class SimDeviceTable(Table):
     quantum_rad: quantity("rad", "encoder resolution of the twist (0: none)", low=0.0) = 0.0
     max_force_N: quantity("N", "the motor saturates here", low=0.0, optional=True) = None
     max_torque_Nm: quantity("N·m", "the motor saturates here", low=0.0, optional=True) = None
+    max_stiffness_N_per_m: quantity("N/m", "the stiffest coupling it renders stably: a stiffer finger is capped "
+                                    "(default: no limit)", low=10.0, optional=True) = None
+    max_damping_Ns_per_m: quantity("N·s/m", "the most coupling damping it renders stably (default: no limit)",
+                                   low=0.0, optional=True) = None
     seed: count("seed of the noise and faults") = 0
     finger: Annotated[list[SimFinger], Field(min_length=1)]
     faults: dict[Literal[SIM_FAULT_KINDS], Probability] = {}

@@ -1,0 +1,249 @@
+"""Several devices in one servo loop (issue 45): the bimanual hand-over, fault isolation between
+devices, zero and close for every device on the way out, and device-aware stiffness."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from softproxy.device import DeviceError
+from softproxy.device_group import DeviceGroup
+from softproxy.run import build, open_device
+from softproxy.scene import load_scene
+from softproxy.servo import ServoLoop
+from softproxy.stiffness_cap import cap_fingers
+
+
+def _scene_devices(scene, **extra):
+    """The scene's simulated devices, one per [[device]] table (with `extra` config merged in)."""
+    return [open_device("sim", scene, {**table, **extra}, source="test") for table in scene.devices]
+
+
+class FailingAfter:
+    """Wraps a device: its read raises DeviceError from loop time `t_fail` on (an unplugged cable)."""
+
+    def __init__(self, device, t_fail: float) -> None:
+        self.inner, self.t_fail = device, t_fail
+        self.fingers, self.max_force, self.max_torque = device.fingers, device.max_force, device.max_torque
+        self.closed = False
+        self.raised = 0
+
+    def read(self, t, samples):
+        if t >= self.t_fail:
+            self.raised += 1
+            raise DeviceError("cable pulled")
+        self.inner.read(t, samples)
+
+    def send(self, finger, fx, fy, fz, tx, ty, tz):
+        self.inner.send(finger, fx, fy, fz, tx, ty, tz)
+
+    def close(self):
+        self.closed = True
+        self.inner.close()
+
+
+def _ticks(loop, seconds: float) -> None:
+    """Tick the loop for `seconds` of loop time (tick by tick: `run` ends with zero force)."""
+    for _ in range(int(round(seconds * loop.rate_hz))):
+        loop.tick()
+
+
+def _box(loop):
+    body = loop.world.body_id("box")
+    return loop.world.data.xpos[body].copy()
+
+
+def test_bimanual_hand_over():
+    """Hand A lifts the cube, hand B takes it and carries it 8 cm along y: at the end the cube is
+    aloft (it rests at z = 0.02 m if dropped), 8 cm along y (it stays at y = 0 unless B carried
+    it), A's fingers touch nothing and B's hold it."""
+    scene = load_scene("bimanual_grasp")
+    with build(scene, _scene_devices(scene), realtime=False) as loop:
+        _ticks(loop, 3.0)
+        held = _box(loop)
+        a, b = loop.fingers[:2], loop.fingers[2:]
+        assert held[2] > 0.07  # lifted by A (and B)
+        assert all(f.body >= 0 for f in loop.fingers)  # both hands on it before A lets go
+        _ticks(loop, 2.0)
+        end = _box(loop)
+        assert end[2] > 0.07
+        assert 0.07 < end[1] < 0.09
+        assert not any(f.body >= 0 for f in a)
+        assert all(f.body >= 0 and 1.0 < abs(f.normal_force) < 6.0 for f in b)
+        assert loop.faults["device_error"] == 0 and loop.faults["invalid_sample"] == 0
+
+
+def test_fault_on_one_device_zeroes_only_its_fingers():
+    """Device 0 (hand A) fails while both hands hold the cube: its fingers render zero and its
+    device is sent zero, while hand B keeps rendering and keeps the cube aloft."""
+    scene = load_scene("bimanual_grasp")
+    a_dev, b_dev = _scene_devices(scene)
+    failing = FailingAfter(a_dev, 2.5)
+    with build(scene, [failing, b_dev], realtime=False) as loop:
+        _ticks(loop, 3.0)
+        group = loop.device
+        assert isinstance(group, DeviceGroup)
+        assert failing.raised > 400 and group.read_failures == [failing.raised, 0]
+        assert group.last_errors[0] == "cable pulled"
+        assert loop.faults["device_error"] == 0  # not the whole read: one device's
+        a, b = loop.fingers[:2], loop.fingers[2:]
+        assert all((f.fx, f.fy, f.fz) == (0.0, 0.0, 0.0) for f in a)
+        assert a_dev.last_force == [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)]
+        assert all(f.body >= 0 and abs(f.normal_force) > 1.0 for f in b)
+        assert all(max(abs(c) for c in force) > 1.0 for force in b_dev.last_force)
+        assert _box(loop)[2] > 0.07  # B alone holds it
+
+
+def test_every_device_failing_is_a_device_error():
+    """When every device's read fails the tick is a device_error, as with one device."""
+    scene = load_scene("bimanual_grasp")
+    devices = [FailingAfter(d, 0.0) for d in _scene_devices(scene)]
+    with build(scene, devices, realtime=False) as loop:
+        loop.run(10)
+        assert loop.faults["device_error"] >= 10
+        assert "device 0: cable pulled" in loop.last_device_error
+
+
+class Recording:
+    """Wraps a device: keeps every send, optionally raising on sends or close."""
+
+    def __init__(self, device, send_raises=False, close_raises=False) -> None:
+        self.inner, self.sent, self.closed = device, [], False
+        self.fingers, self.max_force, self.max_torque = device.fingers, device.max_force, device.max_torque
+        self.send_raises, self.close_raises = send_raises, close_raises
+
+    def read(self, t, samples):
+        self.inner.read(t, samples)
+
+    def send(self, finger, fx, fy, fz, tx, ty, tz):
+        self.sent.append((finger, fx, fy, fz, tx, ty, tz))
+        if self.send_raises:
+            raise DeviceError("send refused")
+        self.inner.send(finger, fx, fy, fz, tx, ty, tz)
+
+    def close(self):
+        self.closed = True
+        self.inner.close()
+        if self.close_raises:
+            raise DeviceError("close refused")
+
+
+def test_close_zeroes_and_closes_every_device_whatever_one_raises():
+    """Leaving the loop sends zero to every finger of every device, last, and closes both devices
+    though the first one's sends and close raise."""
+    scene = load_scene("bimanual_grasp")
+    a, b = (Recording(d) for d in _scene_devices(scene))
+    a.send_raises = a.close_raises = True
+    loop = build(scene, [a, b], realtime=False)
+    _ticks(loop, 2.5)  # both hands holding: non-zero sends
+    assert any(any(v != 0.0 for v in s[1:]) for s in b.sent[-2:])
+    loop.close()
+    assert a.closed and b.closed
+    for dev in (a, b):
+        last = {s[0]: s[1:] for s in dev.sent}
+        assert sorted(last) == [0, 1]
+        assert all(v == (0.0,) * 6 for v in last.values())
+    assert "close refused" in loop.last_device_error
+    assert loop.faults["send_error"] > 0
+
+
+def test_per_device_force_limits():
+    """Each finger is clamped to its own device's force limit, not the largest device's."""
+    scene = load_scene("bimanual_grasp")
+    a, b = _scene_devices(scene)
+    weak = open_device("sim", scene, {**scene.devices[1], "max_force_N": 1.5}, source="test")
+    with build(scene, [a, weak], realtime=False) as loop:
+        assert [f.max_force for f in loop.fingers] == [40.0, 40.0, 1.5, 1.5]
+        _ticks(loop, 3.0)
+        assert max(f.max_force_seen for f in loop.fingers[2:]) <= 1.5 + 1e-12
+        assert max(f.max_force_seen for f in loop.fingers[:2]) > 2.0
+    b.close()
+
+
+def test_finger_on_a_device_the_loop_lacks():
+    """A finger naming a device the loop does not drive is refused in one line."""
+    scene = load_scene("bimanual_grasp")
+    a, b = _scene_devices(scene)
+    with pytest.raises(Exception, match="device 1, but the loop drives one device"):
+        build(scene, a, realtime=False)
+    a.close()
+    b.close()
+
+
+def test_two_device_group_refuses_the_same_device_twice():
+    scene = load_scene("bimanual_grasp")
+    a, _ = _scene_devices(scene)
+    with pytest.raises(ValueError, match="same device twice"):
+        DeviceGroup([a, a])
+
+
+# -- device-aware stiffness -----------------------------------------------------------------
+
+def test_stiffness_capped_to_the_device_with_one_line():
+    """A finger stiffer than its device renders stably runs at the device's figure, with one
+    line per finger; --allow-stiffer keeps the scene's figure and says so."""
+    scene = load_scene("two_finger_grasp")
+    stiff = open_device("sim", scene, {**scene.device, "max_stiffness_N_per_m": 400.0,
+                                       "max_damping_Ns_per_m": 4.0}, source="test")
+    notes = []
+    with build(scene, stiff, realtime=False, notes=notes) as loop:
+        assert [f.k for f in loop.fingers] == [400.0, 400.0]
+        assert [f.b for f in loop.fingers] == [4.0, 4.0]
+    assert len(notes) == 2
+    assert "stiffness 2000 N/m capped to 400" in notes[0] and "damping 5 N·s/m capped to 4" in notes[0]
+    stiff = open_device("sim", scene, {**scene.device, "max_stiffness_N_per_m": 400.0}, source="test")
+    notes = []
+    with build(scene, stiff, realtime=False, allow_stiffer=True, notes=notes) as loop:
+        assert [f.k for f in loop.fingers] == [2000.0, 2000.0]
+    assert len(notes) == 2 and "kept (--allow-stiffer)" in notes[0]
+
+
+def test_simulated_device_has_no_stiffness_limit_by_default():
+    scene = load_scene("two_finger_grasp")
+    notes = []
+    with build(scene, open_device("sim", scene), realtime=False, notes=notes) as loop:
+        assert [f.k for f in loop.fingers] == [2000.0, 2000.0]
+    assert notes == []
+
+
+def test_cap_per_device_in_a_group():
+    """Each finger is capped by its own device's figure."""
+    scene = load_scene("bimanual_grasp")
+    a = open_device("sim", scene, {**scene.devices[0], "max_stiffness_N_per_m": 1000.0}, source="test")
+    b = open_device("sim", scene, scene.devices[1], source="test")
+    capped, notes = cap_fingers(scene.fingers, [a, b])
+    assert [p.stiffness for p in capped] == [1000.0, 1000.0, 2000.0, 2000.0]
+    assert len(notes) == 2 and all("device 0" in n for n in notes)
+    a.close()
+    b.close()
+
+
+def test_vendor_figures():
+    """The adapters' tables give CHAI3D's figures for the devices the issue names."""
+    from devices import forcedimension, openhaptics
+
+    assert openhaptics.model_stiffness("Touch") == (400.0, 4.0)
+    assert forcedimension.MODEL_STIFFNESS[33] == (5000.0, 30.0)  # omega.3
+    assert forcedimension.MODEL_STIFFNESS[104] == (4000.0, 30.0)  # sigma.7
+    assert forcedimension.MODEL_STIFFNESS[60] == (3000.0, 20.0)  # Falcon
+
+
+# -- the command line -----------------------------------------------------------------------
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "softproxy.cli", *args], capture_output=True, text=True, timeout=600)
+
+
+def test_cli_device_count_must_match_the_scene():
+    r = _cli("run", "bimanual_grasp", "--headless", "--device", "sim")
+    assert r.returncode == 2
+    assert "--device given 1 time(s)" in r.stderr and "2 [[device]] tables" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_cli_runs_the_bimanual_scene_with_two_devices():
+    r = _cli("run", "bimanual_grasp", "--headless", "--device", "sim", "--device", "sim", "--duration", "0.5")
+    assert r.returncode == 0, r.stderr
+    assert "scene bimanual_grasp: 500 ticks" in r.stdout
