@@ -206,7 +206,8 @@ def _open_one_device(kind: str, index: int, count: int, scene, faults: dict | No
                          f"({scene.path}) configures {which} {configured!r} device: run it with --device "
                          f"{configured}{other}")
     try:
-        device = open_device(kind, scene, index=index)  # errors from the scene's [device] name the scene
+        # errors from the scene's [device] name the scene (device 0: the call of one device)
+        device = open_device(kind, scene) if index == 0 else open_device(kind, scene, index=index)
     except (ValueError, RuntimeError) as exc:
         if argument:
             said = str(exc)  # a device's own message may already name the flag
@@ -216,7 +217,8 @@ def _open_one_device(kind: str, index: int, count: int, scene, faults: dict | No
         # the scene's own [device] opened above; the faults merged in can only fail on
         # themselves, so the second opening's errors name the flag
         device.close()
-        device = open_device(kind, scene, {**table, "faults": faults}, source="--faults", index=index)
+        more = {"index": index} if index else {}
+        device = open_device(kind, scene, {**table, "faults": faults}, source="--faults", **more)
     label = f"{scene.path}: {where}" if name == "sim" and not argument else f"--device {kind}"
     try:
         check_device_fingers(scene, device, label, index)

@@ -34,8 +34,9 @@ def device_types() -> list[str]:
 
 def device_table(scene: Scene, index: int = 0) -> dict:
     """The scene's table of device `index` ([device], or the index-th [[device]]); {} if none."""
-    tables = scene.devices or [scene.device]
-    return tables[index] if index < len(tables) else {}
+    if index == 0:
+        return scene.device  # (what a caller may have replaced since loading)
+    return scene.devices[index] if index < len(scene.devices) else {}
 
 
 def open_device(kind: str, scene: Scene, config: dict | None = None, source: str | None = None,

@@ -7,6 +7,10 @@ the vendor's figures, which the adapters take from CHAI3D's device tables (docs/
 A coupling spring above the device's figure makes a sampled wall buzz or kick on that device
 (the passivity controller then dissipates, but the hand feels it first). `allow_stiffer`
 keeps the finger's own figures, for research on the edge of stability, and says so.
+
+The hand feels a finger's spring through the device-to-world scale: a device motion of 1 m
+is `scale` m in the world (times the adapter's own `workspace_scale`, if it has one), so it
+feels k·scale N/m; the cap on k is the device's figure divided by that scale (damping alike).
 """
 
 from __future__ import annotations
@@ -48,8 +52,12 @@ def cap_fingers(fingers: list[FingerParams], devices: list, allow_stiffer: bool 
         device = devices[k]
         over = []
         changes = {}
+        ws = getattr(device, "workspace_scale", 1.0)
+        ws = float(ws) if isinstance(ws, (int, float)) and not isinstance(ws, bool) and math.isfinite(ws) and ws > 0 else 1.0
         for field, member, unit in CAPPED:
             limit = device_figure(device, member)
+            if limit is not None:
+                limit /= p.scale * ws  # the figure at the hand, as a figure in the world
             asked = getattr(p, field)
             if limit is not None and asked > limit:
                 over.append((field, asked, limit, unit))

@@ -247,3 +247,14 @@ def test_cli_runs_the_bimanual_scene_with_two_devices():
     r = _cli("run", "bimanual_grasp", "--headless", "--device", "sim", "--device", "sim", "--duration", "0.5")
     assert r.returncode == 0, r.stderr
     assert "scene bimanual_grasp: 500 ticks" in r.stdout
+
+
+def test_cap_counts_the_workspace_scale():
+    """The hand feels k·scale: with scale 2 a 400 N/m device caps k at 200 N/m."""
+    from dataclasses import replace
+
+    scene = load_scene("two_finger_grasp")
+    dev = open_device("sim", scene, {**scene.device, "max_stiffness_N_per_m": 400.0}, source="test")
+    capped, _ = cap_fingers([replace(p, scale=2.0) for p in scene.fingers], [dev])
+    assert [p.stiffness for p in capped] == [200.0, 200.0]
+    dev.close()
