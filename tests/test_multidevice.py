@@ -258,3 +258,58 @@ def test_cap_counts_the_workspace_scale():
     capped, _ = cap_fingers([replace(p, scale=2.0) for p in scene.fingers], [dev])
     assert [p.stiffness for p in capped] == [200.0, 200.0]
     dev.close()
+
+
+def test_bimanual_scene_on_two_omega7s(monkeypatch):
+    """The same bimanual scene on two (fake) omega.7s, their grippers as two fingers each,
+    through the adapter's entry point: each [[device]] table opens its own device (an argument
+    overrides its own table's fields, not the first's), the run renders on both, and both are
+    sent zero last and closed."""
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
+    from fake_dhd import OMEGA7_RIGHT, FakeDHD, Hardware
+
+    from softproxy.devices import forcedimension as fdmod
+    from softproxy.run import run_scene
+
+    left, right = Hardware(OMEGA7_RIGHT, serial=1), Hardware(OMEGA7_RIGHT, serial=2)
+    for hw in (left, right):
+        hw.position, hw.gap = [0.0, 0.0, 0.08], 0.05
+    dhd = FakeDHD(left, right)
+    monkeypatch.setattr(fdmod, "load_binding", lambda: dhd)
+    scene = load_scene("bimanual_grasp")
+    scene.devices = [{"type": "forcedimension", "index": 0}, {"type": "forcedimension", "index": 1, "max_force_N": 5.0}]
+    scene.device = scene.devices[0]
+    a = open_device("forcedimension", scene)
+    b = open_device("forcedimension:max_force_N=4", scene, index=1)
+    assert (a.serial, b.serial) == (1, 2) and b.max_force == 4.0 and a.fingers == b.fingers == 2
+    assert (a.max_stiffness, a.max_damping) == (5000.0, 30.0)
+    try:
+        result = run_scene(scene, [a, b], duration_s=0.3)
+    finally:
+        DeviceGroup([a, b]).close()
+    assert result["ticks"] == 300 and result["faults"]["device_error"] == 0 and result["notes"] == []
+    assert [d["read_failures"] for d in result["devices"]] == [0, 0]
+    for hw in (left, right):
+        assert len(hw.wire) > 300
+        f, t, g, _ = hw.wire[-1]
+        assert f == (0.0, 0.0, 0.0) and t == (0.0, 0.0, 0.0) and g == 0.0
+
+
+def test_a_finger_on_a_device_the_scene_lacks_is_one_line(tmp_path):
+    """A [[finger]] naming a device past the scene's [[device]] tables: one line naming it."""
+    from pathlib import Path
+
+    from softproxy.scene import SceneError
+
+    source = Path(load_scene("bimanual_grasp").path)
+    (tmp_path / "bimanual_grasp.xml").write_text((source.parent / "bimanual_grasp.xml").read_text())
+    text = source.read_text().replace('name = "b_back"\ndevice = 1', 'name = "b_back"\ndevice = 2')
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    with pytest.raises(SceneError, match=r"finger\[3\]\.device is 2, but the scene has 2 \[\[device\]\] tables"):
+        load_scene(str(bad))
+    one = source.read_text().replace('device = 1\n', 'device = 7\n', 1)
+    single = tmp_path / "single.toml"
+    single.write_text(one.split("# keyframes:")[0] + '[device]\ntype = "sim"\n[[device.finger]]\nkeyframes = [[0.0, 0.0, 0.0, 0.0, 0.0]]\n')
+    with pytest.raises(SceneError, match=r"device is 7, but the scene has 1 device"):
+        load_scene(str(single))
