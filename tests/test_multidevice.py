@@ -313,3 +313,9 @@ def test_a_finger_on_a_device_the_scene_lacks_is_one_line(tmp_path):
     single.write_text(one.split("# keyframes:")[0] + '[device]\ntype = "sim"\n[[device.finger]]\nkeyframes = [[0.0, 0.0, 0.0, 0.0, 0.0]]\n')
     with pytest.raises(SceneError, match=r"device is 7, but the scene has 1 device"):
         load_scene(str(single))
+
+
+def test_cli_record_takes_one_device(tmp_path):
+    r = _cli("run", "bimanual_grasp", "--headless", "--device", "sim", "--device", "sim",
+             "--record", str(tmp_path / "run.rec"))
+    assert r.returncode == 2 and "--record records one device" in r.stderr and "Traceback" not in r.stderr
