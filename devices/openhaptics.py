@@ -158,21 +158,22 @@ def availability(binding=None) -> dict:
     return row
 
 
-def model_stiffness(model: str) -> tuple[float, float]:
-    """(stiffness N/m, damping N·s/m) the model renders stably (MODEL_STIFFNESS)."""
+def _by_model(table: dict, model: str, unknown: tuple) -> tuple:
+    """The entry of `table` (keys: lower-case model names) for `model`, else `unknown`."""
     m = model.strip().lower()
-    for name, figures in MODEL_STIFFNESS.items():  # "touch x" before "touch"
+    for name, figures in table.items():  # "touch x" before "touch"
         if m.startswith(name) or name in m:
             return figures
-    return UNKNOWN_STIFFNESS
+    return unknown
+
+
+def model_stiffness(model: str) -> tuple[float, float]:
+    """(stiffness N/m, damping N·s/m) the model renders stably (MODEL_STIFFNESS)."""
+    return _by_model(MODEL_STIFFNESS, model, UNKNOWN_STIFFNESS)
 
 
 def _model_limits(model: str) -> tuple[float, float]:
-    m = model.strip().lower()
-    for name, limits in MODEL_LIMITS.items():  # "touch x" before "touch"
-        if m.startswith(name) or name in m:
-            return limits
-    return UNKNOWN_LIMITS
+    return _by_model(MODEL_LIMITS, model, UNKNOWN_LIMITS)
 
 
 def _quaternion(r) -> tuple | None:

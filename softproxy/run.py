@@ -53,7 +53,8 @@ def open_device(kind: str, scene: Scene, config: dict | None = None, source: str
                 if not hasattr(cls, "from_argument"):
                     raise SceneError(f"device type {name!r} takes no argument (got {argument!r})")
                 # the argument overrides the fields of this device's own table, not the first's
-                return cls.from_argument(argument, scene if index == 0 else replace(scene, device=device_table(scene, index)))
+                own = scene if index == 0 else replace(scene, device=device_table(scene, index))
+                return cls.from_argument(argument, own)
             where = str(scene.path) if index == 0 else f"{scene.path}: device[{index}]"
             return cls.from_config(device_table(scene, index) if config is None else config, source=source or where)
     raise SceneError(f"no device type {name!r}; installed: {', '.join(device_types()) or 'none'}")

@@ -52,8 +52,9 @@ def cap_fingers(fingers: list[FingerParams], devices: list, allow_stiffer: bool 
         device = devices[k]
         over = []
         changes = {}
-        ws = getattr(device, "workspace_scale", 1.0)
-        ws = float(ws) if isinstance(ws, (int, float)) and not isinstance(ws, bool) and math.isfinite(ws) and ws > 0 else 1.0
+        ws = getattr(device, "workspace_scale", 1.0)  # an adapter's own device-to-engine scale
+        if isinstance(ws, bool) or not isinstance(ws, (int, float)) or not (math.isfinite(ws) and ws > 0.0):
+            ws = 1.0
         for field, member, unit in CAPPED:
             limit = device_figure(device, member)
             if limit is not None:
@@ -63,7 +64,7 @@ def cap_fingers(fingers: list[FingerParams], devices: list, allow_stiffer: bool 
                 over.append((field, asked, limit, unit))
                 changes[field] = limit
         if over:
-            said = ", ".join(f"{field} {asked:g} {unit}" + ("" if allow_stiffer else f" capped to {limit:g}")
+            said = ", ".join(f"{field} {asked:g} {unit}" + ("" if allow_stiffer else f" capped to {limit:g} {unit}")
                              for field, asked, limit, unit in over)
             figures = ", ".join(f"{limit:g} {unit}" for _, _, limit, unit in over)
             who = device_label(device, k, len(devices))
