@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -319,3 +320,23 @@ def test_cli_record_takes_one_device(tmp_path):
     r = _cli("run", "bimanual_grasp", "--headless", "--device", "sim", "--device", "sim",
              "--record", str(tmp_path / "run.rec"))
     assert r.returncode == 2 and "--record records one device" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_close_from_another_thread_stops_the_servo_thread_then_zeroes_both():
+    """A run in a servo thread, closed from the main thread: nothing but zero reaches either
+    device after close() returns, and both are closed."""
+    scene = load_scene("bimanual_grasp")
+    a, b = (Recording(d) for d in _scene_devices(scene))
+    loop = build(scene, [a, b], realtime=False)
+    _ticks(loop, 2.5)  # both hands holding
+    thread = loop.run_in_thread(100_000, realtime=False)
+    give_up = time.monotonic() + 60.0  # (a guard against a dead thread, not a timing check)
+    while loop.ticks < 2600 and thread.is_alive() and time.monotonic() < give_up:
+        time.sleep(0.001)
+    assert loop.ticks >= 2600
+    loop.close()
+    assert not thread.is_alive() and a.closed and b.closed  # the thread ended: nothing can follow the zero
+    for dev in (a, b):
+        last = {s[0]: s[1:] for s in dev.sent}
+        assert sorted(last) == [0, 1] and all(v == (0.0,) * 6 for v in last.values())
+    assert loop.error is None
