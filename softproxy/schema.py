@@ -775,6 +775,10 @@ class HidProfileFile(Table):
                         hint_high="max_force is in N") = 0.0
     max_torque: quantity("N·m", "what the device renders safely; 0: renders no torque", low=0.0,
                          high=MAX_TORQUE_NM, hint_high="max_torque is in N·m: 100 N·mm is 0.1") = 0.0
+    max_stiffness: quantity("N/m", "the stiffest coupling the device renders stably: a stiffer finger is capped "
+                            "(default: none known, nothing capped)", low=10.0, high=1e5, optional=True) = None
+    max_damping: quantity("N·s/m", "the most coupling damping the device renders stably (default: none known)",
+                          low=0.0, high=1e3, optional=True) = None
     finger_axis: SignedAxis = "z"
     match: list[HidMatch] = []
     input: HidInput

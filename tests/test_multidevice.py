@@ -340,3 +340,17 @@ def test_close_from_another_thread_stops_the_servo_thread_then_zeroes_both():
         last = {s[0]: s[1:] for s in dev.sent}
         assert sorted(last) == [0, 1] and all(v == (0.0,) * 6 for v in last.values())
     assert loop.error is None
+
+
+def test_a_hid_profile_declares_its_stiffness(tmp_path):
+    """A HID profile's max_stiffness reaches the device (and so the cap); the shipped ones declare none."""
+    from pathlib import Path
+
+    from softproxy.devices.hid_profile import load_profile
+
+    shipped = Path(__file__).parent.parent / "devices" / "profiles" / "open_haptic.toml"
+    assert load_profile(str(shipped)).max_stiffness is None
+    mine = tmp_path / "mine.toml"
+    mine.write_text(shipped.read_text().replace("max_force = 5.0", "max_force = 5.0\nmax_stiffness = 800.0\nmax_damping = 3.0", 1))
+    profile = load_profile(str(mine))
+    assert (profile.max_stiffness, profile.max_damping) == (800.0, 3.0)
