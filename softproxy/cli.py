@@ -181,11 +181,11 @@ def _open_run_device(args: argparse.Namespace, scene, faults: dict | None):
     try:
         for k, kind in enumerate(kinds):
             devices.append(_open_one_device(kind, k, len(kinds), scene, faults))
+        return devices[0] if len(devices) == 1 else DeviceGroup(devices)
     except BaseException:
         for d in devices:
             d.close()
         raise
-    return devices[0] if len(devices) == 1 else DeviceGroup(devices)
 
 
 def _open_one_device(kind: str, index: int, count: int, scene, faults: dict | None):
@@ -245,6 +245,22 @@ def _print_fingertip_sensors(f: dict) -> None:
               f"{s['refused']} refused; {errs}; errors {s['errors']}")
 
 
+def _print_stiffness_notes(scene, device, allow_stiffer: bool) -> None:
+    """One line on stderr per finger stiffer than its device renders stably (`softproxy.stiffness_cap`);
+    SceneError when a cap cannot be met."""
+    from softproxy.device_group import DeviceGroup
+    from softproxy.scene import SceneError
+    from softproxy.stiffness_cap import cap_fingers
+
+    members = device.devices if isinstance(device, DeviceGroup) else [device]
+    try:
+        notes = cap_fingers(scene.fingers, members, allow_stiffer)[1]
+    except ValueError as exc:
+        raise SceneError(f"{scene.path}: {exc}") from None
+    for note in notes:
+        print(f"softproxy run: note: {note}", file=sys.stderr)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a scene on a device and print the result; a window shows it unless --headless.
 
@@ -287,12 +303,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         return 2
     for note in replay_notes(scene, device, args.rate or scene.rate_hz):
         print(f"softproxy run: note: {note}", file=sys.stderr)
-    from softproxy.device_group import DeviceGroup
-    from softproxy.stiffness_cap import cap_fingers
-
-    members = device.devices if isinstance(device, DeviceGroup) else [device]
-    for note in cap_fingers(scene.fingers, members, args.allow_stiffer)[1]:  # the run caps them too
-        print(f"softproxy run: note: {note}", file=sys.stderr)
     realtime = args.realtime or window  # a window shows the run as it happens
     if views is not None and window and not args.realtime:
         views.note = "softproxy run: the viewer window is open; the run is paced in real time"
@@ -303,6 +313,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         on_tick = bar.chain(on_tick)
     try:
         try:
+            _print_stiffness_notes(scene, device, args.allow_stiffer)  # before the run; the run caps them too
             result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
                                finger_model=args.finger_model, realtime=realtime, record=args.record,
                                on_built=views.on_built if views else None, on_tick=on_tick,

@@ -131,7 +131,10 @@ def build(scene: Scene, device: Device | list[Device], rate_hz: float | None = N
         device.devices if isinstance(device, DeviceGroup) else [device])
     chosen = [replace(p, model=finger_model) if finger_model is not None else p  # the params name the model run
               for p in scene.fingers]
-    chosen, said = cap_fingers(chosen, members, allow_stiffer)
+    try:
+        chosen, said = cap_fingers(chosen, members, allow_stiffer)
+    except ValueError as exc:
+        raise SceneError(f"{scene.path}: {exc}") from None
     if notes is not None:
         notes.extend(said)
     fingers = [SoftFingerProxy(params, world.shapes) for params in chosen]

@@ -214,13 +214,6 @@ class ServoLoop:
                                  f"but the device drives {device.fingers}")
             else:
                 rows.append(p.device_finger)
-        if group is not None:
-            # each finger's clamp lowered to its own device's limits: the loop's guard clamps to
-            # the largest device's, and the body must get the reaction of what its device is sent
-            for f in fingers:
-                member = group.devices[f.params.device]
-                f.max_force = min(f.max_force, as_limit(member.max_force))
-                f.max_torque = min(f.max_torque, as_limit(member.max_torque))
         for f in fingers:
             if f.god.shapes is not world.shapes:
                 raise ValueError(f"finger {f.params.name!r} touches shapes of its own, not the world's: "
@@ -253,6 +246,13 @@ class ServoLoop:
         self._started = False
         self.closed = False
         _claim(self.devices, self)  # before compiling; a loop dropped unclosed leaves a dead reference: the device is free
+        if group is not None:
+            # each finger's clamp lowered to its own device's limits: the loop's guard clamps to
+            # the largest device's, and the body must get the reaction of what its device is sent
+            for f in fingers:
+                member = group.devices[f.params.device]
+                f.max_force = min(f.max_force, as_limit(member.max_force))
+                f.max_torque = min(f.max_torque, as_limit(member.max_torque))
         self.handle_signals = handle_signals
         self._signals = None  # this loop's claim on softproxy.termination's handlers: its release
         self._unregister_fatal = None  # ... and on the emergency path of a MuJoCo error in a kernel

@@ -45,7 +45,8 @@ def cap_fingers(fingers: list[FingerParams], devices: list, allow_stiffer: bool 
                 ) -> tuple[list[FingerParams], list[str]]:
     """(the fingers' params, each capped to its device's figures unless `allow_stiffer`; one
     line per finger asked for more than its device renders stably). A finger's device is
-    `devices[params.device]` (one device: every finger's)."""
+    `devices[params.device]` (one device: every finger's). ValueError (one line) when a cap
+    falls below the lowest figure a finger takes (`FingerParams.LIMITS`; a large `scale`)."""
     capped, notes = [], []
     for p in fingers:
         k = p.device if p.device < len(devices) else 0
@@ -68,6 +69,13 @@ def cap_fingers(fingers: list[FingerParams], devices: list, allow_stiffer: bool 
                              for field, asked, limit, unit in over)
             figures = ", ".join(f"{limit:g} {unit}" for _, _, limit, unit in over)
             who = device_label(device, k, len(devices))
+            low = {f: FingerParams.LIMITS[f][0] for f, _, _ in CAPPED}
+            for field, _, limit, unit in over:
+                if not allow_stiffer and limit < low[field]:
+                    raise ValueError(f"finger {p.name!r}: {device_label(device, k, len(devices))} renders at most "
+                                     f"{limit * p.scale * ws:g} {unit} at the hand, {limit:g} {unit} in the world at "
+                                     f"scale {p.scale * ws:g}, below the lowest {field} a finger takes ({low[field]:g} "
+                                     f"{unit}): map the device with a smaller scale, or run with --allow-stiffer")
             if allow_stiffer:
                 notes.append(f"finger {p.name!r}: {said}: above the {figures} {who} renders stably, kept "
                              f"(--allow-stiffer)")

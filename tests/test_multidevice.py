@@ -354,3 +354,21 @@ def test_a_hid_profile_declares_its_stiffness(tmp_path):
     mine.write_text(shipped.read_text().replace("max_force = 5.0", "max_force = 5.0\nmax_stiffness = 800.0\nmax_damping = 3.0", 1))
     profile = load_profile(str(mine))
     assert (profile.max_stiffness, profile.max_damping) == (800.0, 3.0)
+
+
+def test_a_cap_below_the_lowest_stiffness_is_one_line():
+    """At scale 100 a 400 N/m device allows 4 N/m in the world, below the lowest stiffness a
+    finger takes: one line naming the finger and what to change, not a capped finger."""
+    from dataclasses import replace
+
+    from softproxy.scene import SceneError
+
+    scene = load_scene("two_finger_grasp")
+    dev = open_device("sim", scene, {**scene.device, "max_stiffness_N_per_m": 400.0}, source="test")
+    with pytest.raises(ValueError, match="finger 'right'.* 4 N/m in the world at scale 100.*--allow-stiffer"):
+        cap_fingers([replace(p, scale=100.0) for p in scene.fingers], [dev])
+    far = replace(scene, fingers=[replace(p, scale=100.0) for p in scene.fingers])
+    with pytest.raises(SceneError, match="below the lowest stiffness"):
+        build(far, dev, realtime=False)
+    assert cap_fingers(far.fingers, [dev], allow_stiffer=True)[0] == far.fingers
+    dev.close()
