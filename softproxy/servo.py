@@ -298,6 +298,12 @@ class ServoLoop:
         return float(self.state[0].t)
 
     @property
+    def sample_rows(self) -> list[int]:
+        """Each finger's row of `samples`: its device finger, or with several devices its
+        finger of the DeviceGroup (`DeviceGroup.row`); a copy."""
+        return list(self._rows)
+
+    @property
     def ticks(self) -> int:
         """Ticks run."""
         return int(self.state[0].ticks)

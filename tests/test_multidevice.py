@@ -372,3 +372,18 @@ def test_a_cap_below_the_lowest_stiffness_is_one_line():
         build(far, dev, realtime=False)
     assert cap_fingers(far.fingers, [dev], allow_stiffer=True)[0] == far.fingers
     dev.close()
+
+
+def test_a_fingertip_sensor_reads_its_own_devices_sample():
+    """A sensing channel on hand B's first finger reads row 2 of the loop's samples (device 1,
+    finger 0), not row 0 (device 0's finger 0, which its `device_finger` alone would name)."""
+    from softproxy.fingertip_sensors import SensingSpec
+
+    scene = load_scene("bimanual_grasp")
+    scene.sensing = [None, None, SensingSpec(), None]
+    with build(scene, _scene_devices(scene), realtime=False) as loop:
+        assert loop.sample_rows == [0, 1, 2, 3]
+        (channel,) = loop.sensors
+        assert channel.finger is loop.fingers[2] and channel.device_finger == 2
+        _ticks(loop, 2.5)  # B holds the cube: its sensor senses contacts
+        assert channel.errors == 0 and channel.summary()["sensed"] > 0
