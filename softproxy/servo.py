@@ -36,9 +36,11 @@ import warnings
 import weakref
 
 import numpy as np
+from numba.core.errors import NumbaExperimentalFeatureWarning
 
 from softproxy import termination
 from softproxy.compiled import coupling, native
+from softproxy.compiled import group as group_kernel
 from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
@@ -272,6 +274,14 @@ class ServoLoop:
                                  f"{device.fingers}: they must agree")
             st.stall_code = self.io.stall_code
             st.stall_ns = int(self.io.stall_s * 1e9)
+        self._group_io = None
+        """The members' compiled_io(), when the device is a DeviceGroup whose every member has
+        one: the group then runs compiled blocks too (`softproxy.compiled.group`)."""
+        if group is not None:
+            ios = [_compiled_io(d) for d in group.devices]
+            if all(io is not None and io.fingers == d.fingers for io, d in zip(ios, group.devices)):
+                self._group_io = ios
+                self._run_block = self._run_group_block
         # the SAMPLE rows as flat buffers, for a Python device's samples: plain item stores
         raw = self._sample_rows.array.view(np.uint8)
         self._floats = memoryview(raw).cast("d")
@@ -355,6 +365,8 @@ class ServoLoop:
         self._end = entry(kernel.end_tick, (self.state, self._mj, self._fingers, self._stats, 0), with_names)
         self._pace = entry(kernel.pace, (self.state,), with_names)
         self._paced_done = entry(kernel.paced_done, (self.state, stats.counters), with_names)
+        if self._group_io is not None:
+            self._compile_group(with_names)
         if self.io is not None:
             io = self.io
             limits = io.limits if io.limits is not None else self._limit_array
@@ -362,11 +374,54 @@ class ServoLoop:
             self._block = entry(kernel.run_ticks, (self.state, io.read, io.send, self._device_io, self._mj,
                                                    self._shapes, self._fingers, self._stats, 1, False), with_names)
 
+    def _compile_group(self, with_names: str) -> None:
+        """The compiled block of a DeviceGroup of compiled members: their cfuncs, a table of
+        their addresses, rows, stall codes and counters, their limits (each member's own
+        array, or one the loop fills before every block for a member whose limits are
+        constants of its class)."""
+        ios, group = self._group_io, self.device
+        self._member_limits = [io.limits if io.limits is not None else np.zeros(2) for io in ios]
+        self._members = np.array([[int(io.address), group.offsets[k], io.fingers, io.stall_code,
+                                   int(io.stall_s * 1e9), 0, 0, 0] for k, io in enumerate(ios)], dtype=np.int64)
+        self._group_args = (tuple(io.read for io in ios), tuple(io.send for io in ios), self._members,
+                            tuple(self._member_limits), self._samples, np.uintp(self._samples.ctypes.data))
+        with warnings.catch_warnings():  # a tuple of cfuncs is typed by numba's "experimental" first-class functions
+            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+            self._group_block = entry(group_kernel.run_group_ticks, (self.state, *self._group_args, self._mj,
+                                                                     self._shapes, self._fingers, self._stats, 1,
+                                                                     False), with_names)
+
+    def _run_group_block(self, n: int, paced: bool) -> int:
+        """`_run_block` for a DeviceGroup of compiled members: up to n ticks in one call, then
+        each member's failures and messages into the group, the samples as DeviceSamples."""
+        group, ios, table = self.device, self._group_io, self._members
+        for io, limits, member in zip(ios, self._member_limits, group.devices):
+            if io.limits is None:  # constants of its class, read here as the Python path does
+                limits[0], limits[1] = as_limit(member.max_force), as_limit(member.max_torque)
+        st = self.state[0]
+        errors_before = int(st.device_error)
+        done = self._group_block(self.state, *self._group_args, self._mj, self._shapes, self._fingers, self._stats,
+                                 n, paced)
+        for k, io in enumerate(ios):
+            if table[k, 5]:
+                group.read_failures[k] += int(table[k, 5])
+                table[k, 5] = 0
+            if table[k, 6]:
+                group.last_errors[k] = io.read_error(int(table[k, 6]))
+                table[k, 6] = 0
+            if table[k, 7]:
+                self.last_send_error = io.read_error(int(table[k, 7]))
+                table[k, 7] = 0
+        if st.device_error > errors_before:  # every member failed on some tick: as the Python path says it
+            self.last_device_error = "; ".join(f"device {k}: {e}" for k, e in enumerate(group.last_errors))
+        self._sample_rows.copy_into(self.samples)
+        return done
+
     @property
     def compiled_block(self) -> bool:
-        """True when ticks run as compiled blocks (the device gives `compiled_io()` and no
-        fingertip sensor channel needs Python every tick)."""
-        return self.io is not None and not self.sensors
+        """True when ticks run as compiled blocks (the device gives `compiled_io()`, or is a
+        DeviceGroup whose members all do, and no fingertip sensor channel needs Python every tick)."""
+        return (self.io is not None or self._group_io is not None) and not self.sensors
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -663,7 +718,8 @@ class ServoLoop:
         if thread is None or thread is threading.current_thread() or self._idle.is_set():
             return
         self.state[0].stop = True
-        wait = JOIN_S + (self.io.stall_s if self.io is not None else 0.0)
+        ios = [self.io] if self.io is not None else (self._group_io or [])
+        wait = JOIN_S + max((io.stall_s for io in ios), default=0.0)
         if self._idle.wait(wait):
             self.state[0].stop = False  # (the run it asked to end is over: the next run is not stopped)
         else:

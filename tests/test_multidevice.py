@@ -387,3 +387,64 @@ def test_a_fingertip_sensor_reads_its_own_devices_sample():
         assert channel.finger is loop.fingers[2] and channel.device_finger == 2
         _ticks(loop, 2.5)  # B holds the cube: its sensor senses contacts
         assert channel.errors == 0 and channel.summary()["sensed"] > 0
+
+
+class PythonOnly:
+    """Wraps a device so that the loop calls it from Python (it has no compiled_io)."""
+
+    def __init__(self, device) -> None:
+        self.inner, self.fingers = device, device.fingers
+
+    max_force = property(lambda self: self.inner.max_force)
+    max_torque = property(lambda self: self.inner.max_torque)
+
+    def read(self, t, samples):
+        self.inner.read(t, samples)
+
+    def send(self, finger, fx, fy, fz, tx, ty, tz):
+        self.inner.send(finger, fx, fy, fz, tx, ty, tz)
+
+    def close(self):
+        self.inner.close()
+
+
+def _bimanual_run(python: bool, faults: dict):
+    scene = load_scene("bimanual_grasp")
+    devices = [open_device("sim", scene, {**scene.devices[0], "faults": faults}, source="test"),
+               open_device("sim", scene, {**scene.devices[1], "faults": {"drop": 0.01}}, source="test")]
+    with build(scene, [PythonOnly(d) for d in devices] if python else devices, realtime=False) as loop:
+        assert loop.compiled_block is not python
+        loop.run(int(5.0 * loop.rate_hz), every=250, on_tick=lambda lp: None)
+        return (loop.world.data.qpos.tolist(), [(f.max_force_seen, f.energy, f.slip_events) for f in loop.fingers],
+                loop.faults, list(loop.device.read_failures), [d.sends for d in devices])
+
+
+def test_a_group_of_compiled_devices_runs_compiled_and_agrees_bit_for_bit():
+    """Two simulated devices run as compiled blocks (softproxy.compiled.group) and give exactly
+    what the same devices called from Python give, faults on one device included: a stalled or
+    dropped read, NaN and spikes (each device's own fingers hold; the other's render)."""
+    faults = {"stall": 0.005, "nan": 0.01, "spike": 0.002, "drop": 0.01}
+    compiled, python = _bimanual_run(False, faults), _bimanual_run(True, faults)
+    assert compiled == python
+    qpos, _, counted, failures, _ = compiled
+    assert failures[0] > 0 and counted["invalid_sample"] > 0  # the faults happened
+    assert 0.07 < qpos[1] < 0.09 and qpos[2] > 0.07  # and the hand-over still came off
+
+
+def test_a_compiled_group_closed_from_another_thread_ends_at_zero():
+    """A compiled group's block in a servo thread, closed from the main thread while both hands
+    hold the cube: the thread has ended and both devices render zero on every finger."""
+    scene = load_scene("bimanual_grasp")
+    devices = _scene_devices(scene)
+    loop = build(scene, devices, realtime=False)
+    assert loop.compiled_block
+    thread = loop.run_in_thread(100_000, realtime=True)  # paced: still running when closed
+    give_up = time.monotonic() + 60.0  # (a guard against a dead thread, not a timing check)
+    while loop.ticks < 2300 and thread.is_alive() and time.monotonic() < give_up:
+        time.sleep(0.01)
+    assert loop.ticks >= 2300 and thread.is_alive()  # 2.3 s: both hands on the cube
+    loop.close()
+    assert not thread.is_alive() and loop.error is None
+    for d in devices:
+        assert d.max_force_sent > 1.0  # it was rendering a grip ...
+        assert d.closed and d.last_force == [(0.0, 0.0, 0.0)] * 2  # ... and ends at zero
