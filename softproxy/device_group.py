@@ -15,6 +15,8 @@ limits are its own: a send is clamped to them here, after the loop's guard, whic
 the largest of them (`max_force`). The loop sends zero to every finger of every member on
 every way out; `close()` closes every member, each whatever the others' closing raised.
 Members' own safety (stall watchdogs, zero before closing) is theirs, as with one device.
+When every member offers `compiled_io()` the servo loop runs the same rules as compiled
+code (`softproxy.compiled.group`) instead of calling `read` and `send` here.
 """
 
 from __future__ import annotations
