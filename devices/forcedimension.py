@@ -121,6 +121,16 @@ MODEL_LIMITS = {
     109: ("lambda.7 (left)", 12.0, 0.2, 8.0),
     60: ("Novint Falcon", 8.0, 0.0, 0.0),
 }
+# DHD device type ids -> (stiffness N/m, damping N·s/m): the most a coupling renders stably on
+# the model, CHAI3D 3.x's m_maxLinearStiffness and m_maxLinearDamping (chai3d/chai3d,
+# src/devices/CDeltaDevices.cpp: delta.3, omega.3/.6/.7 5000 N/m, 30 N·s/m; sigma.7 4000 N/m,
+# 30 N·s/m; src/devices/CFalconDevice.cpp: Falcon 3000 N/m, 20 N·s/m). Siblings as MODEL_LIMITS.
+MODEL_STIFFNESS = {63: (5000.0, 30.0), 33: (5000.0, 30.0), 34: (5000.0, 30.0), 36: (5000.0, 30.0),
+                   35: (5000.0, 30.0), 37: (5000.0, 30.0), 206: (5000.0, 30.0), 203: (5000.0, 30.0),
+                   104: (4000.0, 30.0), 105: (4000.0, 30.0), 108: (4000.0, 30.0), 109: (4000.0, 30.0),
+                   60: (3000.0, 20.0)}
+UNKNOWN_STIFFNESS = (3000.0, 20.0)
+"""A type id not in MODEL_STIFFNESS: the lowest figures of the table (the Falcon's)."""
 UNKNOWN_LIMITS = ("unknown model", 5.0, 0.0, 0.0)
 """A type id not in MODEL_LIMITS (a newer model, a custom controller): a conservative force, no torque."""
 
@@ -279,6 +289,7 @@ class ForceDimensionDevice(DeviceLifecycle, FaultRecovery):
             kind = int(dhd_.getSystemType(self._id))
             self.system_type = kind
             self.model, cap_f, cap_t, cap_g = MODEL_LIMITS.get(kind, UNKNOWN_LIMITS)
+            self.max_stiffness, self.max_damping = MODEL_STIFFNESS.get(kind, UNKNOWN_STIFFNESS)
             name = dhd_.getSystemName(self._id)
             self.system_name = name if isinstance(name, str) else self.model
             self.serial = int(dhd_.getSerialNumber(self._id))

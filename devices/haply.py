@@ -112,6 +112,13 @@ GRIP_STALE_MS = 100.0
 """Default of `grip_stale_ms`: a VerseGrip reading older than this (ms) makes the sample invalid."""
 DEFAULT_MAX_FORCE_N = 2.0
 """Default force limit (N): Isaac Lab's Inverse3 adapter's default `limit_force` (see the module docstring)."""
+MAX_STIFFNESS_N_PER_M = 1000.0
+MAX_DAMPING_NS_PER_M = 5.0
+"""The stiffest coupling (N/m) and most damping (N·s/m) a finger may ask of an Inverse3
+(`softproxy.stiffness_cap`). Neither the binding nor a Haply figure at hand gives them, and
+CHAI3D's tables have no Inverse3: these are CHAI3D's figures for the PHANTOM Desktop
+(src/devices/CPhantomDevices.cpp), a desktop impedance arm of like reach and force, between
+the Touch's 400 N/m and the Falcon's 3000 N/m; replace them by Haply's when published."""
 FORCE_CEILING_N = 3.3
 """Highest `max_force` accepted (N): a published Inverse3 driver's continuous force limit (see the module docstring)."""
 MAX_REACH_M = 0.5
@@ -254,6 +261,7 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
         self.port_wanted, self.index = (port.strip() if port else None), index
         self.workspace_scale, self.workspace_offset = scale, offset
         self.max_force = float(DEFAULT_MAX_FORCE_N if max_force is None else max_force)
+        self.max_stiffness, self.max_damping = MAX_STIFFNESS_N_PER_M, MAX_DAMPING_NS_PER_M
         self.stall_s = stall_ms / 1000.0
         self.timeout_s = timeout_ms / 1000.0
         self.grip_stale_s = grip_stale_ms / 1000.0

@@ -238,6 +238,9 @@ class HidDevice(DeviceLifecycle, FaultRecovery):
         self.twist_limit_rad = float(twist_limit_rad)
         self.stale_ms = float(stale_ms)
         self.max_force = float(profile.max_force if max_force is None else max_force)
+        # what the profile declares (softproxy.stiffness_cap); the shipped profiles declare none:
+        # an input-only SpaceMouse (renders no force) and open DIY devices no vendor rates
+        self.max_stiffness, self.max_damping = profile.max_stiffness, profile.max_damping
         self.max_torque = float(profile.max_torque if max_torque is None else max_torque)
         self.max_reports_per_read = max_reports_per_read
         self.label = label or profile.name

@@ -183,6 +183,8 @@ class Profile:
     has_status: bool
     sequence_bits: int                       # width of the sequence field (0: none)
     output: OutputLayout | None
+    max_stiffness: float | None = None       # N/m the device renders stably (softproxy.stiffness_cap); None: unknown
+    max_damping: float | None = None         # N·s/m, likewise
     plans: dict = field(default_factory=dict, repr=False, compare=False)  # parse plans per mode (cache)
 
     @property
@@ -389,7 +391,8 @@ def parse_profile(doc: dict, source: str = "<profile>") -> Profile:
                    max_force=p.max_force, max_torque=p.max_torque, finger_axis=_axis_vector(p.finger_axis),
                    matches=tuple(matches), numbered=numbered, max_bytes=max_bytes, reporting=reporting,
                    stale_ms=stale_ms, reports=reports_sorted, axes=axes, status_set=status_set,
-                   status_clear=status_clear, has_status=has_status, sequence_bits=sequence_bits, output=output)
+                   status_clear=status_clear, has_status=has_status, sequence_bits=sequence_bits, output=output,
+                   max_stiffness=p.max_stiffness, max_damping=p.max_damping)
 
 
 def profile_dirs() -> list[Path]:

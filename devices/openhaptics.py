@@ -108,6 +108,18 @@ MODEL_LIMITS = {
     "touch": (3.3, 0.88),
     "phantom omni": (3.3, 0.88),
 }
+# model name -> (stiffness N/m, damping N·s/m): the most a coupling renders stably, CHAI3D
+# 3.x's m_maxLinearStiffness and m_maxLinearDamping (chai3d/chai3d, src/devices/CPhantomDevices.cpp:
+# Touch 400 N/m, 4 N·s/m; PHANTOM Omni 700, 5; PHANTOM Desktop 1000, 5). The Touch X takes the
+# PHANTOM Desktop's, its predecessor (as in MODEL_LIMITS).
+MODEL_STIFFNESS = {
+    "touch x": (1000.0, 5.0),
+    "phantom desktop": (1000.0, 5.0),
+    "touch": (400.0, 4.0),
+    "phantom omni": (700.0, 5.0),
+}
+UNKNOWN_STIFFNESS = (400.0, 4.0)
+"""A model not in MODEL_STIFFNESS: the Touch's, the lowest."""
 UNKNOWN_LIMITS = (3.3, 0.88)
 """A model not in MODEL_LIMITS and no limit from the SDK: the Touch's, the smallest device."""
 
@@ -146,12 +158,22 @@ def availability(binding=None) -> dict:
     return row
 
 
-def _model_limits(model: str) -> tuple[float, float]:
+def _by_model(table: dict, model: str, unknown: tuple) -> tuple:
+    """The entry of `table` (keys: lower-case model names) for `model`, else `unknown`."""
     m = model.strip().lower()
-    for name, limits in MODEL_LIMITS.items():  # "touch x" before "touch"
+    for name, figures in table.items():  # "touch x" before "touch"
         if m.startswith(name) or name in m:
-            return limits
-    return UNKNOWN_LIMITS
+            return figures
+    return unknown
+
+
+def model_stiffness(model: str) -> tuple[float, float]:
+    """(stiffness N/m, damping N·s/m) the model renders stably (MODEL_STIFFNESS)."""
+    return _by_model(MODEL_STIFFNESS, model, UNKNOWN_STIFFNESS)
+
+
+def _model_limits(model: str) -> tuple[float, float]:
+    return _by_model(MODEL_LIMITS, model, UNKNOWN_LIMITS)
 
 
 def _quaternion(r) -> tuple | None:
@@ -214,6 +236,7 @@ class OpenHapticsDevice(DeviceLifecycle, FaultRecovery):
         self._device = self._open()
         self._opened_at = self._clock()
         self.model = self._read_model()
+        self.max_stiffness, self.max_damping = model_stiffness(self.model)
         peak, continuous = self._read_limits()
         if max_force is not None and not (config.finite(max_force) and 0.0 <= max_force <= peak):
             self._shutdown()

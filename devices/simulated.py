@@ -290,7 +290,8 @@ class SimulatedDevice(KernelDevice):
 
     def __init__(self, keyframes, *, noise_m: float = 0.0, noise_rad: float = 0.0, latency_s: float = 0.0,
                  quantum_m: float = 0.0, quantum_rad: float = 0.0, max_force: float = 20.0,
-                 max_torque: float = 0.5, seed: int = 0, faults: dict | None = None) -> None:
+                 max_torque: float = 0.5, seed: int = 0, faults: dict | None = None,
+                 max_stiffness: float | None = None, max_damping: float | None = None) -> None:
         settings = [_setting(name, value) for name, value in (
             ("noise_m", noise_m), ("noise_rad", noise_rad), ("latency_s", latency_s), ("quantum_m", quantum_m),
             ("quantum_rad", quantum_rad), ("max_force", max_force), ("max_torque", max_torque))]
@@ -315,6 +316,14 @@ class SimulatedDevice(KernelDevice):
             if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0.0 <= rate <= 1.0:
                 raise ValueError(f"faults.{kind} must be a probability per read in [0, 1], got {rate!r}")
             rates[FAULT_KINDS.index(kind)] = float(rate)
+        for name, value, low in (("max_stiffness", max_stiffness, 10.0), ("max_damping", max_damping, 0.0)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                      or not (math.isfinite(value) and value >= low)):
+                raise ValueError(f"{name} must be None (no limit) or a finite number >= {low:g}, got {value!r}")
+        self.max_stiffness = None if max_stiffness is None else float(max_stiffness)
+        """The stiffest coupling (N/m) a finger may ask of this device (`softproxy.stiffness_cap`); None: no limit."""
+        self.max_damping = None if max_damping is None else float(max_damping)
+        """The most coupling damping (N·s/m) a finger may ask of it; None: no limit."""
         self.fingers = len(keyframes)
         self.seed = seed
         self._duration = max(frames[-1][0] for frames in rows)
@@ -434,7 +443,8 @@ class SimulatedDevice(KernelDevice):
         kwargs = {arg: getattr(table, key) for key, arg in (
             ("noise_m", "noise_m"), ("noise_rad", "noise_rad"), ("latency_s", "latency_s"), ("quantum_m", "quantum_m"),
             ("quantum_rad", "quantum_rad"), ("max_force_N", "max_force"), ("max_torque_Nm", "max_torque"),
-            ("seed", "seed"), ("faults", "faults")) if key in cfg}
+            ("seed", "seed"), ("faults", "faults"), ("max_stiffness_N_per_m", "max_stiffness"),
+            ("max_damping_Ns_per_m", "max_damping")) if key in cfg}
         keyframes = []
         for i, f in enumerate(table.finger):
             frames = [list(key) for key in f.keyframes]

@@ -137,13 +137,17 @@ def _check_run_flags(args: argparse.Namespace) -> dict | None:
             raise ValueError(f"--rt-priority: {exc}") from None
         if args.headless and not args.realtime:
             raise ValueError("--rt-priority schedules a real-time run: add --realtime (a lockstep run is not paced)")
-    name, colon, argument = args.device.partition(":")
-    if colon and not argument:
-        raise ValueError(f"--device {args.device!r}: give the argument after ':' (e.g. replay:run.rec)")
+    for kind in args.device or ["sim"]:
+        name, colon, argument = kind.partition(":")
+        if colon and not argument:
+            raise ValueError(f"--device {kind!r}: give the argument after ':' (e.g. replay:run.rec)")
     faults = _parse_faults(args.faults) if args.faults else None
-    if faults and args.device != "sim":
+    other = [kind for kind in args.device or ["sim"] if kind != "sim"]
+    if faults and other:
         raise ValueError(f"--faults: only the simulated device injects faults; use it with --device sim "
-                         f"(got --device {args.device})")
+                         f"(got --device {other[0]})")
+    if args.record and args.device and len(args.device) > 1:
+        raise ValueError("--record records one device: give --device once to record a run")
     outputs = [(flag, path) for flag, path in (("--snapshot", args.snapshot), ("--video", args.video),
                                                ("--record", args.record)) if path]
     for flag, path in outputs:
@@ -160,35 +164,64 @@ def _check_run_flags(args: argparse.Namespace) -> dict | None:
 
 
 def _open_run_device(args: argparse.Namespace, scene, faults: dict | None):
-    """The run's device, checked to drive every finger of the scene. Each error names what is
-    to blame: --device (a type or an argument such as a recording), --faults, or the scene's
-    [device] table. The device is closed again if the check fails."""
-    from softproxy.run import check_device_fingers, device_types, open_device
+    """The run's device (several: a DeviceGroup of them, in order), each checked to drive its
+    fingers of the scene. Each error names what is to blame: --device (a type or an argument
+    such as a recording), --faults, or the scene's [device] table. The devices opened are
+    closed again if a later one fails."""
+    from softproxy.device_group import DeviceGroup
     from softproxy.scene import SceneError
 
-    name, _, argument = args.device.partition(":")
+    kinds = args.device or ["sim"] * len(scene.devices or [scene.device])
+    tables = len(scene.devices or [scene.device])
+    if len(kinds) != tables:
+        said = "[[device]] tables" if tables > 1 else "device"
+        raise SceneError(f"--device given {len(kinds)} time(s), but scene {scene.name!r} ({scene.path}) has {tables} "
+                         f"{said}: give --device once per device, in the order of the scene's tables")
+    devices = []
+    try:
+        for k, kind in enumerate(kinds):
+            devices.append(_open_one_device(kind, k, len(kinds), scene, faults))
+        return devices[0] if len(devices) == 1 else DeviceGroup(devices)
+    except BaseException:
+        for d in devices:
+            d.close()
+        raise
+
+
+def _open_one_device(kind: str, index: int, count: int, scene, faults: dict | None):
+    """Device `index` of the run (`_open_run_device`), checked to drive its fingers."""
+    from softproxy.run import check_device_fingers, device_table, device_types, open_device
+    from softproxy.scene import SceneError
+
+    name, _, argument = kind.partition(":")
     if name not in device_types():
-        raise SceneError(f"--device {args.device}: no device type {name!r}; installed: {', '.join(device_types())}")
-    configured = scene.device.get("type")
+        raise SceneError(f"--device {kind}: no device type {name!r}; installed: {', '.join(device_types())}")
+    table = device_table(scene, index)
+    where = "[device]" if count == 1 else f"device[{index}]"
+    configured = table.get("type")
     if not argument and configured not in (None, name):
         other = "" if name == "sim" else f", or give {name} its own argument (--device {name}:ARGUMENT)"
+        which = "a" if count == 1 else f"device {index} as a"
         raise SceneError(f"--device {name}{' (the default)' if name == 'sim' else ''}: scene {scene.name!r} "
-                         f"({scene.path}) configures a {configured!r} device: run it with --device {configured}{other}")
+                         f"({scene.path}) configures {which} {configured!r} device: run it with --device "
+                         f"{configured}{other}")
     try:
-        device = open_device(args.device, scene)  # errors from the scene's [device] name the scene
+        # errors from the scene's [device] name the scene (device 0: the call of one device)
+        device = open_device(kind, scene) if index == 0 else open_device(kind, scene, index=index)
     except (ValueError, RuntimeError) as exc:
         if argument:
             said = str(exc)  # a device's own message may already name the flag
-            raise SceneError(said if said.startswith(f"--device {args.device}") else f"--device {args.device}: {said}") from None
+            raise SceneError(said if said.startswith(f"--device {kind}") else f"--device {kind}: {said}") from None
         raise
     if faults:
         # the scene's own [device] opened above; the faults merged in can only fail on
         # themselves, so the second opening's errors name the flag
         device.close()
-        device = open_device(args.device, scene, {**scene.device, "faults": faults}, source="--faults")
-    label = f"{scene.path}: [device]" if name == "sim" and not argument else f"--device {args.device}"
+        more = {"index": index} if index else {}
+        device = open_device(kind, scene, {**table, "faults": faults}, source="--faults", **more)
+    label = f"{scene.path}: {where}" if name == "sim" and not argument else f"--device {kind}"
     try:
-        check_device_fingers(scene, device, label)
+        check_device_fingers(scene, device, label, index)
     except SceneError:
         device.close()
         raise
@@ -210,6 +243,22 @@ def _print_fingertip_sensors(f: dict) -> None:
                 f"normal force error max {e['normal_force_max_N']:.4f} N" if s["sensed"] else "nothing sensed")
         print(f"  {f['name']} sensing ({s['noise']} noise): {s['sensed']} contacts sensed at {s['rate_hz']:g} Hz, "
               f"{s['refused']} refused; {errs}; errors {s['errors']}")
+
+
+def _print_stiffness_notes(scene, device, allow_stiffer: bool) -> None:
+    """One line on stderr per finger stiffer than its device renders stably (`softproxy.stiffness_cap`);
+    SceneError when a cap cannot be met."""
+    from softproxy.device_group import DeviceGroup
+    from softproxy.scene import SceneError
+    from softproxy.stiffness_cap import cap_fingers
+
+    members = device.devices if isinstance(device, DeviceGroup) else [device]
+    try:
+        notes = cap_fingers(scene.fingers, members, allow_stiffer)[1]
+    except ValueError as exc:
+        raise SceneError(f"{scene.path}: {exc}") from None
+    for note in notes:
+        print(f"softproxy run: note: {note}", file=sys.stderr)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -264,11 +313,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         on_tick = bar.chain(on_tick)
     try:
         try:
+            _print_stiffness_notes(scene, device, args.allow_stiffer)  # before the run; the run caps them too
             result = run_scene(scene, device, duration_s=args.duration, rate_hz=args.rate,
                                finger_model=args.finger_model, realtime=realtime, record=args.record,
                                on_built=views.on_built if views else None, on_tick=on_tick,
                                every=1 if views is not None and views.video is not None else 10,  # video frames on time
-                               priority=args.rt_priority, passivity=not args.no_passivity)
+                               priority=args.rt_priority, passivity=not args.no_passivity,
+                               allow_stiffer=args.allow_stiffer)
         finally:
             device.close()
             if bar is not None:
@@ -303,6 +354,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"  tick p50 {t['p50']} us, p99 {t['p99']} us, max {t['max']} us; faults {result['faults']}")
             for line in result["warnings"]:
                 print(f"  warning: {line}")
+            for k, d in enumerate(result.get("devices", [])):
+                if d["read_failures"]:
+                    print(f"  device {k} ({d['device']}) failed {d['read_failures']} reads (its fingers rendered "
+                          f"zero force then): {d['last_error']}")
             if result.get("device_error"):
                 print(f"  the device failed ({result['faults']['device_error']} ticks, zero force each): "
                       f"{result['device_error']}")
@@ -557,8 +612,10 @@ def cmd_compile(args: argparse.Namespace) -> int:
         return 2
     for scene in scenes:
         wall, cpu = time.monotonic(), time.process_time()
-        still = {"type": "sim", "finger": [{"keyframes": [[0.0, 0.0, 0.0, 0.0, 0.0]]}] * scene.device_fingers}
-        loop = build(scene, open_device("sim", scene, still, source="softproxy compile"), realtime=False)
+        devices = [open_device("sim", scene, {"type": "sim", "finger": [{"keyframes": [[0.0, 0.0, 0.0, 0.0, 0.0]]}]
+                                              * max(1, scene.fingers_of(k))}, source="softproxy compile")
+                   for k in range(len(scene.devices or [scene.device]))]
+        loop = build(scene, devices, realtime=False)
         loop.close()
         print(f"{scene.name}: ready in {time.monotonic() - wall:.1f} s ({time.process_time() - cpu:.1f} s of CPU)",
               flush=True)
@@ -588,10 +645,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run a scene (e.g. two_finger_grasp) on a device",
                        epilog=_scenes_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scene", help="scene name (listed below) or path to its .toml")
-    p.add_argument("--device", default="sim",
+    p.add_argument("--device", action="append", default=None,
                    help="device: sim (the scene's scripted device, default), replay:FILE (a recording), "
                         "hid or hid:PROFILE (a HID device; `softproxy devices` lists them and the profiles), "
-                        "or another installed type (installed: " + ", ".join(_device_types()) + ")")
+                        "or another installed type (installed: " + ", ".join(_device_types()) + "); once per "
+                        "device, in the order of a scene's [[device]] tables (two hands: give it twice)")
+    p.add_argument("--allow-stiffer", action="store_true",
+                   help="keep a finger's stiffness and damping above what its device renders stably (research; "
+                        "by default they are capped to the device's figures, one line saying so)")
     p.add_argument("--record", metavar="FILE", default=None, help="stream every device sample to FILE as the run goes (replay it with --device replay:FILE)")
     p.add_argument("--faults", metavar="SPEC", default=None,
                    help="inject device faults (sim): e.g. nan=0.01,drop=0.001,spike=0.001,stall=0.0005 (per read)")

@@ -143,7 +143,7 @@ class _Channel:
 
     def __init__(self, finger, rate_hz: float, servo_rate_hz: float, pad, distal, history: int) -> None:
         self.finger = finger
-        self.device_finger = finger.params.device_finger
+        self.device_finger = finger.params.device_finger  # the row of loop.samples it reads (`attach` sets the loop's)
         self.every = max(1, int(round(servo_rate_hz / rate_hz)))
         self.rate_hz = servo_rate_hz / self.every  # the rate actually run, Hz
         self._countdown = self.every
@@ -393,6 +393,7 @@ def attach(loop, tactile: list, sensing: list) -> list:
     """Append the channels a scene asks for to `loop.sensors`: `tactile[i]` / `sensing[i]` is a
     spec or None for `loop.fingers[i]`. Returns the channels added (none: the list stays empty)."""
     added = []
+    rows = loop.sample_rows  # with several devices a finger's sample is not at its device_finger
     for i, finger in enumerate(loop.fingers):
         t = tactile[i] if i < len(tactile) else None
         s = sensing[i] if i < len(sensing) else None
@@ -400,6 +401,9 @@ def attach(loop, tactile: list, sensing: list) -> list:
             added.append(TactileChannel(finger, t, loop.rate_hz))
         if s is not None:
             added.append(SensingChannel(finger, s, loop.rate_hz))
+        for ch in added:
+            if ch.finger is finger:
+                ch.device_finger = rows[i]
     loop.sensors.extend(added)
     return added
 

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from softproxy.device import Device
+from softproxy.device_group import DeviceGroup
 from softproxy.finger import SoftFingerProxy
 from softproxy.fingertip_sensors import attach as attach_sensors
 from softproxy.fingertip_sensors import summaries as sensor_summaries
@@ -22,6 +23,7 @@ from softproxy.recording import RecordingDevice
 from softproxy.scheduling import realtime_thread
 from softproxy.scene import Scene, SceneError
 from softproxy.servo import MAX_RATE_HZ, MIN_RATE_HZ, ServoLoop
+from softproxy.stiffness_cap import cap_fingers
 from softproxy.world import World
 
 
@@ -30,10 +32,19 @@ def device_types() -> list[str]:
     return sorted(ep.name for ep in entry_points(group="softproxy.devices"))
 
 
-def open_device(kind: str, scene: Scene, config: dict | None = None, source: str | None = None) -> Device:
-    """Open a device: "sim" (configured by the scene's [device] table, or by `config`, whose
-    errors then name `source` instead of the scene file) or "NAME:ARGUMENT" (e.g.
-    "replay:run.rec"), whose argument replaces the scene's configuration."""
+def device_table(scene: Scene, index: int = 0) -> dict:
+    """The scene's table of device `index` ([device], or the index-th [[device]]); {} if none."""
+    if index == 0:
+        return scene.device  # (what a caller may have replaced since loading)
+    return scene.devices[index] if index < len(scene.devices) else {}
+
+
+def open_device(kind: str, scene: Scene, config: dict | None = None, source: str | None = None,
+                index: int = 0) -> Device:
+    """Open a device: "sim" (configured by the scene's [device] table, the `index`-th of its
+    [[device]] tables, or by `config`, whose errors then name `source` instead of the scene
+    file) or "NAME:ARGUMENT" (e.g. "replay:run.rec"), whose argument replaces the scene's
+    configuration."""
     name, _, argument = kind.partition(":")
     for ep in entry_points(group="softproxy.devices"):
         if ep.name == name:
@@ -41,22 +52,26 @@ def open_device(kind: str, scene: Scene, config: dict | None = None, source: str
             if argument:
                 if not hasattr(cls, "from_argument"):
                     raise SceneError(f"device type {name!r} takes no argument (got {argument!r})")
-                return cls.from_argument(argument, scene)
-            return cls.from_config(scene.device if config is None else config, source=source or str(scene.path))
+                # the argument overrides the fields of this device's own table, not the first's
+                own = scene if index == 0 else replace(scene, device=device_table(scene, index))
+                return cls.from_argument(argument, own)
+            where = str(scene.path) if index == 0 else f"{scene.path}: device[{index}]"
+            return cls.from_config(device_table(scene, index) if config is None else config, source=source or where)
     raise SceneError(f"no device type {name!r}; installed: {', '.join(device_types()) or 'none'}")
 
 
-def check_device_fingers(scene: Scene, device: Device, label: str) -> None:
+def check_device_fingers(scene: Scene, device: Device, label: str, index: int = 0) -> None:
     """SceneError (one line naming the device `label` and the scene) when a finger of the
-    scene is driven by a device finger the device does not have: it would get no samples."""
+    scene on device `index` is driven by a device finger the device does not have: it would
+    get no samples."""
     for params in scene.fingers:
-        if params.device_finger >= device.fingers:
+        if params.device == index and params.device_finger >= device.fingers:
             raise SceneError(f"{label} drives {device.fingers} finger(s), but scene {scene.name!r} ({scene.path}) has "
                              f"finger {params.name!r} on device finger {params.device_finger}: use a device (or a "
                              f"recording) with at least {params.device_finger + 1}, or a scene with fewer fingers")
     header = getattr(device, "header", None)  # a recording: every recorded finger must drive one of the scene's
     if isinstance(header, dict):
-        used = {params.device_finger for params in scene.fingers}
+        used = {params.device_finger for params in scene.fingers if params.device == index}
         unused = [i for i in range(device.fingers) if i not in used]
         if unused:
             made = f" (recorded in scene {header['scene']!r})" if isinstance(header.get("scene"), str) else ""
@@ -93,9 +108,15 @@ def check_run(duration_s: float, rate_hz: float) -> None:
         raise ValueError(f"rate must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got {rate_hz!r}")
 
 
-def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_model: str | None = None,
-          audit: bool | None = None, realtime: bool = True, passivity: bool = True) -> ServoLoop:
-    """World + fingers + servo loop for `scene`, driven by `device`.
+def build(scene: Scene, device: Device | list[Device], rate_hz: float | None = None, finger_model: str | None = None,
+          audit: bool | None = None, realtime: bool = True, passivity: bool = True, allow_stiffer: bool = False,
+          notes: list | None = None) -> ServoLoop:
+    """World + fingers + servo loop for `scene`, driven by `device` (or a list of devices, or
+    a `DeviceGroup`: finger i by device `scene.fingers[i].device`).
+
+    A finger stiffer (or more damped) than its device renders stably is capped to the device's
+    figure, one line for `notes` (a list, if given) saying so; `allow_stiffer` keeps the
+    scene's figures (`softproxy.stiffness_cap`).
 
     `realtime=False` builds a loop for lockstep runs in simulated time: no overrun watchdog;
     otherwise the watchdog watches while `run(realtime=True)` paces the ticks, and an
@@ -106,11 +127,17 @@ def build(scene: Scene, device: Device, rate_hz: float | None = None, finger_mod
     """
     model = scene.load_model()
     world = World(model, scene.start_data(model), **scene.world_options())
-    fingers = []
-    for params in scene.fingers:
-        if finger_model is not None:
-            params = replace(params, model=finger_model)  # the finger's params name the model it runs
-        fingers.append(SoftFingerProxy(params, world.shapes))
+    members = list(device) if isinstance(device, (list, tuple)) else (
+        device.devices if isinstance(device, DeviceGroup) else [device])
+    chosen = [replace(p, model=finger_model) if finger_model is not None else p  # the params name the model run
+              for p in scene.fingers]
+    try:
+        chosen, said = cap_fingers(chosen, members, allow_stiffer)
+    except ValueError as exc:
+        raise SceneError(f"{scene.path}: {exc}") from None
+    if notes is not None:
+        notes.extend(said)
+    fingers = [SoftFingerProxy(params, world.shapes) for params in chosen]
     try:
         loop = ServoLoop(world, fingers, device, scene.rate_hz if rate_hz is None else rate_hz,
                          audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False,
@@ -165,7 +192,8 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
-              record: str | None = None, every: int = 10, priority: int | None = None, passivity: bool = True) -> dict:
+              record: str | None = None, every: int = 10, priority: int | None = None, passivity: bool = True,
+              allow_stiffer: bool = False) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `priority` (1–99) runs a real-time run's ticks under SCHED_FIFO at that priority
@@ -178,7 +206,12 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     duration or a rate out of bounds (`check_run`).
     """
     check_run(scene.duration_s if duration_s is None else duration_s, scene.rate_hz if rate_hz is None else rate_hz)
+    if isinstance(device, (list, tuple)):
+        device = device[0] if len(device) == 1 else DeviceGroup(device)
+    if record is not None and isinstance(device, DeviceGroup):
+        raise SceneError("--record records one device: run with one --device to record")
     original = device
+    notes: list = []
     recorder = None
     if record is not None:  # opened before the run: an unwritable path fails now, naming it
         try:
@@ -186,7 +219,8 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
         except ValueError as exc:
             raise SceneError(f"--record {exc}") from None
     try:  # the recording is finished however this ends, building the loop included
-        loop = build(scene, device, rate_hz, finger_model, realtime=realtime, passivity=passivity)
+        loop = build(scene, device, rate_hz, finger_model, realtime=realtime, passivity=passivity,
+                     allow_stiffer=allow_stiffer, notes=notes)
         if on_built is not None:
             on_built(loop)
         user_on_tick = on_tick
@@ -252,6 +286,10 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     for i, channels in sensor_summaries(loop).items():  # only the fingers whose scene asked
         result["fingers"][i].update(channels)
     result["warnings"] = run_warnings(loop)
+    result["notes"] = notes
+    if isinstance(original, DeviceGroup):  # each device's own read failures (its fingers held meanwhile)
+        result["devices"] = [{"device": type(d).__name__, "read_failures": n, "last_error": e}
+                             for d, n, e in zip(original.devices, original.read_failures, original.last_errors)]
     result["tick_us"] = loop.stats.summary_us()
     result["deadline_misses"] = loop.stats.misses if realtime else None
     result["faults"] = dict(loop.faults)

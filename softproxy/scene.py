@@ -20,6 +20,9 @@ A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked
                          "quantise"), seed (0), pad, distal, history
                        a finger's table is merged over [finger_defaults]'s; false turns it off
     [device]           handed as is to the device named by its `type` (e.g. "sim")
+    [[device]]         instead of [device], one table per device, for several devices in one
+                       loop (two hands): a finger names its device by `device` (an index, in
+                       the order of the tables; default 0) and its finger by `device_finger`
     [haptics]          what the fingers touch (docs/models.md): exclude (geom or flex names) and
                          exclude_groups (geom groups 0-5) kept out of haptic contact, still in
                          MuJoCo's physics; mesh_surface ("true": a mesh's own triangles;
@@ -77,7 +80,8 @@ class Scene:
     audit: bool = True
     force_shading: bool = False
     fingers: list[FingerParams] = field(default_factory=list)
-    device: dict = field(default_factory=dict)
+    device: dict = field(default_factory=dict)  # the first (or only) device's table
+    devices: list[dict] = field(default_factory=list)  # every device's table, in order ([device]: one)
     measure: MeasureSpec | None = None
     tactile: list[TactileSpec | None] = field(default_factory=list)  # per finger; None = off
     sensing: list[SensingSpec | None] = field(default_factory=list)  # per finger; None = off
@@ -91,6 +95,10 @@ class Scene:
     def device_fingers(self) -> int:
         """How many fingers a device needs to drive this scene's (its highest `device_finger` + 1)."""
         return max((f.device_finger for f in self.fingers), default=0) + 1
+
+    def fingers_of(self, device: int) -> int:
+        """How many fingers device `device` needs to drive its fingers of this scene (0: none)."""
+        return max((f.device_finger + 1 for f in self.fingers if f.device == device), default=0)
 
     def world_options(self) -> dict:
         """The keyword arguments of `World` this scene asks for (force shading, exclusions, mesh surface)."""
@@ -235,7 +243,14 @@ def _scene(path: Path, doc: dict) -> Scene:
     scene.fingers = [p[0] for p in parsed]
     scene.tactile = [p[1] for p in parsed]
     scene.sensing = [p[2] for p in parsed]
-    scene.device = doc.get("device", {})
+    tables = doc.get("device", {})
+    scene.devices = [dict(t) for t in tables] if isinstance(tables, list) else [tables]
+    scene.device = scene.devices[0]
+    for i, params in enumerate(scene.fingers):
+        if params.device >= len(scene.devices):
+            said = "[[device]] tables" if isinstance(tables, list) else "device (its [device] table)"
+            raise SceneError(f"{where}: finger[{i}].device is {params.device}, but the scene has {len(scene.devices)} "
+                             f"{said}: give one [[device]] table per device, or device = 0..{len(scene.devices) - 1}")
     h = checked.haptics
     scene.exclude, scene.exclude_groups, scene.mesh_surface = tuple(h.exclude), tuple(h.exclude_groups), h.mesh_surface
     if checked.measure is not None:

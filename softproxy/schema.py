@@ -434,7 +434,9 @@ class FingerParams:
                         "moves at <= ~5 m/s)", low=0.0, high=1e4, open_low=True) = 20.0
     soft_start: quantity("s", "after placement the force clamp ramps from 0 to max_force over this (a minute "
                          "is already no force at all to a user)", low=0.0, high=60.0) = 0.1
-    device_finger: count("which finger of the device drives this one", low=0) = 0
+    device: count("which device drives this one: its index among the scene's [[device]] tables (or the "
+                  "--device flags), in order; 0 with one device", low=0) = 0
+    device_finger: count("which finger of its device drives this one", low=0) = 0
     offset: vector3("device-to-world offset, each component inside the workspace", "m",
                     low=-WORKSPACE_LIMIT, high=WORKSPACE_LIMIT) = (0.0, 0.0, 0.0)
     scale: quantity("", "device-to-world workspace scale (1e3 maps 1 mm to 1 m)", low=0.0, high=1e3,
@@ -624,6 +626,10 @@ class DeviceTableAny(BaseModel):
     type: Annotated[Name, Field(description="the device type, e.g. \"sim\", \"hid\"")] = "sim"
 
 
+MAX_DEVICES = 16
+"""Most devices one servo loop drives (two hands need two; more is a mistake in a scene)."""
+
+
 class SceneFile(Table):
     """A scene TOML file: the MJCF beside it and what the haptic side needs (softproxy.scene)."""
 
@@ -633,7 +639,9 @@ class SceneFile(Table):
     measure: Optional[MeasureTable] = None
     finger_defaults: FingerDefaults = Field(default_factory=FingerDefaults)
     finger: Annotated[list[FingerTable], Field(min_length=1, description="one [[finger]] table per finger")]
-    device: DeviceTableAny = Field(default_factory=DeviceTableAny)
+    device: Union[DeviceTableAny, Annotated[list[DeviceTableAny], Field(min_length=1, max_length=MAX_DEVICES)]] = Field(
+        default_factory=DeviceTableAny, description="[device]: the device; or [[device]], one table per device, "
+        "each finger naming its own by `device` (an index)")
     haptics: HapticsTable = Field(default_factory=HapticsTable)
 
 
@@ -767,6 +775,10 @@ class HidProfileFile(Table):
                         hint_high="max_force is in N") = 0.0
     max_torque: quantity("N·m", "what the device renders safely; 0: renders no torque", low=0.0,
                          high=MAX_TORQUE_NM, hint_high="max_torque is in N·m: 100 N·mm is 0.1") = 0.0
+    max_stiffness: quantity("N/m", "the stiffest coupling the device renders stably: a stiffer finger is capped "
+                            "(default: none known, nothing capped)", low=10.0, high=1e5, optional=True) = None
+    max_damping: quantity("N·s/m", "the most coupling damping the device renders stably (default: none known)",
+                          low=0.0, high=1e3, optional=True) = None
     finger_axis: SignedAxis = "z"
     match: list[HidMatch] = []
     input: HidInput
@@ -817,6 +829,10 @@ class SimDeviceTable(Table):
     quantum_rad: quantity("rad", "encoder resolution of the twist (0: none)", low=0.0) = 0.0
     max_force_N: quantity("N", "the motor saturates here", low=0.0, optional=True) = None
     max_torque_Nm: quantity("N·m", "the motor saturates here", low=0.0, optional=True) = None
+    max_stiffness_N_per_m: quantity("N/m", "the stiffest coupling it renders stably: a stiffer finger is capped "
+                                    "(default: no limit)", low=10.0, optional=True) = None
+    max_damping_Ns_per_m: quantity("N·s/m", "the most coupling damping it renders stably (default: no limit)",
+                                   low=0.0, optional=True) = None
     seed: count("seed of the noise and faults") = 0
     finger: Annotated[list[SimFinger], Field(min_length=1)]
     faults: dict[Literal[SIM_FAULT_KINDS], Probability] = {}
@@ -921,7 +937,10 @@ def json_schemas() -> dict[str, dict]:
     plugin = {"type": "object", "description": "the table of a device type installed as a plugin",
               "properties": {"type": {"type": "string", "not": {"enum": list(DEVICE_TABLES)}}}, "required": ["type"]}
     shipped = {k: v for k, v in device.items() if k != "$defs"}
-    scene["properties"]["device"] = {"description": DeviceTableAny.__doc__, "anyOf": [shipped, plugin]}
+    one = {"anyOf": [shipped, plugin]}
+    several = {"type": "array", "items": one, "minItems": 1, "maxItems": MAX_DEVICES,
+               "description": "[[device]]: one table per device; a finger names its device by index (`device`)"}
+    scene["properties"]["device"] = {"description": DeviceTableAny.__doc__, "anyOf": [one, several]}
     schemas = {"scene.schema.json": scene, "hid_profile.schema.json": HidProfileFile.model_json_schema(),
                "device.schema.json": device}
     for name, js in schemas.items():

@@ -36,14 +36,17 @@ import warnings
 import weakref
 
 import numpy as np
+from numba.core.errors import NumbaExperimentalFeatureWarning
 
 from softproxy import termination
 from softproxy.compiled import coupling, native
+from softproxy.compiled import group as group_kernel
 from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
 from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, StatRings
 from softproxy.device import Device, check_device, DeviceSample
+from softproxy.device_group import DeviceGroup
 from softproxy.device_guard import as_limit
 from softproxy.device_kernel import SAMPLE, SampleBuffer
 from softproxy.finger import SoftFingerProxy
@@ -119,23 +122,27 @@ JOIN_S = 1.0
 block before it sends zero force and closes the device regardless."""
 
 
-def _claim(device, loop: "ServoLoop") -> None:
-    """Make `loop` the one open loop of `device`; ValueError if another open loop drives it."""
+def _claim(devices, loop: "ServoLoop") -> None:
+    """Make `loop` the one open loop of each of `devices`; ValueError (claiming none) if another
+    open loop drives one of them."""
     with _claims_lock:
-        ref = _claims.get(id(device))
-        other = ref() if ref is not None else None
-        if other is not None and not other.closed and other.device is device:
-            raise ValueError(f"device {type(device).__name__} is already driven by an open ServoLoop: "
-                             "close that loop (or leave its with block) before building another on it")
-        _claims[id(device)] = weakref.ref(loop)
+        for device in devices:
+            ref = _claims.get(id(device))
+            other = ref() if ref is not None else None
+            if other is not None and not other.closed and any(d is device for d in other.devices):
+                raise ValueError(f"device {type(device).__name__} is already driven by an open ServoLoop: "
+                                 "close that loop (or leave its with block) before building another on it")
+        for device in devices:
+            _claims[id(device)] = weakref.ref(loop)
 
 
-def _release(device, loop: "ServoLoop") -> None:
-    """`loop` closed: `device` is free for another."""
+def _release(devices, loop: "ServoLoop") -> None:
+    """`loop` closed: `devices` are free for another."""
     with _claims_lock:
-        ref = _claims.get(id(device))
-        if ref is not None and ref() in (loop, None):
-            del _claims[id(device)]
+        for device in devices:
+            ref = _claims.get(id(device))
+            if ref is not None and ref() in (loop, None):
+                del _claims[id(device)]
 
 
 @atexit.register
@@ -158,7 +165,7 @@ def _compiled_io(device):
 
 
 class ServoLoop:
-    """Couples fingers to a world through one device at a fixed rate (Hz).
+    """Couples fingers to a world through one device, or several, at a fixed rate (Hz).
 
     Use it as `with ServoLoop(...) as loop:` (or call `close()`): leaving sends zero force and
     closes the device. A loop left open is closed by an exit hook when the interpreter exits,
@@ -168,22 +175,48 @@ class ServoLoop:
     `handle_signals=False` leaves the signals alone). A device belongs to one open loop at
     a time (ValueError otherwise).
 
+    Several devices (a list, or a `softproxy.device_group.DeviceGroup`) are read and sent in
+    the same tick as one `DeviceGroup`: a finger is driven by finger `device_finger` of device
+    `FingerParams.device` (its index in the list), a device that fails zeroes its own fingers
+    only (`softproxy.device_group`), and each finger's clamps (`max_force`, `max_torque`) are
+    lowered to its own device's limits when the loop is built. One device: every finger's
+    `device` is 0.
+
     The loop sets `world.model.opt.timestep` to its period (1 / rate_hz): MuJoCo takes exactly
     one step per servo tick, which the coupling needs (each tick the proxies follow the bodies
     where that step put them). A model's own timestep is replaced; for a finer MuJoCo step,
     raise the rate.
     """
 
-    def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device, rate_hz: float = 1000.0,
+    def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device | list[Device],
+                 rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
                  overrun_watchdog: bool | None = None, handle_signals: bool = True, passivity: bool = True) -> None:
         if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
             raise ValueError(f"rate_hz must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g}, got {rate_hz!r}")
+        if isinstance(device, (list, tuple)):
+            device = device[0] if len(device) == 1 else DeviceGroup(device)
         check_device(device)
+        group = device if isinstance(device, DeviceGroup) else None
+        self.devices = list(group.devices) if group is not None else [device]
+        """The devices the loop drives (one, or the members of its DeviceGroup `device`)."""
+        rows = []  # each finger's row of the device's samples (the group's finger)
         for f in fingers:
-            if f.params.device_finger >= device.fingers:
-                raise ValueError(f"finger {f.params.name!r} uses device finger {f.params.device_finger}, "
+            p = f.params
+            if group is not None:
+                try:
+                    rows.append(group.row(p.device, p.device_finger))
+                except ValueError as exc:
+                    raise ValueError(f"finger {p.name!r}: {exc}") from None
+            elif p.device != 0:
+                raise ValueError(f"finger {p.name!r} is driven by device {p.device}, but the loop drives one device "
+                                 f"(device 0): give the loop a list of devices")
+            elif p.device_finger >= device.fingers:
+                raise ValueError(f"finger {p.name!r} uses device finger {p.device_finger}, "
                                  f"but the device drives {device.fingers}")
+            else:
+                rows.append(p.device_finger)
+        for f in fingers:
             if f.god.shapes is not world.shapes:
                 raise ValueError(f"finger {f.params.name!r} touches shapes of its own, not the world's: "
                                  "build it over world.shapes")
@@ -214,7 +247,14 @@ class ServoLoop:
         self.audit = audit
         self._started = False
         self.closed = False
-        _claim(device, self)  # before compiling; a loop dropped unclosed leaves a dead reference: the device is free
+        _claim(self.devices, self)  # before compiling; a loop dropped unclosed leaves a dead reference: the device is free
+        if group is not None:
+            # each finger's clamp lowered to its own device's limits: the loop's guard clamps to
+            # the largest device's, and the body must get the reaction of what its device is sent
+            for f in fingers:
+                member = group.devices[f.params.device]
+                f.max_force = min(f.max_force, as_limit(member.max_force))
+                f.max_torque = min(f.max_torque, as_limit(member.max_torque))
         self.handle_signals = handle_signals
         self._signals = None  # this loop's claim on softproxy.termination's handlers: its release
         self._unregister_fatal = None  # ... and on the emergency path of a MuJoCo error in a kernel
@@ -223,7 +263,8 @@ class ServoLoop:
         self.sensors = []  # fingertip sensor channels (softproxy.fingertip_sensors): tick(loop) each tick
         self.rows = FingerRows.gather(fingers) if fingers else FingerRows(world.shapes, 0)
         """The fingers' records, one table: the fingers are views of its rows."""
-        self._device_of = np.array([f.params.device_finger for f in fingers], dtype=np.int64)
+        self._rows = rows
+        self._device_of = np.array(rows, dtype=np.int64)
         self.io = _compiled_io(device)
         """The device's read and send as compiled code (`softproxy.device_kernel.CompiledIO`),
         or None: the device is then called from Python every tick."""
@@ -233,6 +274,14 @@ class ServoLoop:
                                  f"{device.fingers}: they must agree")
             st.stall_code = self.io.stall_code
             st.stall_ns = int(self.io.stall_s * 1e9)
+        self._group_io = None
+        """The members' compiled_io(), when the device is a DeviceGroup whose every member has
+        one: the group then runs compiled blocks too (`softproxy.compiled.group`)."""
+        if group is not None:
+            ios = [_compiled_io(d) for d in group.devices]
+            if all(io is not None and io.fingers == d.fingers for io, d in zip(ios, group.devices)):
+                self._group_io = ios
+                self._run_block = self._run_group_block
         # the SAMPLE rows as flat buffers, for a Python device's samples: plain item stores
         raw = self._sample_rows.array.view(np.uint8)
         self._floats = memoryview(raw).cast("d")
@@ -243,7 +292,7 @@ class ServoLoop:
         # (sent_force then sent_torque: six float64 in a row)
         self._sent = memoryview(self.rows.data.view(np.ndarray).view(np.uint8)).cast("d")
         size, at = self.rows.data.dtype.itemsize, self.rows.data.dtype.fields["sent_force"][1]
-        self._sent_slots = [((i * size + at) // 8, f.params.device_finger) for i, f in enumerate(fingers)]
+        self._sent_slots = [((i * size + at) // 8, j) for i, j in enumerate(rows)]
         self.error = None  # what ended a run_in_thread, if it failed
         self._thread = None  # the thread inside run() (or started to run it), while one is
         self._idle = threading.Event()  # clear while run() is in progress, in whatever thread
@@ -257,6 +306,12 @@ class ServoLoop:
     def t(self) -> float:
         """Loop time (s) of the next tick."""
         return float(self.state[0].t)
+
+    @property
+    def sample_rows(self) -> list[int]:
+        """Each finger's row of `samples`: its device finger, or with several devices its
+        finger of the DeviceGroup (`DeviceGroup.row`); a copy."""
+        return list(self._rows)
 
     @property
     def ticks(self) -> int:
@@ -310,6 +365,8 @@ class ServoLoop:
         self._end = entry(kernel.end_tick, (self.state, self._mj, self._fingers, self._stats, 0), with_names)
         self._pace = entry(kernel.pace, (self.state,), with_names)
         self._paced_done = entry(kernel.paced_done, (self.state, stats.counters), with_names)
+        if self._group_io is not None:
+            self._compile_group(with_names)
         if self.io is not None:
             io = self.io
             limits = io.limits if io.limits is not None else self._limit_array
@@ -317,11 +374,54 @@ class ServoLoop:
             self._block = entry(kernel.run_ticks, (self.state, io.read, io.send, self._device_io, self._mj,
                                                    self._shapes, self._fingers, self._stats, 1, False), with_names)
 
+    def _compile_group(self, with_names: str) -> None:
+        """The compiled block of a DeviceGroup of compiled members: their cfuncs, a table of
+        their addresses, rows, stall codes and counters, their limits (each member's own
+        array, or one the loop fills before every block for a member whose limits are
+        constants of its class)."""
+        ios, group = self._group_io, self.device
+        self._member_limits = [io.limits if io.limits is not None else np.zeros(2) for io in ios]
+        self._members = np.array([[int(io.address), group.offsets[k], io.fingers, io.stall_code,
+                                   int(io.stall_s * 1e9), 0, 0, 0] for k, io in enumerate(ios)], dtype=np.int64)
+        self._group_args = (tuple(io.read for io in ios), tuple(io.send for io in ios), self._members,
+                            tuple(self._member_limits), self._samples, np.uintp(self._samples.ctypes.data))
+        with warnings.catch_warnings():  # a tuple of cfuncs is typed by numba's "experimental" first-class functions
+            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+            self._group_block = entry(group_kernel.run_group_ticks, (self.state, *self._group_args, self._mj,
+                                                                     self._shapes, self._fingers, self._stats, 1,
+                                                                     False), with_names)
+
+    def _run_group_block(self, n: int, paced: bool) -> int:
+        """`_run_block` for a DeviceGroup of compiled members: up to n ticks in one call, then
+        each member's failures and messages into the group, the samples as DeviceSamples."""
+        group, ios, table = self.device, self._group_io, self._members
+        for io, limits, member in zip(ios, self._member_limits, group.devices):
+            if io.limits is None:  # constants of its class, read here as the Python path does
+                limits[0], limits[1] = as_limit(member.max_force), as_limit(member.max_torque)
+        st = self.state[0]
+        errors_before = int(st.device_error)
+        done = self._group_block(self.state, *self._group_args, self._mj, self._shapes, self._fingers, self._stats,
+                                 n, paced)
+        for k, io in enumerate(ios):
+            if table[k, 5]:
+                group.read_failures[k] += int(table[k, 5])
+                table[k, 5] = 0
+            if table[k, 6]:
+                group.last_errors[k] = io.read_error(int(table[k, 6]))
+                table[k, 6] = 0
+            if table[k, 7]:
+                self.last_send_error = io.read_error(int(table[k, 7]))
+                table[k, 7] = 0
+        if st.device_error > errors_before:  # every member failed on some tick: as the Python path says it
+            self.last_device_error = "; ".join(f"device {k}: {e}" for k, e in enumerate(group.last_errors))
+        self._sample_rows.copy_into(self.samples)
+        return done
+
     @property
     def compiled_block(self) -> bool:
-        """True when ticks run as compiled blocks (the device gives `compiled_io()` and no
-        fingertip sensor channel needs Python every tick)."""
-        return self.io is not None and not self.sensors
+        """True when ticks run as compiled blocks (the device gives `compiled_io()`, or is a
+        DeviceGroup whose members all do, and no fingertip sensor channel needs Python every tick)."""
+        return (self.io is not None or self._group_io is not None) and not self.sensors
 
     def start(self) -> None:
         """Place every proxy at its finger's first device position (pushed out of any shape)."""
@@ -341,8 +441,7 @@ class ServoLoop:
                 f.placed = False
             return
         usable = self._usable_samples()
-        for f in self.fingers:
-            j = f.params.device_finger
+        for f, j in zip(self.fingers, self._rows):
             if not usable[j]:
                 f.placed = False  # placed at its first good sample instead
             else:
@@ -601,9 +700,9 @@ class ServoLoop:
         error is counted; a BaseException (KeyboardInterrupt, an application's SystemExit out
         of `send`) is raised again once every finger has had its zero."""
         device, first = self.device, None
-        for f in self.fingers:
+        for j in self._rows:
             try:
-                device.send(f.params.device_finger, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+                device.send(j, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
             except Exception as exc:
                 self._send_failed(exc)
             except BaseException as exc:
@@ -619,7 +718,8 @@ class ServoLoop:
         if thread is None or thread is threading.current_thread() or self._idle.is_set():
             return
         self.state[0].stop = True
-        wait = JOIN_S + (self.io.stall_s if self.io is not None else 0.0)
+        ios = [self.io] if self.io is not None else (self._group_io or [])
+        wait = JOIN_S + max((io.stall_s for io in ios), default=0.0)
         if self._idle.wait(wait):
             self.state[0].stop = False  # (the run it asked to end is over: the next run is not stopped)
         else:
@@ -660,7 +760,7 @@ class ServoLoop:
                 except Exception as exc:  # the zero force went out first; say what closing said
                     self.last_device_error = f"closing the device: {exc or type(exc).__name__}"
                 finally:
-                    _release(self.device, self)
+                    _release(self.devices, self)
                     if self._signals is not None:
                         self._signals()
                     if self._unregister_fatal is not None:
