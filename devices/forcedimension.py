@@ -76,13 +76,12 @@ import io
 import math
 import threading
 import time
-import weakref
 
 from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
 from .device_frame import frame_in_engine, is_rotation
-from .lifecycle import DeviceLifecycle, OpenDevices
+from .lifecycle import DeviceLifecycle, OpenDevices, start_stall_watchdog
 from .recovery import CLOSE_ZERO_ATTEMPTS, REOPEN_INTERVAL_S, FaultRecovery  # noqa: F401 (this adapter's constants too)
 from .vendor_binding import availability_row, missing_binding
 
@@ -182,21 +181,6 @@ def availability(dhd=None) -> dict:
     row["devices"] = n
     row["message"] = f"{n} device(s) connected" + ("" if n else " (check the USB cable, power and udev rule)")
     return row
-
-
-def _watchdog(ref, period: float) -> None:
-    """The stall watchdog's thread: every `period` s, the device's check, until it is closed or
-    gone (a weak reference: the thread does not keep it open)."""
-    while True:
-        time.sleep(period)
-        device = ref()
-        if device is None or device.closed:
-            return
-        try:
-            device._watch_once()
-        except Exception:
-            pass
-        del device
 
 
 def _last_error(dhd) -> str:
@@ -344,8 +328,7 @@ class ForceDimensionDevice(DeviceLifecycle, FaultRecovery):
             raise
         _OPEN.add(self)
         if self.stall_s > 0.0:
-            threading.Thread(target=_watchdog, args=(weakref.ref(self), self.stall_s / 4.0),
-                             name="softproxy-dhd-watchdog", daemon=True).start()
+            start_stall_watchdog(self, "softproxy-dhd-watchdog")
 
     # -- opening ------------------------------------------------------------------------------
 

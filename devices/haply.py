@@ -94,7 +94,7 @@ import weakref
 from softproxy.device import DeviceError, DeviceSample
 
 from . import device_config as config
-from .lifecycle import DeviceLifecycle, OpenDevices
+from .lifecycle import DeviceLifecycle, OpenDevices, start_stall_watchdog
 from .recovery import CLOSE_ZERO_ATTEMPTS, REOPEN_INTERVAL_S, FaultRecovery  # noqa: F401 (this adapter's constants too)
 from .vendor_binding import availability_row, missing_binding
 
@@ -165,20 +165,6 @@ def availability(binding=None) -> dict:
     row["message"] = (f"{len(arms)} Inverse3 ({', '.join(arms) or 'none'}), {len(grips)} VerseGrip "
                       f"({', '.join(grips) or 'none'})" + ("" if arms else "; check the USB cable, power and udev rule"))
     return row
-
-
-def _watchdog(ref, period: float) -> None:
-    """The stall watchdog's thread: every `period` s, the device's check, until it is closed or gone."""
-    while True:
-        time.sleep(period)
-        device = ref()
-        if device is None or device.closed:
-            return
-        try:
-            device._watch_once()
-        except Exception:
-            pass
-        del device
 
 
 def _grip_reader(ref) -> None:
@@ -305,8 +291,7 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
         _OPEN.add(self)
         if start_threads:
             if self.stall_s > 0.0:
-                threading.Thread(target=_watchdog, args=(weakref.ref(self), self.stall_s / 4.0),
-                                 name="softproxy-haply-watchdog", daemon=True).start()
+                start_stall_watchdog(self, "softproxy-haply-watchdog")
             if self.grip_port is not None:
                 threading.Thread(target=_grip_reader, args=(weakref.ref(self),), name="softproxy-haply-grip",
                                  daemon=True).start()

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import atexit
 import math
+import threading
+import time
 import weakref
 
 from softproxy.device import DeviceError
@@ -63,3 +65,24 @@ class OpenDevices(weakref.WeakSet):
         """Close every device still open (each `close()` writes zero force first, never raises)."""
         for device in list(self):
             device.close()
+
+
+def start_stall_watchdog(device, name: str) -> None:
+    """Start a device's stall watchdog: a daemon thread that calls `device._watch_once()` every
+    `device.stall_s` / 4 s (it zeroes a command not renewed for stall_s), until the device is
+    closed or gone. It holds the device weakly, so it keeps no device open."""
+    threading.Thread(target=_watch_stalls, args=(weakref.ref(device), device.stall_s / 4.0), name=name,
+                     daemon=True).start()
+
+
+def _watch_stalls(ref, period: float) -> None:
+    while True:
+        time.sleep(period)
+        device = ref()
+        if device is None or device.closed:
+            return
+        try:
+            device._watch_once()
+        except Exception:
+            pass
+        del device

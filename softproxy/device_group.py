@@ -21,24 +21,16 @@ code (`softproxy.compiled.group`) instead of calling `read` and `send` here.
 
 from __future__ import annotations
 
-import math
-
 from softproxy.device import DeviceError, DeviceSample, check_device
 from softproxy.device_guard import as_limit
+from softproxy.compiled.group import clamp_length
 from softproxy.compiled.guard import MAX_LIMIT
 
 
 def _clamped(limit, x: float, y: float, z: float) -> tuple[float, float, float]:
-    """(x, y, z) scaled, direction kept, to length ≤ `limit`; zero when the limit is no number
-    in [0, MAX_LIMIT] (a member whose limits turned to garbage renders nothing)."""
-    lim = as_limit(limit)
-    if not 0.0 <= lim <= MAX_LIMIT:
-        return 0.0, 0.0, 0.0
-    n2 = x * x + y * y + z * z
-    if n2 > lim * lim:
-        s = lim / math.sqrt(n2)
-        return x * s, y * s, z * s
-    return x, y, z
+    """(x, y, z) scaled, direction kept, to length ≤ `limit` (`clamp_length`, as the compiled
+    group does it); zero when the limit is no number in [0, MAX_LIMIT]."""
+    return clamp_length(as_limit(limit), float(x), float(y), float(z))
 
 
 class DeviceGroup:

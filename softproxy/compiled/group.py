@@ -27,9 +27,9 @@ SAMPLE_BYTES = 88
 
 
 @njit(cache=True, error_model="numpy")
-def _clamped(lim, x, y, z):
+def clamp_length(lim, x, y, z):
     """(x, y, z) scaled, direction kept, to length ≤ lim; zero when lim is no number in
-    [0, MAX_LIMIT]. The same operations as `softproxy.device_group._clamped`."""
+    [0, MAX_LIMIT] (a member whose limits turned to garbage renders nothing)."""
     if not 0.0 <= lim <= MAX_LIMIT:
         return 0.0, 0.0, 0.0
     n2 = x * x + y * y + z * z
@@ -96,8 +96,8 @@ def run_group_ticks(loop, reads, sends, members, limits, samples, samples_at, mj
                 code = sends[k](np.uintp(members[k, 0]), j, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
             else:
                 lim = limits[k]
-                fx, fy, fz = _clamped(lim[0], fd.sent_force[0], fd.sent_force[1], fd.sent_force[2])
-                tx, ty, tz = _clamped(lim[1], fd.sent_torque[0], fd.sent_torque[1], fd.sent_torque[2])
+                fx, fy, fz = clamp_length(lim[0], fd.sent_force[0], fd.sent_force[1], fd.sent_force[2])
+                tx, ty, tz = clamp_length(lim[1], fd.sent_torque[0], fd.sent_torque[1], fd.sent_torque[2])
                 code = sends[k](np.uintp(members[k, 0]), j, fx, fy, fz, tx, ty, tz)
             if code != 0:
                 L.send_error += 1
