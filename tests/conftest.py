@@ -1,4 +1,5 @@
-"""What several test files share: a stepped clock, the box-on-a-floor world, an open haptic
+"""What several test files share: a stepped clock, the box-on-a-floor world and a loop pressing
+a finger into it, an open haptic
 input report, and a scripted device's do-nothing send and close.
 
 The test files import these by name (`from conftest import Clock`): pytest puts this folder
@@ -12,6 +13,21 @@ BOX_ON_PLANE_XML = """<mujoco><option timestep="0.001"/><worldbody>
   <body name="box" pos="0 0 0.03"><freejoint/><geom type="box" size=".03 .03 .03" mass="0.1"/></body>
 </worldbody></mujoco>"""
 """A floor and a free 6 cm box resting on it (top face at z = 0.06 m), 1 ms steps."""
+
+
+def box_loop(device):
+    """A 1 kHz ServoLoop over BOX_ON_PLANE_XML with one finger on `device` (radius 8 mm, 1000 N/m,
+    the CH fingertip), its overrun watchdog off: where the adapters' tests press a finger."""
+    import mujoco
+
+    from softproxy.finger import FingerParams, SoftFingerProxy
+    from softproxy.fingertip import model
+    from softproxy.servo import ServoLoop
+    from softproxy.world import World
+
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
+    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
+    return ServoLoop(world, [finger], device, 1000.0, overrun_watchdog=False)
 
 
 class Clock:

@@ -16,7 +16,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from fake_dhd import FALCON, OMEGA3, OMEGA7_RIGHT, SIGMA7_RIGHT, FakeDHD, Hardware  # noqa: E402
 
-from conftest import BOX_ON_PLANE_XML, Clock  # noqa: E402
+from conftest import BOX_ON_PLANE_XML, Clock, box_loop  # noqa: E402
 
 from softproxy.device import DeviceError, DeviceSample, check_device  # noqa: E402
 from softproxy.devices import forcedimension as fdmod  # noqa: E402
@@ -327,16 +327,10 @@ def test_servo_loop_presses_survives_a_failure_and_ends_at_zero_force():
     """A ServoLoop drives the fake omega.3 (one finger) down onto a box: it renders the contact,
     a device failing for 50 ticks costs zero force those ticks (counted), it renders again after,
     and the run ends with zero force on the device."""
-    from softproxy.finger import FingerParams, SoftFingerProxy
-    from softproxy.fingertip import model
-    from softproxy.servo import ServoLoop
-    from softproxy.world import World
 
     dev, dhd, hw, clock = make(OMEGA3)
     hw.position = [0.0, 0.0, 0.08]  # above the box (top at 0.06 m, finger radius 8 mm)
-    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
-    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
-    loop = ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
+    loop = box_loop(dev)
     ticks = [0]
 
     def on_tick(_):

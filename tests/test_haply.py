@@ -15,7 +15,6 @@ import threading
 import time
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -23,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 import fake_haply  # noqa: E402
 from fake_haply import FakeHaply, GripHardware, Inverse3Hardware  # noqa: E402
 
-from conftest import BOX_ON_PLANE_XML, Clock  # noqa: E402
+from conftest import Clock, box_loop  # noqa: E402
 
 from softproxy.device import DeviceError, DeviceSample, check_device  # noqa: E402
 from softproxy.devices import haply as hmod  # noqa: E402
@@ -575,16 +574,10 @@ def test_servo_loop_presses_survives_a_failure_and_ends_at_zero_force():
     """A ServoLoop drives the fake Inverse3 down onto a box: it renders the contact, a device
     silent for 50 ticks costs zero force (counted), it renders again after, and the run and
     the close end with zero force."""
-    from softproxy.finger import FingerParams, SoftFingerProxy
-    from softproxy.fingertip import model
-    from softproxy.servo import ServoLoop
-    from softproxy.world import World
 
     dev, api, hw, g, clock = make(with_grip=False)
     hw.position = [0.0, 0.0, 0.08]  # above the box (top at 0.06 m, finger radius 8 mm)
-    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
-    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
-    loop = ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
+    loop = box_loop(dev)
     ticks = [0]
 
     def on_tick(_):

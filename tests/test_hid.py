@@ -10,11 +10,10 @@ import time
 import tomllib
 from collections import deque
 
-import mujoco
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from conftest import BOX_ON_PLANE_XML, Clock, oh_state
+from conftest import Clock, box_loop, oh_state
 
 from softproxy.devices.hid import HidDevice, devices_main, list_devices
 from softproxy.devices.hid_profile import (
@@ -926,16 +925,10 @@ class StreamingHid(FakeHid):
 
 
 def test_servo_loop_renders_through_hid_and_survives_disconnect():
-    from softproxy.finger import FingerParams, SoftFingerProxy
-    from softproxy.fingertip import model
-    from softproxy.servo import ServoLoop
-    from softproxy.world import World
 
     t = StreamingHid()
     dev = HidDevice("open_haptic", t, clock=time.monotonic, stale_ms=0)
-    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
-    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
-    loop = ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
+    loop = box_loop(dev)
     loop.run(600)
     forces = [parse_output(dev.profile, w) for w in t.writes]
     assert all(abs(f["fz"]) <= 5.0 and abs(f["torque"]) <= 0.05 for f in forces)

@@ -12,11 +12,10 @@ import json
 import math
 from collections import deque
 
-import mujoco
 import numpy as np
 import pytest
 
-from conftest import BOX_ON_PLANE_XML, Clock, oh_state
+from conftest import Clock, box_loop, oh_state
 
 from softproxy.devices.hid import CLOSE_ZERO_ATTEMPTS, NO_REOPEN_NOTICE_ERRORS, REOPEN_INTERVAL_S, HidDevice, devices_main
 from softproxy.devices.hid_profile import (
@@ -459,17 +458,11 @@ class PressingPort(Port):
 def test_servo_loop_renders_again_after_the_transport_comes_back():
     """In the servo loop: a transport dead for 50 ticks costs zero force those ticks, then the
     finger renders the contact again; the run ends with zero force on the wire."""
-    from softproxy.finger import FingerParams, SoftFingerProxy
-    from softproxy.fingertip import model
-    from softproxy.servo import ServoLoop
-    from softproxy.world import World
 
     port = PressingPort()
     clock = Clock()
     dev = HidDevice("open_haptic", PortHandle(port), clock=clock)
-    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
-    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
-    loop = ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
+    loop = box_loop(dev)
 
     def on_tick(_):
         clock.now += 0.001

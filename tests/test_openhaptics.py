@@ -11,14 +11,13 @@ import threading
 import time
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fake_openhaptics import FakeOpenHaptics  # noqa: E402
 
-from conftest import BOX_ON_PLANE_XML, Clock  # noqa: E402
+from conftest import Clock, box_loop  # noqa: E402
 
 from softproxy.device import DeviceError, DeviceSample, check_device  # noqa: E402
 from softproxy.devices import openhaptics as ohmod  # noqa: E402
@@ -281,24 +280,13 @@ def test_configuration_from_the_argument_and_a_scene_table():
 # ---------------------------------------------------------------------------------------------
 # in the servo loop
 
-def _loop(dev):
-    from softproxy.finger import FingerParams, SoftFingerProxy
-    from softproxy.fingertip import model
-    from softproxy.servo import ServoLoop
-    from softproxy.world import World
-
-    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
-    finger = SoftFingerProxy(FingerParams(radius=0.008, stiffness=1000.0), world.shapes, model("CH"))
-    return ServoLoop(world, [finger], dev, 1000.0, overrun_watchdog=False)
-
-
 def test_servo_loop_presses_survives_an_hd_error_and_ends_at_zero_force():
     """A ServoLoop with the Touch descending onto a box (the scheduler stepped once per tick): it
     renders the contact; an HD error stops the callback, the loop gets DeviceErrors (zero force),
     the device is reopened and renders again; the run ends with zero force."""
     dev, fake, clock = make()
     fake.pose_mm = [0.0, 80.0, 0.0]  # OpenHaptics' y is up
-    loop = _loop(dev)
+    loop = box_loop(dev)
     ticks = [0]
 
     def on_tick(_):
@@ -331,7 +319,7 @@ def test_a_threaded_scheduler_keeps_its_rate_beside_a_paced_loop():
     try:
         time.sleep(0.02)
         dev = OpenHapticsDevice(fake)
-        loop = _loop(dev)
+        loop = box_loop(dev)
         before = dev.callback_ticks
         loop.run(400, realtime=True)
         ran = dev.callback_ticks - before
@@ -382,7 +370,7 @@ def test_an_exception_in_a_with_block_leaves_zero_force_and_a_stopped_scheduler(
 
     fake.step(1)
     with pytest.raises(ZeroDivisionError):
-        with _loop(dev) as loop:
+        with box_loop(dev) as loop:
             loop.run(200, on_tick=step)
             assert max(np.linalg.norm(f) for f in fake.forces) > 0.5
             1 / 0
