@@ -430,10 +430,7 @@ class ForceDimensionDevice(DeviceLifecycle, FaultRecovery):
             self._read(t, samples)
 
     def _read(self, t: float, samples: list[DeviceSample]) -> None:
-        if self.closed:
-            raise DeviceError(f"{self.label}: device is closed")
-        if self._fault is not None and not self._recover():
-            raise DeviceError(self._fault)
+        self._refuse_unless_ready()
         dhd, i = self._dhd, self._id
         p, frame, angles, gap = self._p, self._frame, self._angles, self._gap
         try:

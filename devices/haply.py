@@ -482,10 +482,7 @@ class HaplyDevice(DeviceLifecycle, FaultRecovery):
             self._read(t, samples)
 
     def _read(self, t: float, samples: list[DeviceSample]) -> None:
-        if self.closed:
-            raise DeviceError(f"{self.label}: device is closed")
-        if self._fault is not None and not self._recover():
-            raise DeviceError(self._fault)
+        self._refuse_unless_ready()
         stale = time.monotonic() - self._command_at > self.stall_s > 0.0
         force = _ZERO if self._await_fresh or stale else self._command
         answer = self._exchange(force, "reading")

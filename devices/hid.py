@@ -491,10 +491,7 @@ class HidDevice(DeviceLifecycle, FaultRecovery):
         return True
 
     def read(self, t: float, samples: list[DeviceSample]) -> None:
-        if self.closed:
-            raise DeviceError(f"{self.label}: device is closed")
-        if self._fault is not None and not self._recover():
-            raise DeviceError(self._fault)
+        self._refuse_unless_ready()
         profile = self.profile
         transport = self._transport
         mode = self.mode

@@ -5,10 +5,13 @@ an adapter that writes zero force itself on close, up to CLOSE_ZERO_ATTEMPTS tri
 `FaultRecovery` is a mixin. The adapter says what a failure is (`_fail`, which calls
 `_enter_failure`), how to reopen (`_try_reopen`) and when it is back (its `_recover` calls
 `_reopen_when_due`, its read calls `_fresh_sample` on a valid sample); this class keeps the
-state between them and its counters (`failures`, `reopens`, `recoveries`).
+state between them and its counters (`failures`, `reopens`, `recoveries`), and starts a read
+with `_refuse_unless_ready` (the adapter's `closed` and `label` named there).
 """
 
 from __future__ import annotations
+
+from softproxy.device import DeviceError
 
 REOPEN_INTERVAL_S = 0.2
 """While failed, the device is closed and opened again every this many seconds of its clock:
@@ -29,6 +32,14 @@ class FaultRecovery:
         self._next_reopen = 0.0         # clock time of the next reopen attempt (s)
         self.last_reopen_error = ""     # why the last reopen failed ("" once one succeeded)
         self.failures = self.reopens = self.recoveries = 0
+
+    def _refuse_unless_ready(self) -> None:
+        """Where a read begins: DeviceError if the device is closed, or failed and not back now
+        (`_recover`), with the failure's message."""
+        if self.closed:
+            raise DeviceError(f"{self.label}: device is closed")
+        if self._fault is not None and not self._recover():
+            raise DeviceError(self._fault)
 
     def _enter_failure(self) -> bool:
         """Failed from now on (or still): True when it worked until now, which is counted as a
