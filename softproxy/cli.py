@@ -319,7 +319,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                                on_built=views.on_built if views else None, on_tick=on_tick,
                                every=1 if views is not None and views.video is not None else 10,  # video frames on time
                                priority=args.rt_priority, passivity=not args.no_passivity,
-                               allow_stiffer=args.allow_stiffer)
+                               allow_stiffer=args.allow_stiffer, physics_rate_hz=args.physics_rate)
         finally:
             device.close()
             if bar is not None:
@@ -334,7 +334,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         if args.json:
             print(json.dumps(result, indent=2))
         else:
-            print(f"scene {result['scene']}: {result['ticks']} ticks at {result['rate_hz']:g} Hz "
+            two = (f", MuJoCo at {result['physics_rate_hz']:g} Hz" if result['physics_rate_hz'] != result['rate_hz']
+                   else "")
+            print(f"scene {result['scene']}: {result['ticks']} ticks at {result['rate_hz']:g} Hz{two} "
                   f"({'real time' if result['realtime'] else 'lockstep'})")
             if "object_rotation_deg" in result:
                 print(f"  {result['object']} turned {result['object_rotation_deg']:+.3f} deg about the measured "
@@ -666,6 +668,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="window, snapshot and video size in pixels (default 1024x768, at least 640x480)")
     p.add_argument("--duration", type=float, default=None, help="seconds to run (default: the scene's)")
     p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")
+    p.add_argument("--physics-rate", type=float, default=None, metavar="HZ",
+                   help="two rates: MuJoCo steps at HZ, a whole fraction of the servo rate, and the ticks between "
+                        "render against the shapes carried forward (default: the scene's; else a step every tick)")
     p.add_argument("--finger-model", choices=list(MODELS), default=None, help="override every finger's model")
     p.add_argument("--realtime", action="store_true", help="pace ticks in real time (default: lockstep)")
     p.add_argument("--rt-priority", type=int, default=None, metavar="N",

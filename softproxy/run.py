@@ -110,7 +110,7 @@ def check_run(duration_s: float, rate_hz: float) -> None:
 
 def build(scene: Scene, device: Device | list[Device], rate_hz: float | None = None, finger_model: str | None = None,
           audit: bool | None = None, realtime: bool = True, passivity: bool = True, allow_stiffer: bool = False,
-          notes: list | None = None) -> ServoLoop:
+          notes: list | None = None, physics_rate_hz: float | None = None) -> ServoLoop:
     """World + fingers + servo loop for `scene`, driven by `device` (or a list of devices, or
     a `DeviceGroup`: finger i by device `scene.fingers[i].device`).
 
@@ -124,6 +124,8 @@ def build(scene: Scene, device: Device | list[Device], rate_hz: float | None = N
     The fingers whose scene entry asks for `tactile` or `sensing` get their channels in
     `loop.sensors` (softproxy.fingertip_sensors); no other finger costs the tick anything.
     `passivity=False` switches the passivity controller off (`ServoLoop.passivity`).
+    `physics_rate_hz` (default: the scene's) steps MuJoCo at that rate, two rates
+    (`ServoLoop`).
     """
     model = scene.load_model()
     world = World(model, scene.start_data(model), **scene.world_options())
@@ -141,7 +143,8 @@ def build(scene: Scene, device: Device | list[Device], rate_hz: float | None = N
     try:
         loop = ServoLoop(world, fingers, device, scene.rate_hz if rate_hz is None else rate_hz,
                          audit=scene.audit if audit is None else audit, overrun_watchdog=None if realtime else False,
-                         passivity=passivity)
+                         passivity=passivity,
+                         physics_rate_hz=scene.physics_rate_hz if physics_rate_hz is None else physics_rate_hz)
     except ValueError as exc:
         raise SceneError(f"{scene.path}: {exc}") from None
     try:
@@ -193,7 +196,7 @@ def _rotation_about(q_from: np.ndarray, q_to: np.ndarray, axis: tuple) -> float:
 def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rate_hz: float | None = None,
               finger_model: str | None = None, realtime: bool = False, on_tick=None, on_built=None,
               record: str | None = None, every: int = 10, priority: int | None = None, passivity: bool = True,
-              allow_stiffer: bool = False) -> dict:
+              allow_stiffer: bool = False, physics_rate_hz: float | None = None) -> dict:
     """Run the scene and return the result dict that `softproxy run --json` prints.
 
     `priority` (1–99) runs a real-time run's ticks under SCHED_FIFO at that priority
@@ -220,7 +223,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
             raise SceneError(f"--record {exc}") from None
     try:  # the recording is finished however this ends, building the loop included
         loop = build(scene, device, rate_hz, finger_model, realtime=realtime, passivity=passivity,
-                     allow_stiffer=allow_stiffer, notes=notes)
+                     allow_stiffer=allow_stiffer, notes=notes, physics_rate_hz=physics_rate_hz)
         if on_built is not None:
             on_built(loop)
         user_on_tick = on_tick
@@ -254,6 +257,7 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
     result = {
         "scene": scene.name,
         "rate_hz": loop.rate_hz,
+        "physics_rate_hz": loop.physics_rate_hz,
         "ticks": loop.ticks,
         "duration_s": loop.ticks * loop.period,
         "realtime": realtime,

@@ -3,7 +3,9 @@
 A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked):
 
     [scene]            mjcf (required, path relative to the TOML), description, rate_hz (1000;
-                       10 to 100000 Hz), duration_s (5.0; at most 24 h), audit (true: track proxy penetration every tick),
+                       10 to 100000 Hz), physics_rate_hz (two rates: MuJoCo steps at this
+                       rate, a whole fraction of rate_hz; default: a step every tick),
+                       duration_s (5.0; at most 24 h), audit (true: track proxy penetration every tick),
                        force_shading (false: mesh contacts report the faceted normal; true:
                        the normal interpolated from the vertex normals)
     [measure]          object (body name), axis ([x, y, z]), start_s: the run reports how far
@@ -76,6 +78,7 @@ class Scene:
     mjcf: Path
     description: str = ""
     rate_hz: float = 1000.0
+    physics_rate_hz: float | None = None  # two rates: MuJoCo's (None: one step per tick)
     duration_s: float = 5.0
     audit: bool = True
     force_shading: bool = False
@@ -236,7 +239,7 @@ def _scene(path: Path, doc: dict) -> Scene:
     if not mjcf.is_file():
         raise SceneError(f"{where}: scene.mjcf {s.mjcf!r} does not exist ({mjcf})")
     scene = Scene(name=path.stem, path=path, mjcf=mjcf, description=s.description, rate_hz=s.rate_hz,
-                  duration_s=s.duration_s, audit=s.audit, force_shading=s.force_shading, keyframe=s.keyframe,
+                  physics_rate_hz=s.physics_rate_hz, duration_s=s.duration_s, audit=s.audit, force_shading=s.force_shading, keyframe=s.keyframe,
                   settle_s=s.settle_s)
     defaults = doc.get("finger_defaults", {})
     parsed = [_finger(where, defaults, f, i) for i, f in enumerate(doc["finger"])]

@@ -45,6 +45,7 @@ from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
 from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, StatRings
+from softproxy.local_model import LocalModel, physics_every
 from softproxy.device import Device, check_device, DeviceSample
 from softproxy.device_group import DeviceGroup
 from softproxy.device_guard import as_limit
@@ -186,12 +187,20 @@ class ServoLoop:
     one step per servo tick, which the coupling needs (each tick the proxies follow the bodies
     where that step put them). A model's own timestep is replaced; for a finer MuJoCo step,
     raise the rate.
+
+    Two rates (`physics_rate_hz`, a whole fraction of rate_hz): MuJoCo takes one step of
+    1 / physics_rate_hz every rate_hz / physics_rate_hz ticks, with each finger's wrench
+    averaged over them, and the ticks in between render against the local model
+    (`softproxy.local_model`: the shapes carried forward from MuJoCo's last state, answering
+    the fingers' wrenches). For a world whose step costs more than a servo period; in
+    lockstep, deterministic.
     """
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device | list[Device],
                  rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
-                 overrun_watchdog: bool | None = None, handle_signals: bool = True, passivity: bool = True) -> None:
+                 overrun_watchdog: bool | None = None, handle_signals: bool = True, passivity: bool = True,
+                 physics_rate_hz: float | None = None) -> None:
         if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
             raise ValueError(f"rate_hz must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g}, got {rate_hz!r}")
         if isinstance(device, (list, tuple)):
@@ -225,13 +234,17 @@ class ServoLoop:
         self.device = device
         self.rate_hz = float(rate_hz)
         self.period = 1.0 / self.rate_hz
-        world.timestep = self.period
+        self.physics_every = physics_every(self.rate_hz, physics_rate_hz)
+        """Haptic ticks per MuJoCo step: 1 (one rate), or rate_hz / physics_rate_hz."""
+        self.physics_rate_hz = self.rate_hz / self.physics_every
+        world.timestep = self.period * self.physics_every
         self.state = np.zeros(1, dtype=kernel.LOOP).view(np.recarray)
         """The loop's scalar state (`softproxy.compiled.servo.LOOP`), which the compiled tick
         reads and writes: `t`, `ticks` and `faults` are views of it."""
         st = self.state[0]
         st.period = self.period
         st.period_ns = max(1, int(round(self.period * 1e9)))
+        st.every = self.physics_every
         st.overrun_ns = int(overrun_factor * self.period * 1e9)
         self.samples = [DeviceSample() for _ in range(device.fingers)]
         """The device's last samples as `DeviceSample`s (after a block of compiled ticks: its last)."""
@@ -352,8 +365,11 @@ class ServoLoop:
         of arrays they take (`softproxy.compiled.layout`: built once, the same arrays every tick)."""
         world, shapes, data = self.world, self.world.shapes, self.world.data
         m, d = (np.uintp(a) for a in native.addresses(world.model, data))
-        self._mj = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos)
-        self._shapes = shapes.tables
+        self.local = LocalModel(world)
+        """The local model the haptic ticks render against between MuJoCo's steps (two rates;
+        with one rate it is kept but not used)."""
+        self._mj = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos, self.local.carried)
+        self._shapes = shapes.tables if self.physics_every == 1 else self.local.shapes
         self._fingers = FingerTables(self.rows.model, self.rows.data, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
                                      world.bodies, world.counts, self._coupling)
         stats = self.stats

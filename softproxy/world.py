@@ -50,7 +50,7 @@ class World:
         self.counts = np.zeros(2, dtype=np.int64)
         self._xfrc = self.data.xfrc_applied  # views into mjData, kept
         self._xipos = self.data.xipos
-        self._write = entry(kernel.write_wrenches, (self._xfrc, self._xipos, self.wrench, self.bodies, self.counts),
+        self._write = entry(kernel.write_wrenches, (self._xfrc, self._xipos, self.wrench, self.bodies, self.counts, 1.0),
                             "the wrench writer")
 
     @property
@@ -77,7 +77,7 @@ class World:
     def end_step(self) -> None:
         """Write this tick's wrenches (moved to each body's centre of mass; last tick's cleared)
         into xfrc_applied, then the second half of mj_step."""
-        self._write(self._xfrc, self._xipos, self.wrench, self.bodies, self.counts)
+        self._write(self._xfrc, self._xipos, self.wrench, self.bodies, self.counts, 1.0)
         mujoco.mj_step2(self.model, self.data)
 
     def clear_wrenches(self) -> None:

@@ -94,11 +94,14 @@ def _dot_columns(a, b, nv):
 
 
 @njit(cache=True, error_model="numpy")
-def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws):
+def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     """Every finger in contact with a body that moves: its wrench (fd.force, fd.torque,
     fd.torque_n, fd.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
     docstring). Between mj_step1 and mj_step2, after every finger's update. `bodies_fixed`: 1
-    for a body welded to the world. Returns how many fingers were coupled."""
+    for a body welded to the world. `qacc`: with `prev`, MuJoCo's last, which holds the
+    fingers' last wrenches (added back to get a_free); without, already without them (two
+    rates: `softproxy.compiled.carry`'s held acceleration). Returns how many fingers were
+    coupled (their rows of ws filled, in `rows`)."""
     jacs, mijs, G, Q, system, chan, rows = ws
     nv = qvel.shape[0]
     n = 0
@@ -130,7 +133,7 @@ def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws):
     for a in range(n):
         fm, fd = FM[rows[a]], FD[rows[a]]
         spring_tau = fm.has_torsion and fd.in_contact and not fd.slipping
-        same = fd.push_body == fd.body
+        same = prev and fd.push_body == fd.body
         r0 = CHANNELS * a
         for c in range(3):
             chan[r0 + c, 0] = h * h * fm.stiffness + h * fm.damping
@@ -182,8 +185,8 @@ def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws):
         system[r0 + 3, size] += fd.torque_n
     for r in range(size):
         system[r, r] += 1.0
-    if not _solve(system, size):
-        return 0
+    if not _solve(system, size):  # (not expected: I + H A is positive definite) the wrenches as computed
+        return n
     for a in range(n):
         r0 = CHANNELS * a
         within_laws(FM[rows[a]], FD[rows[a]], system[r0, size], system[r0 + 1, size], system[r0 + 2, size], system[r0 + 3, size])

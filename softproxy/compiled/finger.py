@@ -28,7 +28,7 @@ import math
 
 from numba import njit
 
-from softproxy.compiled import coupling, godobject, passivity
+from softproxy.compiled import carry, coupling, godobject, passivity
 from softproxy.compiled.finite import finite
 from softproxy.compiled.guard import P_MAX, guard_wrench
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_SPIN, RESTICK_TRAVEL, restick_travel
@@ -416,9 +416,10 @@ def push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
 
 
 @njit(cache=True, error_model="numpy")
-def write_wrenches(xfrc, xipos, wrench, bodies, counts):
-    """This tick's wrenches into xfrc_applied, each moved to its body's centre of mass
-    (M_com = M_origin - c × F); last tick's cleared. counts = (touched this tick, pushed last tick)."""
+def write_wrenches(xfrc, xipos, wrench, bodies, counts, scale):
+    """The wrenches summed since the last write into xfrc_applied, times `scale` (1 / the
+    haptic ticks summed: their average), each moved to its body's centre of mass
+    (M_com = M_origin - c × F); the last write's cleared. counts = (touched since, pushed last write)."""
     touched, pushed = bodies[TOUCHED], bodies[PUSHED]
     for j in range(counts[1]):
         body = pushed[j]
@@ -428,7 +429,7 @@ def write_wrenches(xfrc, xipos, wrench, bodies, counts):
     for j in range(counts[0]):
         body = touched[j]
         w = wrench[body]
-        fx, fy, fz, mx, my, mz = w[0], w[1], w[2], w[3], w[4], w[5]
+        fx, fy, fz, mx, my, mz = w[0] * scale, w[1] * scale, w[2] * scale, w[3] * scale, w[4] * scale, w[5] * scale
         cx, cy, cz = xipos[body, 0], xipos[body, 1], xipos[body, 2]
         xfrc[body, 0], xfrc[body, 1], xfrc[body, 2] = fx, fy, fz
         xfrc[body, 3] = mx - (cy * fz - cz * fy)
@@ -459,7 +460,7 @@ def _clamp_for_device(fm, fd, safe, fmax, tmax):
 
 
 @njit(cache=True, error_model="numpy")
-def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
+def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, carried):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2 (`mj`,
     `sh`, `fingers`: MjViews, Shapes, FingerTables of `softproxy.compiled.layout`).
 
@@ -469,7 +470,9 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
     mjModel/mjData, their qvel and qacc; `fingers.ws` its workspace), and each finger's
     energy observed, and with `control` the excess dissipated (`passivity`). Adds the fingers'
     wrenches to `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each
-    device finger is sent into its sent_ fields. `bodies`: rows FIXED (welded to the world),
+    device finger is sent into its sent_ fields. With `carried` (two rates) the bodies answer
+    in the local model (`carry.respond`: the coupling solves against its velocity and held
+    acceleration, and the sent wrenches move it). `bodies`: rows FIXED (welded to the world),
     TOUCHED and PUSHED (body lists, lengths in `counts`).
     Returns (refused, unsafe): how many valid samples were refused (not finite, or refused by
     their finger: spikes, garbage positions, a non-finite twist), and how many wrenches were
@@ -499,8 +502,13 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
         if check:
             audit(sh, fm, fd)
         passivity.observe(fm, fd)  # last tick's sends times this tick's motion
+    coupled = 0
     if not safe:
-        coupling.implicit(mj.m, mj.d, mj.qvel, mj.qacc, FM, FD, bodies[FIXED], dt, fingers.ws)
+        if carried:
+            cr = mj.carry
+            coupled = coupling.implicit(mj.m, mj.d, cr.qvel, cr.qacc_free, FM, FD, bodies[FIXED], dt, fingers.ws, False)
+        else:
+            coupling.implicit(mj.m, mj.d, mj.qvel, mj.qacc, FM, FD, bodies[FIXED], dt, fingers.ws, True)
     for i in range(FD.shape[0]):
         fm, fd = FM[i], FD[i]
         if control and not safe:
@@ -513,6 +521,8 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control):
             (fx, fy, fz), (tx, ty, tz), (px, py, pz) = fd.sent_force, fd.sent_torque, fd.contact_pos
             push(wrench, bodies, counts, int(fd.body), -fx, -fy, -fz, px, py, pz, -tx, -ty, -tz)
             fd.push_body = fd.body
+    if carried:
+        carry.respond(mj.carry, FD, fingers.ws, coupled, dt)
     return refused, unsafe
 
 

@@ -17,10 +17,22 @@ from collections import namedtuple
 import numpy as np
 
 # -- what the kernels take: five bundles of arrays, built once per loop (or per shape set) ----
-MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos")
+MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos carry")
 """MuJoCo as the tick's coupling reads and writes it: the mjModel and mjData addresses (for
 mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied (nbody × 6,
-N and N·m), xipos (nbody × 3, m)."""
+N and N·m), xipos (nbody × 3, m); and the local model of two rates (`Carried`)."""
+Carried = namedtuple("Carried", "d_xpos d_xmat d_cvel d_qvel d_qacc xipos ximat subtree_com body_rootid moving "
+                                "geom_xpos geom_xmat cvel snap_xpos snap_xmat body_com body_xmat body_vel body_err "
+                                "body_off body_spin touched qvel0 qvel dqvel qacc_free scratch")
+"""The local model the haptic ticks render against between MuJoCo's steps (two rates;
+`softproxy.compiled.carry`): views of mjData (geom_xpos, geom_xmat, cvel, qvel, qacc, xipos,
+ximat, subtree_com) and mjModel (body_rootid); the bodies that can move; the carried
+geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9) and cvel (nbody × 6) the haptic side's
+`Shapes` read; the poses of MuJoCo's last state (snap_xpos, snap_xmat; per body its centre of
+mass, orientation, velocity (ω, v at the centre of mass), the offset fading over the step,
+the fingers' carried change (integral, rate) and whether a finger touched it); the local
+generalised velocity (qvel0 at the last state, qvel now, dqvel the fingers' part, nv) and
+the acceleration held over the step (qacc_free); 9 floats of scratch."""
 Shapes = namedtuple("Shapes", "S T C xpos xmat cvel")
 """The shapes as every query reads them (`sh` in the kernels): their SHAPE records, the mesh
 triangle table T and the mesh grids C (None in a world without meshes), and their poses,

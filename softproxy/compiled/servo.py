@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from softproxy.compiled import finger
+from softproxy.compiled import carry, finger
 from softproxy.compiled.native import mj_step1, mj_step2, monotonic_ns, sleep_until_ns
 
 STAGES = ("device read", "mj_step1", "fingers", "device sends", "wrenches + mj_step2")
@@ -34,6 +34,8 @@ LOOP = np.dtype([
     ("period", np.float64),  # s
     ("period_ns", np.int64),
     ("ticks", np.int64),
+    ("every", np.int64),  # haptic ticks per MuJoCo step (1: one rate; more: `softproxy.compiled.carry`)
+    ("phase", np.int64),  # haptic ticks into the current MuJoCo step
     ("next_ns", np.int64),  # CLOCK_MONOTONIC deadline of the next paced tick
     ("spin_ns", np.int64),  # a paced tick sleeps until this long before its deadline, then spins
     ("overrun_ns", np.int64),  # a tick longer than this trips the watchdog (when watching)
@@ -91,9 +93,12 @@ def paced_done(loop, counters):
 @njit(cache=True, error_model="numpy")
 def begin_tick(loop, samples, ok, mj, sh, fingers):
     """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
-    failed) into the finger records, mj_step1, then every finger (`finger.tick`). A sample
-    the device marked not valid is an invalid_sample fault. `mj`, `sh`, `fingers`: the
-    bundles of `softproxy.compiled.layout` (MjViews, Shapes, FingerTables)."""
+    failed) into the finger records, mj_step1 (on the first tick of a MuJoCo step; with two
+    rates the local model then takes MuJoCo's state, and every tick carries the shapes near
+    the fingers forward: `softproxy.compiled.carry`), then every finger (`finger.tick`). A
+    sample the device marked not valid is an invalid_sample fault. `mj`, `sh`, `fingers`:
+    the bundles of `softproxy.compiled.layout` (MjViews, Shapes, FingerTables); with two
+    rates `sh` reads the local model's poses."""
     L = loop[0]
     safe = L.safe_next
     L.safe_next = False
@@ -112,9 +117,15 @@ def begin_tick(loop, samples, ok, mj, sh, fingers):
         fd.in_quat[:] = s.qw, s.qx, s.qy, s.qz
         fd.in_twist = s.twist
         fd.in_valid = True
-    mj_step1(mj.m, mj.d)
+    H = L.every * L.period
+    if L.phase == 0:
+        mj_step1(mj.m, mj.d)
+        if L.every > 1:
+            carry.snapshot(mj.carry, H, L.ticks == 0)
+    if L.every > 1:
+        carry.carry(mj.carry, sh, fingers, L.phase * L.period, H)
     _stage(L, STEP1_STAGE)
-    refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity)
+    refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, L.every > 1)
     L.invalid_sample += refused
     L.unsafe_output += unsafe
     _stage(L, FINGERS_STAGE)
@@ -122,12 +133,16 @@ def begin_tick(loop, samples, ok, mj, sh, fingers):
 
 @njit(cache=True, error_model="numpy")
 def end_tick(loop, mj, fingers, stats, start_ns):
-    """The tick after the sends: the wrenches into xfrc_applied, mj_step2, loop time, and the
+    """The tick after the sends: on the last tick of a MuJoCo step the wrenches into
+    xfrc_applied (averaged over the step's haptic ticks) and mj_step2; loop time, and the
     tick's duration since `start_ns` into the statistics; an overrun (while watching) makes
     the next tick render zero."""
     L = loop[0]
-    finger.write_wrenches(mj.xfrc, mj.xipos, fingers.wrench, fingers.bodies, fingers.counts)
-    mj_step2(mj.m, mj.d)
+    L.phase += 1
+    if L.phase >= L.every:  # MuJoCo's step: the wrenches averaged over its haptic ticks
+        finger.write_wrenches(mj.xfrc, mj.xipos, fingers.wrench, fingers.bodies, fingers.counts, 1.0 / L.phase)
+        mj_step2(mj.m, mj.d)
+        L.phase = 0
     _stage(L, STEP2_STAGE)
     L.t += L.period
     L.ticks += 1

@@ -1,0 +1,63 @@
+"""Two rates: the local model of the world the haptic ticks render against between MuJoCo's steps.
+
+`ServoLoop(physics_rate_hz=...)` steps MuJoCo once every `every` haptic ticks; in between,
+the fingers touch the shapes at poses carried forward from MuJoCo's last state with their
+bodies' velocities and their answer to the fingers' own wrenches
+(`softproxy.compiled.carry`), and MuJoCo integrates each finger's wrench averaged over the
+step. `LocalModel` holds that model's arrays: what the compiled tick takes as
+`layout.Carried`, and the `Shapes` bundle the fingers' queries read (the shape table of the
+world, the carried poses).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from softproxy.compiled.carry import bodies_moving
+from softproxy.compiled.layout import Carried, Shapes
+
+MAX_EVERY = 1000
+"""The most haptic ticks per MuJoCo step (a MuJoCo step of 1 s at 1 kHz)."""
+
+
+def physics_every(rate_hz: float, physics_rate_hz: float | None) -> int:
+    """Haptic ticks per MuJoCo step for a physics rate (Hz) under a servo rate (Hz): 1 for
+    None (one rate). ValueError unless the physics rate divides the servo rate, at most it."""
+    if physics_rate_hz is None:
+        return 1
+    if not (isinstance(physics_rate_hz, (int, float)) and math.isfinite(physics_rate_hz) and physics_rate_hz > 0):
+        raise ValueError(f"physics_rate_hz must be a rate in Hz > 0, got {physics_rate_hz!r}")
+    if physics_rate_hz > rate_hz * (1 + 1e-9):
+        raise ValueError(f"physics_rate_hz ({physics_rate_hz:g} Hz) must be at most the servo rate ({rate_hz:g} Hz): "
+                         "MuJoCo steps once every whole number of haptic ticks")
+    every = int(round(rate_hz / physics_rate_hz))
+    if abs(rate_hz / every - physics_rate_hz) > 1e-6 * physics_rate_hz or every > MAX_EVERY:
+        below, above = max(1, min(MAX_EVERY, every)), max(1, min(MAX_EVERY, every + 1))
+        raise ValueError(f"physics_rate_hz ({physics_rate_hz:g} Hz) must divide the servo rate ({rate_hz:g} Hz) "
+                         f"a whole number of times, at most {MAX_EVERY}: try {rate_hz / below:g} or {rate_hz / above:g} Hz")
+    return every
+
+
+class LocalModel:
+    """The carried copies of a world's poses and the per-body state of `softproxy.compiled.carry`."""
+
+    def __init__(self, world) -> None:
+        model, data, shapes = world.model, world.data, world.shapes
+        nbody, ngeom, nv = model.nbody, model.ngeom, model.nv
+        self.geom_xpos = np.array(data.geom_xpos)  # the carried poses (m), what the fingers read
+        self.geom_xmat = np.array(data.geom_xmat)
+        self.cvel = np.array(data.cvel)
+        self.carried = Carried(
+            data.geom_xpos, data.geom_xmat, data.cvel, data.qvel, data.qacc, data.xipos, data.ximat, data.subtree_com,
+            model.body_rootid, bodies_moving(shapes.S),
+            self.geom_xpos, self.geom_xmat, self.cvel,
+            np.zeros((ngeom, 3)), np.zeros((ngeom, 9)),
+            np.zeros((nbody, 3)), np.zeros((nbody, 9)), np.zeros((nbody, 6)), np.zeros((nbody, 6)),
+            np.zeros((nbody, 6)), np.zeros((nbody, 6)), np.zeros(nbody, dtype=np.bool_),
+            np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(9))
+        """The bundle the compiled tick takes (`softproxy.compiled.layout.Carried`)."""
+        t = shapes.tables
+        self.shapes = Shapes(t.S, t.T, t.C, self.geom_xpos, self.geom_xmat, self.cvel)
+        """The world's shapes at the carried poses: what the haptic ticks' queries read."""
