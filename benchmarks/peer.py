@@ -13,8 +13,9 @@ Measured, for each: the box's rotation over a 20 s hold and its creep rate; the 
 limit per contact against grip (zero gravity, a slowly rising external torque; the limit is
 the largest torque the contacts transmit, read off the box's angular momentum balance) with
 its exponent over 0.1–2 N (seed 002's non-linear range) and 0.5–8 N; static vs dynamic
-(slip, then unload: the sliding torque and the torque at which the contact re-sticks, as
-fractions of the break-away torque); the cost of a step, as ratios to MuJoCo's default
+(the torque of a steady slide at 1 rad/s over the break-away torque, beside the fingers'
+setting; slip, then unload: the torque at which the contact re-sticks, as a fraction of
+the break-away torque); the cost of a step, as ratios to MuJoCo's default
 step in the same run; and the fidelity of each limit to the fingertip measured in seed 002
 (E3, eq 24) over 0.1–3 N, the peers with their best single coefficient. PyBullet is the
 optional extra `softproxy[peers]`; without it its rows are skipped. Writes peer.json and
@@ -103,13 +104,20 @@ class PybulletSetup:
 
 @dataclass(frozen=True)
 class SoftproxySetup:
+    """The grasp scene's fingers with fingertip `model`, `saturate` (the saturating law or the
+    power law) and, if given, a dynamic torsional coefficient of `dynamic_ratio` × the static
+    one (None: the finger's default, torsion_mu_d = 0.8 × static)."""
+
     model: str = "CH"
     saturate: bool = False
+    dynamic_ratio: float | None = None
 
     def options(self) -> str:
         if self.model == "point":
             return "point contact (no torsion)"
-        return f"{self.model}, {'saturating law (saturate=true)' if self.saturate else 'power law (saturate=false)'}"
+        law = "saturating law (saturate=true)" if self.saturate else "power law (saturate=false)"
+        ratio = "" if self.dynamic_ratio is None else f", torsion_mu_d = {self.dynamic_ratio:g} x torsion_mu_s"
+        return f"{self.model}, {law}{ratio}"
 
 
 MUJOCO_NEWCOMER = MujocoSetup()
@@ -335,6 +343,11 @@ class SoftproxyRig(_MujocoBox):
     def __init__(self, setup: SoftproxySetup, grip: float, gravity: bool):
         scene = load_scene(SCENE)
         scene.fingers = [replace(f, model=setup.model, saturate=setup.saturate) for f in scene.fingers]
+        if setup.dynamic_ratio is not None:
+            mu_s = [f.torsion_mu_s if f.torsion_mu_s is not None else fingertip.model(f.model).mu_prime
+                    for f in scene.fingers]
+            scene.fingers = [replace(f, torsion_mu_s=s, torsion_mu_d=setup.dynamic_ratio * s)
+                             for f, s in zip(scene.fingers, mu_s)]
         if not gravity:
             _zero_gravity_keyframes(scene, grip)
         self.loop = loop = build(scene, open_device("sim", scene), audit=False, realtime=False)
@@ -350,6 +363,12 @@ class SoftproxyRig(_MujocoBox):
         self.loop.tick()
         return time.perf_counter() - start
 
+    @property
+    def dynamic_ratio(self) -> float | None:
+        """The fingers' setting μ_d/μ_s of torsional friction (the input the slide measures against)."""
+        t = self.loop.fingers[0].torsion
+        return None if t is None or t.mu_s == 0.0 else t.mu_d / t.mu_s
+
 
 def _zero_gravity_keyframes(scene, grip: float) -> None:
     """Device keyframes that squeeze the box to `grip` per finger by 0.5 s and stay still,
@@ -362,9 +381,10 @@ def _zero_gravity_keyframes(scene, grip: float) -> None:
         finger["keyframes"] = [[0.0, sign * 0.06, 0.0, 0.03, 0.0], [0.5, x, 0.0, 0.03, 0.0]]
 
 
-def make_rig(name: str, grip: float = GRIP_N, gravity: bool = True, coefficient: float | None = None):
-    """The rig for SETUPS[name]; `coefficient` overrides a peer's torsional coefficient (m)."""
-    setup = SETUPS[name]
+def make_rig(name, grip: float = GRIP_N, gravity: bool = True, coefficient: float | None = None):
+    """The rig for SETUPS[name] (or for `name` itself, a setup); `coefficient` overrides a
+    peer's torsional coefficient (m)."""
+    setup = SETUPS[name] if isinstance(name, str) else name
     c = peer_coefficient() if coefficient is None else coefficient
     if isinstance(setup, MujocoSetup):
         return MujocoRig(setup, grip, gravity, c)
@@ -543,6 +563,60 @@ def hysteresis(name: str, grip: float = GRIP_N, seconds: float = 6.0) -> dict:
 
 
 # ---------------------------------------------------------------------------------
+# Dynamic friction, measured: the box slides steadily between the still fingers, its spin
+# about the grasp axis held at SLIDE_SPEED by a PI servo on the external torque; the torque
+# the contacts transmit while it slides (momentum balance, as above) over the break-away
+# torque at the same grip (the peak of `hysteresis`'s ramp).
+# ---------------------------------------------------------------------------------
+SLIDE_SPEED = 1.0            # rad/s (57°/s): well past SLIP_SPEED, a twist a hand makes
+SLIDE_SETTLE_S = 1.0         # s of servoed slide before the measurement
+SLIDE_MEASURE_S = 0.5        # s measured
+SLIDE_TIME_CONSTANT = 0.01   # s: the speed servo's proportional gain is inertia / this
+SLIDE_INTEGRAL_S = 0.05      # s: its integral time
+
+
+def steady_slide(name, grip: float = GRIP_N, speed: float = SLIDE_SPEED) -> dict:
+    """Slide the box at `speed` (rad/s) between fingers gripping with `grip` (N each): the
+    median torque the two contacts transmit while sliding (N·m), the spin measured (median,
+    and its 5th–95th percentile, rad/s), and for softproxy the fingers' setting μ_d/μ_s."""
+    rig = make_rig(name, grip, gravity=False)
+    kp = rig.inertia / SLIDE_TIME_CONSTANT
+    transmitted = _Transmitted(rig.inertia, rig.damping)
+    integral, torque, torques, spins = 0.0, 0.0, [], []
+    end = SQUEEZE_END_S + SLIDE_SETTLE_S + SLIDE_MEASURE_S
+    try:
+        for i in range(int(round(end * 1000))):
+            t = i * 1e-3
+            rig.apply(torque)
+            rig.step(t)
+            w = rig.spin()
+            if t <= SQUEEZE_END_S:
+                continue
+            now = transmitted(w, torque)
+            if t > SQUEEZE_END_S + SLIDE_SETTLE_S:
+                torques.append(now)
+                spins.append(w)
+            error = speed - w
+            integral += error * 1e-3
+            torque = kp * (error + integral / SLIDE_INTEGRAL_S)
+        ratio = getattr(rig, "dynamic_ratio", None)
+    finally:
+        _close(rig)
+    lo, mid, hi = np.percentile(spins, [5, 50, 95])
+    return {"speed_set_rad_s": speed, "speed_rad_s": float(mid), "speed_p5_p95_rad_s": [float(lo), float(hi)],
+            "sliding_Nm": float(np.median(torques)), "setting_dynamic_over_static": ratio}
+
+
+def dynamic_friction(name, grip: float = GRIP_N, speed: float = SLIDE_SPEED) -> dict:
+    """Break-away torque (ramp until the contact slips) and the torque of a steady slide at
+    `speed`, and their ratio: the dynamic friction measured, beside the setting it comes from."""
+    h = hysteresis(name, grip)
+    slide = steady_slide(name, grip, speed)
+    ratio = slide["sliding_Nm"] / h["breakaway_Nm"] if h["breakaway_Nm"] > 0 else None
+    return {**h, "steady_slide": slide, "steady_sliding_over_breakaway": ratio}
+
+
+# ---------------------------------------------------------------------------------
 # Fidelity to the measured fingertip (seed 002, E3) over 0.1–3 N
 # ---------------------------------------------------------------------------------
 def relative_errors(limits, grips, reference=fingertip.e3_torque) -> dict:
@@ -592,11 +666,15 @@ def measure(duration: float = 20.0, grips=LIMIT_GRIPS, progress=None, names=None
         if progress:
             progress(f"torsion limit {i + 1}/{len(limit_names)}: {name}")
         limits[name] = [limit(name, g) / 2.0 for g in grips]  # per contact
-        statics[name] = hysteresis(name)
+        statics[name] = dynamic_friction(name)
     out["limit_per_contact_Nm"] = {"grip_N": list(grips), **limits}
     out["limit_exponent"] = {n: {"0.1-2 N": exponent(grips, v, 0.1, 2.0), "0.5-8 N": exponent(grips, v, 0.5, 8.0)}
                              for n, v in limits.items()}
     out["static_dynamic"] = statics
+    out["slide_settings"] = {"grip_N": GRIP_N, "speed_rad_s": SLIDE_SPEED, "settle_s": SLIDE_SETTLE_S,
+                             "measured_s": SLIDE_MEASURE_S, "gravity": False,
+                             "breakaway": f"torque ramped at {RAMP_PER_N * GRIP_N:g} N·m/s until the box turns "
+                                          f"faster than {SLIP_SPEED:g} rad/s"}
     out["fidelity"] = fidelity(limits, grips, progress)
     return out
 
@@ -692,7 +770,8 @@ def print_report(result: dict) -> None:
         print(f"  PyBullet rows skipped: pip install 'softproxy[{PYBULLET_EXTRA}]' to add them")
     lim, st = result["limit_exponent"], result["static_dynamic"]
     print(f"  {'':27s}{'turned (deg)':>13s}{'max (deg)':>10s}{'creep (deg/s)':>14s}{'held':>8s}{'exp 0.1-2N':>11s}"
-          f"{'exp 0.5-8N':>11s}{'slide/break':>12s}{'re-stick':>10s}{'step (us)':>10s}{'cost':>7s}{'  wrench to device'}")
+          f"{'exp 0.5-8N':>11s}{'slide/break':>12s}{'set':>6s}{'re-stick':>10s}{'step (us)':>10s}{'cost':>7s}"
+          f"{'  wrench to device'}")
     for name, h in result["hold"].items():
         e = lim.get(name, {})
         s = st.get(name, {})
@@ -702,11 +781,19 @@ def print_report(result: dict) -> None:
         held = "yes" if h["height_end_m"] > HELD_HEIGHT else "dropped"
         print(f"  {name:27s}{h['rotation_end_deg']:13.2e}{h['rotation_max_deg']:10.2g}{h['creep_deg_per_s']:14.2e}{held:>8s}"
               f"{_fmt(e.get('0.1-2 N'), '.2f', 11)}{_fmt(e.get('0.5-8 N'), '.2f', 11)}"
-              f"{_fmt(s.get('sliding_over_breakaway'), '.2f', 12)}{restick:>10s}{h['step_us']:10.1f}"
+              f"{_fmt(s.get('steady_sliding_over_breakaway'), '.2f', 12)}"
+              f"{_fmt((s.get('steady_slide') or {}).get('setting_dynamic_over_static'), '.2f', 6)}"
+              f"{restick:>10s}{h['step_us']:10.1f}"
               f"{_fmt(cost, '.2f', 7)}  {device}")
-    print(f"  (held: the box's centre still above {HELD_HEIGHT * 100:g} cm at the end; slide/break: sliding torque / break-away "
-          "torque; re-stick: applied torque at which a slipping contact sticks again / break-away; "
-          "cost: step p50 / MuJoCo default step p50, this run)")
+    print(f"  (held: the box's centre still above {HELD_HEIGHT * 100:g} cm at the end; re-stick: applied torque at which "
+          "a slipping contact sticks again / break-away; cost: step p50 / MuJoCo default step p50, this run)")
+    if st:
+        ss = result["slide_settings"]
+        print(f"  slide/break, measured: the torque the contacts transmit while the box slides steadily at "
+              f"{ss['speed_rad_s']:g} rad/s between the fingers ({ss['grip_N']:g} N each, no gravity; median over "
+              f"{ss['measured_s']:g} s after {ss['settle_s']:g} s of slide) / the break-away torque at the same grip "
+              f"({ss['breakaway']}); set: the fingers' dynamic / static torsional friction (softproxy's default 0.8, "
+              "a choice: the paper leaves dynamic friction to experiment; the peers have one coefficient)")
     fid = result["fidelity"]
     lo, hi = fid["range_N"]
     print(f"  torsional limit per contact vs the measured fingertip, {lo:g}-{hi:g} N, relative error:")

@@ -108,3 +108,21 @@ def test_without_pybullet_the_bench_skips_its_rows_and_says_so(monkeypatch, caps
     out = capsys.readouterr().out
     lines = [line for line in out.splitlines() if "pybullet" in line.lower()]
     assert len(lines) == 1 and "softproxy[peers]" in lines[0]
+
+
+@pytest.mark.slow  # three slides of 2.3 s simulated each, two in softproxy's servo loop
+def test_dynamic_friction_is_measured_from_a_slide_and_follows_the_setting():
+    """Simulating human fingers, eqs 39-40: a slipping contact transmits μ_d|P|^γ. The bench's
+    slide/break figure is measured from a steady slide, so it moves with the fingers' setting
+    μ_d/μ_s (0.8 by default, 0.5 here), and is 1 for MuJoCo's single coefficient."""
+    default = peer.dynamic_friction("softproxy saturating law")
+    half = peer.steady_slide(peer.SoftproxySetup("CH", True, dynamic_ratio=0.5))
+    mj = peer.dynamic_friction("mujoco best condim 4")
+    for slide in (default["steady_slide"], half, mj["steady_slide"]):
+        assert slide["speed_rad_s"] == pytest.approx(peer.SLIDE_SPEED, rel=0.02)  # it did slide, at the speed set
+    assert default["steady_slide"]["setting_dynamic_over_static"] == pytest.approx(0.8)
+    assert default["steady_sliding_over_breakaway"] == pytest.approx(0.8, abs=0.02)
+    assert half["setting_dynamic_over_static"] == pytest.approx(0.5)
+    assert half["sliding_Nm"] / default["breakaway_Nm"] == pytest.approx(0.5, abs=0.02)
+    assert mj["steady_sliding_over_breakaway"] == pytest.approx(1.0, abs=0.03)
+    assert mj["steady_slide"]["setting_dynamic_over_static"] is None
