@@ -913,7 +913,8 @@ def chart(result: dict):
     dense = np.geomspace(grips.min(), grips.max(), 100)
     b.loglog(dense, [fingertip.e3_torque(g) for g in dense], "k-", lw=3, alpha=0.35, label="measured fingertip")
     for name in (n for n in lim if n != "grip_N"):
-        b.loglog(grips, [np.nan if v is None else v for v in lim[name]], "o", ms=4, color=COLOURS.get(name), ls="--" if name in DASHED else "-")
+        b.loglog(grips, [np.nan if v is None else v for v in lim[name]], "o", ms=4, color=COLOURS.get(name),
+                 ls="--" if name in DASHED else "-", label=None if name in result["traces"] else name)
     b.set_xlabel("grip per finger (N)")
     b.set_ylabel("torsional limit per contact (N·m)")
     b.set_title(f"torsional limit vs grip\n(peers' coefficient: softproxy's limit at {result['grip_N']:g} N)", fontsize=10)
