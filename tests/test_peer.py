@@ -171,11 +171,21 @@ def test_without_drake_the_bench_skips_its_rows_and_says_so(monkeypatch, capsys)
 def test_drake_hydroelastic_limit_follows_its_pressure_and_is_not_linear():
     """Drake's limit (measured off the box's momentum balance, as for every engine) is the
     friction coefficient × its sphere's pressure torque (∫ p r dA) within 10%, and grows faster
-    than linearly with the grip over 0.1–2 N, unlike MuJoCo's and PyBullet's single coefficient."""
+    than linearly with the grip over 0.2–2 N, unlike MuJoCo's and PyBullet's single coefficient."""
     pytest.importorskip("pydrake")
     E = peer.drake_modulus()
     grips = (0.2, 0.5, 2.0)
     limits = [peer.limit("drake hydroelastic", g) / 2.0 for g in grips]
     for g, v in zip(grips, limits):
         assert v == pytest.approx(peer.DRAKE_MU * peer._sphere_pressed(E, g)[2], rel=0.10)
-    assert 1.1 < peer.exponent(grips, limits, 0.1, 2.0) < 1.4
+    assert 1.1 < peer.exponent(grips, limits, 0.2, 2.0) < 1.4
+
+
+def test_an_exponent_needs_its_whole_range():
+    """A limit measured only up to 3 N (Drake's soft sphere bottoms out past 4 N) has no
+    0.5–8 N exponent; with the range covered the slope of P^1.5 is 1.5, missing points skipped."""
+    grips = (0.5, 1.0, 2.0, 3.0, 8.0)
+    limits = [g ** 1.5 for g in grips]
+    assert peer.exponent(grips, limits, 0.5, 8.0) == pytest.approx(1.5)
+    assert peer.exponent(grips, limits[:-1] + [None], 0.5, 8.0) is None
+    assert peer.exponent(grips, limits[:-1] + [None], 0.5, 3.0) == pytest.approx(1.5)
