@@ -1,4 +1,4 @@
-"""`softproxy bench peer`: the two-finger grasp in MuJoCo alone, in PyBullet, and in softproxy.
+"""`softproxy bench peer`: the two-finger grasp in MuJoCo alone, in PyBullet, in Drake, and in softproxy.
 
 The same grasp in every engine: two 8 mm sphere fingers that translate but do not turn
 (three slide joints), a 3 N squeeze per finger, the scene's scripted device path in y and z
@@ -13,12 +13,16 @@ Measured, for each: the box's rotation over a 20 s hold and its creep rate; the 
 limit per contact against grip (zero gravity, a slowly rising external torque; the limit is
 the largest torque the contacts transmit, read off the box's angular momentum balance) with
 its exponent over 0.1–2 N (seed 002's non-linear range) and 0.5–8 N; static vs dynamic
-(slip, then unload: the sliding torque and the torque at which the contact re-sticks, as
-fractions of the break-away torque); the cost of a step, as ratios to MuJoCo's default
+(the torque of a steady slide at 1 rad/s over the break-away torque, beside the fingers'
+setting; slip, then unload: the torque at which the contact re-sticks, as a fraction of
+the break-away torque); the cost of a step, as ratios to MuJoCo's default
 step in the same run; and the fidelity of each limit to the fingertip measured in seed 002
 (E3, eq 24) over 0.1–3 N, the peers with their best single coefficient. PyBullet is the
-optional extra `softproxy[peers]`; without it its rows are skipped. Writes peer.json and
-peer.png.
+optional extra `softproxy[peers]`; without it its rows are skipped. Drake (the extra
+`softproxy[drake]`) gives its torsional limit and cost only: hydroelastic contact with the SAP
+solver, each finger a soft sphere whose modulus is fitted to a measured fingertip's contact
+radii (no torsional law written anywhere: the limit comes from the pressure over the contact
+patch); without Drake its rows are skipped. Writes peer.json and peer.png.
 """
 
 from __future__ import annotations
@@ -103,13 +107,20 @@ class PybulletSetup:
 
 @dataclass(frozen=True)
 class SoftproxySetup:
+    """The grasp scene's fingers with fingertip `model`, `saturate` (the saturating law or the
+    power law) and, if given, a dynamic torsional coefficient of `dynamic_ratio` × the static
+    one (None: the finger's default, torsion_mu_d = 0.8 × static)."""
+
     model: str = "CH"
     saturate: bool = False
+    dynamic_ratio: float | None = None
 
     def options(self) -> str:
         if self.model == "point":
             return "point contact (no torsion)"
-        return f"{self.model}, {'saturating law (saturate=true)' if self.saturate else 'power law (saturate=false)'}"
+        law = "saturating law (saturate=true)" if self.saturate else "power law (saturate=false)"
+        ratio = "" if self.dynamic_ratio is None else f", torsion_mu_d = {self.dynamic_ratio:g} x torsion_mu_s"
+        return f"{self.model}, {law}{ratio}"
 
 
 MUJOCO_NEWCOMER = MujocoSetup()
@@ -130,7 +141,7 @@ SETUPS = {
     "softproxy point": SoftproxySetup("point"),
 }
 LIMIT_RUNS = ("mujoco newcomer", "mujoco best condim 4", "mujoco best condim 6", "pybullet best",
-              "softproxy power law", "softproxy saturating law")
+              "drake hydroelastic", "softproxy power law", "softproxy saturating law")
 """Whose torsional limit is measured against grip (point contacts have none)."""
 
 
@@ -329,12 +340,166 @@ class PybulletRig:
         self.pb.disconnect(physicsClientId=self.client)
 
 
+# Drake: hydroelastic contact (the finger a compliant sphere, the box rigid), SAP solver.
+DRAKE_EXTRA = "drake"
+FINGERTIP_CONTACT = ((0.78, 87.36e-6), (1.03, 124.4e-6), (1.71, 132.8e-6))
+"""(force N, contact area m²) of a fingertip pressed on a flat plate, the averages of Tables 1-2
+of *A preliminary approach to study the behavior of human fingertip at contact via
+experimental test and numerical model*: what Drake's soft sphere is fitted to."""
+DRAKE_RESOLUTION = 0.004     # m: the sphere's tessellation hint; 2 mm gives the same limits within 0.3% at 3x the cost
+DRAKE_MU = 1.0               # the first pass's Coulomb friction (the best coefficient is refitted)
+
+
+@dataclass(frozen=True)
+class DrakeSetup:
+    """Drake's MultibodyPlant, 1 ms discrete step, `solver` ("sap"), hydroelastic contact: each
+    finger a compliant-hydroelastic sphere of modulus `modulus` (Pa; None: fitted to the
+    fingertip's contact radii, `drake_modulus()`), the box rigid-hydroelastic."""
+
+    solver: str = "sap"
+    modulus: float | None = None
+
+    def options(self) -> str:
+        e = drake_modulus() if self.modulus is None else self.modulus
+        return (f"MultibodyPlant time_step 0.001, contact_model hydroelastic, discrete_contact_approximation "
+                f"{self.solver}; finger: compliant hydroelastic sphere, modulus {e / 1e6:.4f} MPa (fitted to a "
+                f"fingertip's contact radii), resolution_hint {DRAKE_RESOLUTION * 1e3:g} mm; box: rigid hydroelastic")
+
+
+SETUPS["drake hydroelastic"] = DrakeSetup()
+
+
+def drake_available() -> bool:
+    try:
+        import pydrake.multibody.plant  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _sphere_pressed(modulus: float, force: float, radius: float = FINGER_RADIUS):
+    """A hydroelastic sphere (pressure E·(1 − |x|/R)) pressed on a rigid plane with `force` (N):
+    its penetration (m), contact radius (m) and, per unit friction coefficient, the torque its
+    pressure resists about the normal (∫ p r dA, N·m)."""
+    from scipy.integrate import quad
+    from scipy.optimize import brentq
+
+    def pressure(r, d):
+        return modulus * (1.0 - math.hypot(r, radius - d) / radius)
+
+    def load(d):
+        a = math.sqrt(max(2 * radius * d - d * d, 0.0))
+        return quad(lambda r: pressure(r, d) * 2 * math.pi * r, 0.0, a)[0]
+
+    d = brentq(lambda x: load(x) - force, 1e-12, radius)
+    a = math.sqrt(2 * radius * d - d * d)
+    return d, a, quad(lambda r: pressure(r, d) * 2 * math.pi * r * r, 0.0, a)[0]
+
+
+def drake_capacity(modulus: float, radius: float = FINGER_RADIUS) -> float:
+    """The largest load (N) the hydroelastic sphere carries on a plane: πER²/3, when the plane
+    reaches its centre; pressed harder it goes through."""
+    return math.pi * modulus * radius * radius / 3.0
+
+
+def drake_modulus(radius: float = FINGER_RADIUS) -> float:
+    """Hydroelastic modulus (Pa) for which a sphere of `radius` has the fingertip's measured
+    contact radii at the measured forces (`FINGERTIP_CONTACT`; least squares on the radius)."""
+    from scipy.optimize import minimize_scalar
+
+    def misfit(log_e):
+        return sum((_sphere_pressed(math.exp(log_e), f, radius)[1] - math.sqrt(area / math.pi)) ** 2
+                   for f, area in FINGERTIP_CONTACT)
+
+    return math.exp(minimize_scalar(misfit, bounds=(math.log(3e4), math.log(1e6)), method="bounded").x)
+
+
+class DrakeRig:
+    """The torsion test in Drake: each finger a sphere on a prismatic joint along the grasp axis
+    (the squeeze, with the peers' joint damping), the box a free body; zero gravity only (Drake
+    gives the limit, not the hold). The box's own damping is added to the applied torque."""
+
+    def __init__(self, setup: DrakeSetup, grip: float, gravity: bool, mu: float):
+        from pydrake.geometry import (AddCompliantHydroelasticProperties, AddContactMaterial,
+                                      AddRigidHydroelasticProperties, Box, ProximityProperties, Sphere)
+        from pydrake.math import RigidTransform
+        from pydrake.multibody.plant import (AddMultibodyPlant, CoulombFriction, ExternallyAppliedSpatialForce,
+                                             MultibodyPlantConfig)
+        from pydrake.multibody.tree import FixedOffsetFrame, PrismaticJoint, SpatialInertia
+        from pydrake.systems.analysis import Simulator
+        from pydrake.systems.framework import DiagramBuilder
+
+        if gravity:
+            raise ValueError("the Drake rig measures the torsional limit only (zero gravity)")
+        self.grip = grip
+        builder = DiagramBuilder()
+        plant, _ = AddMultibodyPlant(MultibodyPlantConfig(time_step=1e-3, contact_model="hydroelastic",
+                                                          discrete_contact_approximation=setup.solver), builder)
+        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, 0.0])
+        friction = CoulombFriction(mu, mu)
+        bx, by, bz = BOX_HALF
+        self.body = box = plant.AddRigidBody("box", SpatialInertia.SolidBoxWithMass(BOX_MASS, 2 * bx, 2 * by, 2 * bz))
+        rigid = ProximityProperties()
+        AddRigidHydroelasticProperties(DRAKE_RESOLUTION, rigid)
+        AddContactMaterial(friction=friction, properties=rigid)
+        plant.RegisterCollisionGeometry(box, RigidTransform(), Box(2 * bx, 2 * by, 2 * bz), "box", rigid)
+        soft = ProximityProperties()
+        AddCompliantHydroelasticProperties(DRAKE_RESOLUTION, setup.modulus or drake_modulus(), soft)
+        AddContactMaterial(dissipation=1.0, friction=friction, properties=soft)
+        x0, y0 = _finger_start(False)
+        for name, x in (("right", x0), ("left", -x0)):
+            finger = plant.AddRigidBody(name, SpatialInertia.SolidSphereWithMass(FINGER_MASS, FINGER_RADIUS))
+            anchor = plant.AddFrame(FixedOffsetFrame(f"{name}_anchor", plant.world_frame(),
+                                                     RigidTransform([x, y0, BOX_HALF[2]])))
+            joint = plant.AddJoint(PrismaticJoint(f"{name}_x", anchor, finger.body_frame(), [1.0, 0.0, 0.0],
+                                                  damping=X_DAMPING))
+            plant.AddJointActuator(f"{name}_x", joint)
+            plant.RegisterCollisionGeometry(finger, RigidTransform(), Sphere(FINGER_RADIUS), name, soft)
+        plant.Finalize()
+        self.plant = plant
+        diagram = builder.Build()
+        self.simulator = Simulator(diagram)
+        root = self.simulator.get_mutable_context()
+        self.context = plant.GetMyMutableContextFromRoot(root)
+        plant.SetFreeBodyPose(self.context, box, RigidTransform([0.0, 0.0, BOX_HALF[2]]))
+        self.force = ExternallyAppliedSpatialForce()
+        self.force.body_index = box.index()
+        self._applied = plant.get_applied_spatial_force_input_port()
+        self._actuation = plant.get_actuation_input_port()
+        self.inertia = BOX_MASS * ((2 * by) ** 2 + (2 * bz) ** 2) / 12.0
+        self.damping = BOX_DAMPING
+        self.torque = 0.0
+        self.simulator.Initialize()
+
+    def step(self, t: float) -> float:
+        from pydrake.multibody.math import SpatialForce
+
+        g = _grip_ramp(t, self.grip)
+        self._actuation.FixValue(self.context, [-g, g])
+        self.force.F_Bq_W = SpatialForce([self.torque - self.damping * self.spin(), 0.0, 0.0], [0.0, 0.0, 0.0])
+        self._applied.FixValue(self.context, [self.force])
+        start = time.perf_counter()
+        self.simulator.AdvanceTo(t + 1e-3)
+        return time.perf_counter() - start
+
+    def spin(self) -> float:
+        return float(self.plant.EvalBodySpatialVelocityInWorld(self.context, self.body).rotational()[0])
+
+    def apply(self, torque: float) -> None:
+        self.torque = torque
+
+
 class SoftproxyRig(_MujocoBox):
     """The grasp scene itself: two soft-finger proxies on the simulated device."""
 
     def __init__(self, setup: SoftproxySetup, grip: float, gravity: bool):
         scene = load_scene(SCENE)
         scene.fingers = [replace(f, model=setup.model, saturate=setup.saturate) for f in scene.fingers]
+        if setup.dynamic_ratio is not None:
+            mu_s = [f.torsion_mu_s if f.torsion_mu_s is not None else fingertip.model(f.model).mu_prime
+                    for f in scene.fingers]
+            scene.fingers = [replace(f, torsion_mu_s=s, torsion_mu_d=setup.dynamic_ratio * s)
+                             for f, s in zip(scene.fingers, mu_s)]
         if not gravity:
             _zero_gravity_keyframes(scene, grip)
         self.loop = loop = build(scene, open_device("sim", scene), audit=False, realtime=False)
@@ -350,6 +515,12 @@ class SoftproxyRig(_MujocoBox):
         self.loop.tick()
         return time.perf_counter() - start
 
+    @property
+    def dynamic_ratio(self) -> float | None:
+        """The fingers' setting μ_d/μ_s of torsional friction (the input the slide measures against)."""
+        t = self.loop.fingers[0].torsion
+        return None if t is None or t.mu_s == 0.0 else t.mu_d / t.mu_s
+
 
 def _zero_gravity_keyframes(scene, grip: float) -> None:
     """Device keyframes that squeeze the box to `grip` per finger by 0.5 s and stay still,
@@ -362,14 +533,17 @@ def _zero_gravity_keyframes(scene, grip: float) -> None:
         finger["keyframes"] = [[0.0, sign * 0.06, 0.0, 0.03, 0.0], [0.5, x, 0.0, 0.03, 0.0]]
 
 
-def make_rig(name: str, grip: float = GRIP_N, gravity: bool = True, coefficient: float | None = None):
-    """The rig for SETUPS[name]; `coefficient` overrides a peer's torsional coefficient (m)."""
-    setup = SETUPS[name]
+def make_rig(name, grip: float = GRIP_N, gravity: bool = True, coefficient: float | None = None):
+    """The rig for SETUPS[name] (or for `name` itself, a setup); `coefficient` overrides a
+    peer's torsional coefficient (m)."""
+    setup = SETUPS[name] if isinstance(name, str) else name
     c = peer_coefficient() if coefficient is None else coefficient
     if isinstance(setup, MujocoSetup):
         return MujocoRig(setup, grip, gravity, c)
     if isinstance(setup, PybulletSetup):
         return PybulletRig(setup, grip, gravity, c)
+    if isinstance(setup, DrakeSetup):  # its coefficient is Coulomb's μ, not a length
+        return DrakeRig(setup, grip, gravity, DRAKE_MU if coefficient is None else coefficient)
     return SoftproxyRig(setup, grip, gravity)
 
 
@@ -478,8 +652,10 @@ class _Transmitted:
         return abs(self.inertia * rate - applied)
 
 
-def limit(name: str, grip: float, coefficient: float | None = None, seconds: float = 4.0) -> float:
-    """The largest torque the two contacts transmit at `grip` per finger before they slip (N·m)."""
+def limit(name: str, grip: float, coefficient: float | None = None, seconds: float = 4.0,
+          costs: list | None = None) -> float:
+    """The largest torque the two contacts transmit at `grip` per finger before they slip (N·m);
+    each step's cost (s) appended to `costs` if given."""
     rig = make_rig(name, grip, gravity=False, coefficient=coefficient)
     rate = RAMP_PER_N * grip
     transmitted, peak = _Transmitted(rig.inertia, rig.damping), 0.0
@@ -488,7 +664,9 @@ def limit(name: str, grip: float, coefficient: float | None = None, seconds: flo
             t = i * 1e-3
             torque = max(t - SQUEEZE_END_S, 0.0) * rate
             rig.apply(torque)
-            rig.step(t)
+            cost = rig.step(t)
+            if costs is not None:
+                costs.append(cost)
             w = rig.spin()
             if t > SQUEEZE_END_S:
                 if abs(w) > SLIP_SPEED:
@@ -543,6 +721,60 @@ def hysteresis(name: str, grip: float = GRIP_N, seconds: float = 6.0) -> dict:
 
 
 # ---------------------------------------------------------------------------------
+# Dynamic friction, measured: the box slides steadily between the still fingers, its spin
+# about the grasp axis held at SLIDE_SPEED by a PI servo on the external torque; the torque
+# the contacts transmit while it slides (momentum balance, as above) over the break-away
+# torque at the same grip (the peak of `hysteresis`'s ramp).
+# ---------------------------------------------------------------------------------
+SLIDE_SPEED = 1.0            # rad/s (57°/s): well past SLIP_SPEED, a twist a hand makes
+SLIDE_SETTLE_S = 1.0         # s of servoed slide before the measurement
+SLIDE_MEASURE_S = 0.5        # s measured
+SLIDE_TIME_CONSTANT = 0.01   # s: the speed servo's proportional gain is inertia / this
+SLIDE_INTEGRAL_S = 0.05      # s: its integral time
+
+
+def steady_slide(name, grip: float = GRIP_N, speed: float = SLIDE_SPEED) -> dict:
+    """Slide the box at `speed` (rad/s) between fingers gripping with `grip` (N each): the
+    median torque the two contacts transmit while sliding (N·m), the spin measured (median,
+    and its 5th–95th percentile, rad/s), and for softproxy the fingers' setting μ_d/μ_s."""
+    rig = make_rig(name, grip, gravity=False)
+    kp = rig.inertia / SLIDE_TIME_CONSTANT
+    transmitted = _Transmitted(rig.inertia, rig.damping)
+    integral, torque, torques, spins = 0.0, 0.0, [], []
+    end = SQUEEZE_END_S + SLIDE_SETTLE_S + SLIDE_MEASURE_S
+    try:
+        for i in range(int(round(end * 1000))):
+            t = i * 1e-3
+            rig.apply(torque)
+            rig.step(t)
+            w = rig.spin()
+            if t <= SQUEEZE_END_S:
+                continue
+            now = transmitted(w, torque)
+            if t > SQUEEZE_END_S + SLIDE_SETTLE_S:
+                torques.append(now)
+                spins.append(w)
+            error = speed - w
+            integral += error * 1e-3
+            torque = kp * (error + integral / SLIDE_INTEGRAL_S)
+        ratio = getattr(rig, "dynamic_ratio", None)
+    finally:
+        _close(rig)
+    lo, mid, hi = np.percentile(spins, [5, 50, 95])
+    return {"speed_set_rad_s": speed, "speed_rad_s": float(mid), "speed_p5_p95_rad_s": [float(lo), float(hi)],
+            "sliding_Nm": float(np.median(torques)), "setting_dynamic_over_static": ratio}
+
+
+def dynamic_friction(name, grip: float = GRIP_N, speed: float = SLIDE_SPEED) -> dict:
+    """Break-away torque (ramp until the contact slips) and the torque of a steady slide at
+    `speed`, and their ratio: the dynamic friction measured, beside the setting it comes from."""
+    h = hysteresis(name, grip)
+    slide = steady_slide(name, grip, speed)
+    ratio = slide["sliding_Nm"] / h["breakaway_Nm"] if h["breakaway_Nm"] > 0 else None
+    return {**h, "steady_slide": slide, "steady_sliding_over_breakaway": ratio}
+
+
+# ---------------------------------------------------------------------------------
 # Fidelity to the measured fingertip (seed 002, E3) over 0.1–3 N
 # ---------------------------------------------------------------------------------
 def relative_errors(limits, grips, reference=fingertip.e3_torque) -> dict:
@@ -560,9 +792,9 @@ def best_scale(limits, grips, reference=fingertip.e3_torque) -> float:
 
 def exponent(grips, limits, low: float, high: float) -> float | None:
     """Slope of log(limit) against log(grip) over the grips in [low, high]."""
-    pts = [(g, v) for g, v in zip(grips, limits) if low <= g <= high and v > 0]
-    if len(pts) < 2:
-        return None
+    pts = [(g, v) for g, v in zip(grips, limits) if low <= g <= high and v is not None and v > 0]
+    if len(pts) < 2 or min(p[0] for p in pts) > low or max(p[0] for p in pts) < high:
+        return None  # the range is not covered
     g, v = np.array(pts).T
     return float(np.polyfit(np.log(g), np.log(v), 1)[0])
 
@@ -573,13 +805,15 @@ FIDELITY_RANGE = (0.1, 3.0)   # N: seed 002's measured range of E3 that the fide
 
 def measure(duration: float = 20.0, grips=LIMIT_GRIPS, progress=None, names=None) -> dict:
     """Every figure of the bench in one run (see the module docstring)."""
-    names = [n for n in (names or SETUPS) if pybullet_available() or not isinstance(SETUPS[n], PybulletSetup)]
+    names = [n for n in (names or SETUPS) if (pybullet_available() or not isinstance(SETUPS[n], PybulletSetup))
+             and (drake_available() or not isinstance(SETUPS[n], DrakeSetup))]
     out = {"duration_s": duration, "grip_N": GRIP_N, "peer_torsion_coefficient_m": peer_coefficient(),
-           "default_saturate": FingerParams().saturate, "pybullet": pybullet_available(),
+           "default_saturate": FingerParams().saturate, "pybullet": pybullet_available(), "drake": drake_available(),
            "setups": {n: SETUPS[n].options() for n in names}, "hold": {}, "traces": {}}
-    for i, name in enumerate(names):
+    holds = [n for n in names if not isinstance(SETUPS[n], DrakeSetup)]  # Drake: the torsional limit only
+    for i, name in enumerate(holds):
         if progress:
-            progress(f"hold {i + 1}/{len(names)}: {name}")
+            progress(f"hold {i + 1}/{len(holds)}: {name}")
         r = hold(name, duration)
         out["hold"][name] = {**summarise(r["trace"]), "step_us": r["step_us"]}
         out["traces"][name] = r["trace"]
@@ -587,16 +821,32 @@ def measure(duration: float = 20.0, grips=LIMIT_GRIPS, progress=None, names=None
     for h in out["hold"].values():
         h["cost_vs_mujoco_default"] = h["step_us"] / base if base else None
     limit_names = [n for n in LIMIT_RUNS if n in names]
-    limits, statics = {}, {}
+    limits, statics, costs = {}, {}, {}
     for i, name in enumerate(limit_names):
         if progress:
             progress(f"torsion limit {i + 1}/{len(limit_names)}: {name}")
-        limits[name] = [limit(name, g) / 2.0 for g in grips]  # per contact
-        statics[name] = hysteresis(name)
+        costs[name] = []
+        # Drake's soft sphere carries no more than its capacity: no limit at a grip past 95% of it
+        most = 0.95 * drake_capacity(SETUPS[name].modulus or drake_modulus()) \
+            if isinstance(SETUPS[name], DrakeSetup) else math.inf
+        limits[name] = [limit(name, g, costs=costs[name] if g == GRIP_N else None) / 2.0 if g < most else None
+                        for g in grips]  # per contact
+        if not isinstance(SETUPS[name], DrakeSetup):  # Drake: limit and cost only (each of its steps costs ms)
+            statics[name] = dynamic_friction(name)
+    for name in (n for n in limit_names if isinstance(SETUPS[n], DrakeSetup)):
+        # Drake's step, one AdvanceTo per 1 ms step at the grasp's grip, over MuJoCo's default step
+        step_us = float(np.median(costs[name])) * 1e6
+        modulus = SETUPS[name].modulus or drake_modulus()
+        out["drake_step"] = {"name": name, "step_us": step_us, "cost_vs_mujoco_default": step_us / base if base else None,
+                             "modulus_Pa": modulus, "capacity_N": drake_capacity(modulus)}
     out["limit_per_contact_Nm"] = {"grip_N": list(grips), **limits}
     out["limit_exponent"] = {n: {"0.1-2 N": exponent(grips, v, 0.1, 2.0), "0.5-8 N": exponent(grips, v, 0.5, 8.0)}
                              for n, v in limits.items()}
     out["static_dynamic"] = statics
+    out["slide_settings"] = {"grip_N": GRIP_N, "speed_rad_s": SLIDE_SPEED, "settle_s": SLIDE_SETTLE_S,
+                             "measured_s": SLIDE_MEASURE_S, "gravity": False,
+                             "breakaway": f"torque ramped at {RAMP_PER_N * GRIP_N:g} N·m/s until the box turns "
+                                          f"faster than {SLIP_SPEED:g} rad/s"}
     out["fidelity"] = fidelity(limits, grips, progress)
     return out
 
@@ -611,6 +861,13 @@ def fidelity(limits: dict, grips, progress=None) -> dict:
         v = [x for x, g in zip(vals, grips) if lo <= g <= hi]
         if isinstance(SETUPS[name], SoftproxySetup):
             rows[name] = {**relative_errors(v, inside), "coefficient": "Simulating human fingers, Table 1", "limit_Nm": v}
+            continue
+        if isinstance(SETUPS[name], DrakeSetup):  # Coulomb's μ scales its pressure's torque
+            mu = DRAKE_MU * best_scale(v, inside)
+            if progress:
+                progress(f"fidelity: {name} at its best friction coefficient {mu:.2f}")
+            refit = [limit(name, g, coefficient=mu) / 2.0 for g in inside]
+            rows[name] = {**relative_errors(refit, inside), "coefficient_mu": mu, "limit_Nm": refit}
             continue
         c = peer_coefficient() * best_scale(v, inside)
         if progress:
@@ -631,7 +888,8 @@ def fidelity(limits: dict, grips, progress=None) -> dict:
 COLOURS = {"mujoco newcomer": "tab:red", "mujoco elliptic, no noslip": "tab:orange",
            "mujoco best condim 4": "tab:blue", "mujoco best condim 6": "tab:cyan",
            "pybullet newcomer": "tab:brown", "pybullet best": "tab:purple",
-           "softproxy power law": "tab:olive", "softproxy saturating law": "tab:green", "softproxy point": "tab:gray"}
+           "softproxy power law": "tab:olive", "softproxy saturating law": "tab:green", "softproxy point": "tab:gray",
+           "drake hydroelastic": "tab:pink"}
 
 
 DASHED = {"mujoco best condim 6", "pybullet newcomer", "softproxy power law"}
@@ -655,7 +913,8 @@ def chart(result: dict):
     dense = np.geomspace(grips.min(), grips.max(), 100)
     b.loglog(dense, [fingertip.e3_torque(g) for g in dense], "k-", lw=3, alpha=0.35, label="measured fingertip")
     for name in (n for n in lim if n != "grip_N"):
-        b.loglog(grips, lim[name], "o", ms=4, color=COLOURS.get(name), ls="--" if name in DASHED else "-")
+        b.loglog(grips, [np.nan if v is None else v for v in lim[name]], "o", ms=4, color=COLOURS.get(name),
+                 ls="--" if name in DASHED else "-", label=None if name in result["traces"] else name)
     b.set_xlabel("grip per finger (N)")
     b.set_ylabel("torsional limit per contact (N·m)")
     b.set_title(f"torsional limit vs grip\n(peers' coefficient: softproxy's limit at {result['grip_N']:g} N)", fontsize=10)
@@ -690,9 +949,12 @@ def print_report(result: dict) -> None:
           f"(softproxy's default limit at {result['grip_N']:g} N)")
     if not result["pybullet"]:
         print(f"  PyBullet rows skipped: pip install 'softproxy[{PYBULLET_EXTRA}]' to add them")
+    if not result.get("drake"):
+        print(f"  Drake rows skipped: pip install 'softproxy[{DRAKE_EXTRA}]' to add them")
     lim, st = result["limit_exponent"], result["static_dynamic"]
     print(f"  {'':27s}{'turned (deg)':>13s}{'max (deg)':>10s}{'creep (deg/s)':>14s}{'held':>8s}{'exp 0.1-2N':>11s}"
-          f"{'exp 0.5-8N':>11s}{'slide/break':>12s}{'re-stick':>10s}{'step (us)':>10s}{'cost':>7s}{'  wrench to device'}")
+          f"{'exp 0.5-8N':>11s}{'slide/break':>12s}{'set':>6s}{'re-stick':>10s}{'step (us)':>10s}{'cost':>7s}"
+          f"{'  wrench to device'}")
     for name, h in result["hold"].items():
         e = lim.get(name, {})
         s = st.get(name, {})
@@ -702,18 +964,37 @@ def print_report(result: dict) -> None:
         held = "yes" if h["height_end_m"] > HELD_HEIGHT else "dropped"
         print(f"  {name:27s}{h['rotation_end_deg']:13.2e}{h['rotation_max_deg']:10.2g}{h['creep_deg_per_s']:14.2e}{held:>8s}"
               f"{_fmt(e.get('0.1-2 N'), '.2f', 11)}{_fmt(e.get('0.5-8 N'), '.2f', 11)}"
-              f"{_fmt(s.get('sliding_over_breakaway'), '.2f', 12)}{restick:>10s}{h['step_us']:10.1f}"
+              f"{_fmt(s.get('steady_sliding_over_breakaway'), '.2f', 12)}"
+              f"{_fmt((s.get('steady_slide') or {}).get('setting_dynamic_over_static'), '.2f', 6)}"
+              f"{restick:>10s}{h['step_us']:10.1f}"
               f"{_fmt(cost, '.2f', 7)}  {device}")
-    print(f"  (held: the box's centre still above {HELD_HEIGHT * 100:g} cm at the end; slide/break: sliding torque / break-away "
-          "torque; re-stick: applied torque at which a slipping contact sticks again / break-away; "
-          "cost: step p50 / MuJoCo default step p50, this run)")
+    d = result.get("drake_step")
+    if d:
+        e = lim.get(d["name"], {})
+        print(f"  {d['name']:27s}{'-':>13s}{'-':>10s}{'-':>14s}{'-':>8s}{_fmt(e.get('0.1-2 N'), '.2f', 11)}"
+              f"{_fmt(e.get('0.5-8 N'), '.2f', 11)}{'-':>12s}{'-':>6s}{'-':>10s}{d['step_us']:10.1f}"
+              f"{_fmt(d['cost_vs_mujoco_default'], '.2f', 7)}  no")
+        print(f"  (Drake: torsional limit only, at 1 ms steps, one AdvanceTo a step; its soft sphere carries at most "
+              f"πER²/3 = {d['capacity_N']:.2f} N, E = {d['modulus_Pa'] / 1e6:.4f} MPa fitted to a fingertip's contact "
+              "radii: no limit at the grips past it)")
+    print(f"  (held: the box's centre still above {HELD_HEIGHT * 100:g} cm at the end; re-stick: applied torque at which "
+          "a slipping contact sticks again / break-away; cost: step p50 / MuJoCo default step p50, this run)")
+    if st:
+        ss = result["slide_settings"]
+        print(f"  slide/break, measured: the torque the contacts transmit while the box slides steadily at "
+              f"{ss['speed_rad_s']:g} rad/s between the fingers ({ss['grip_N']:g} N each, no gravity; median over "
+              f"{ss['measured_s']:g} s after {ss['settle_s']:g} s of slide) / the break-away torque at the same grip "
+              f"({ss['breakaway']}); set: the fingers' dynamic / static torsional friction (softproxy's default 0.8, "
+              "a choice: the paper leaves dynamic friction to experiment; the peers have one coefficient)")
     fid = result["fidelity"]
     lo, hi = fid["range_N"]
     print(f"  torsional limit per contact vs the measured fingertip, {lo:g}-{hi:g} N, relative error:")
     print(f"  {'':27s}{'RMS':>8s}{'max':>8s}  coefficient")
     for name, r in fid["rows"].items():
         coef = r.get("coefficient") or (f"best single coefficient {r['coefficient_m'] * 1e3:.2f} mm"
-                                         if "coefficient_m" in r else "analytic, no simulation")
+                                         if "coefficient_m" in r else
+                                         f"best single friction coefficient {r['coefficient_mu']:.2f}"
+                                         if "coefficient_mu" in r else "analytic, no simulation")
         print(f"  {name:27s}{r['rms']:8.3f}{r['max']:8.3f}  {coef}")
 
 

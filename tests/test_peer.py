@@ -1,6 +1,7 @@
 """`softproxy bench peer` in miniature: its measurements on short runs, its fits on analytic
 curves, and its report without PyBullet."""
 
+import math
 import sys
 
 import numpy as np
@@ -108,3 +109,83 @@ def test_without_pybullet_the_bench_skips_its_rows_and_says_so(monkeypatch, caps
     out = capsys.readouterr().out
     lines = [line for line in out.splitlines() if "pybullet" in line.lower()]
     assert len(lines) == 1 and "softproxy[peers]" in lines[0]
+
+
+@pytest.mark.slow  # three slides of 2.3 s simulated each, two in softproxy's servo loop
+def test_dynamic_friction_is_measured_from_a_slide_and_follows_the_setting():
+    """Simulating human fingers, eqs 39-40: a slipping contact transmits μ_d|P|^γ. The bench's
+    slide/break figure is measured from a steady slide, so it moves with the fingers' setting
+    μ_d/μ_s (0.8 by default, 0.5 here), and is 1 for MuJoCo's single coefficient."""
+    default = peer.dynamic_friction("softproxy saturating law")
+    half = peer.steady_slide(peer.SoftproxySetup("CH", True, dynamic_ratio=0.5))
+    mj = peer.dynamic_friction("mujoco best condim 4")
+    for slide in (default["steady_slide"], half, mj["steady_slide"]):
+        assert slide["speed_rad_s"] == pytest.approx(peer.SLIDE_SPEED, rel=0.02)  # it did slide, at the speed set
+    assert default["steady_slide"]["setting_dynamic_over_static"] == pytest.approx(0.8)
+    assert default["steady_sliding_over_breakaway"] == pytest.approx(0.8, abs=0.02)
+    assert half["setting_dynamic_over_static"] == pytest.approx(0.5)
+    assert half["sliding_Nm"] / default["breakaway_Nm"] == pytest.approx(0.5, abs=0.02)
+    assert mj["steady_sliding_over_breakaway"] == pytest.approx(1.0, abs=0.03)
+    assert mj["steady_slide"]["setting_dynamic_over_static"] is None
+
+
+def test_the_hydroelastic_sphere_on_a_plane_matches_its_small_penetration_limit():
+    """The Drake rows' soft sphere, pressure E(1 − |x|/R): at small penetration δ its load is
+    πEδ² and, per unit friction coefficient, the torque its pressure resists about the normal
+    is (4π/15) E a³ δ / R (a² = 2Rδ); the integrals must agree with these closed forms."""
+    E, R = 6e4, peer.FINGER_RADIUS
+    d, a, torque = peer._sphere_pressed(E, 1e-4, R)
+    assert 1e-4 == pytest.approx(math.pi * E * d * d, rel=2e-3)
+    assert a == pytest.approx(math.sqrt(2 * R * d - d * d), rel=1e-12)
+    assert torque == pytest.approx(4 * math.pi / 15 * E * a ** 3 * d / R, rel=5e-3)
+
+
+def test_drake_s_sphere_is_fitted_to_the_fingertip_s_contact_radii():
+    """A preliminary approach to study the behavior of human fingertip at contact (Tables 1-2):
+    the modulus is the least-squares fit of the sphere's contact radius to the measured radii
+    √(A/π); 5% either way fits worse, and the fit lands within 15% of each measured radius."""
+    E = peer.drake_modulus()
+
+    def misfit(e):
+        return sum((peer._sphere_pressed(e, f)[1] - math.sqrt(area / math.pi)) ** 2 for f, area in peer.FINGERTIP_CONTACT)
+
+    assert misfit(E) < misfit(0.95 * E) and misfit(E) < misfit(1.05 * E)
+    for f, area in peer.FINGERTIP_CONTACT:
+        assert peer._sphere_pressed(E, f)[1] == pytest.approx(math.sqrt(area / math.pi), rel=0.15)
+
+
+def test_without_drake_the_bench_skips_its_rows_and_says_so(monkeypatch, capsys):
+    """Drake missing: no Drake row anywhere, one line naming the extra to install."""
+    monkeypatch.setitem(sys.modules, "pydrake", None)  # `import pydrake...` now raises ImportError
+    assert not peer.drake_available()
+    result = peer.measure(1.0, grips=(0.5, 1.0), names=["mujoco newcomer", "drake hydroelastic"])
+    assert not result["drake"] and "drake_step" not in result
+    assert not any("drake" in k for k in result["limit_per_contact_Nm"])
+    assert not any("drake" in k for k in result["fidelity"]["rows"])
+    peer.print_report(result)
+    lines = [line for line in capsys.readouterr().out.splitlines() if "drake" in line.lower()]
+    assert len(lines) == 1 and "softproxy[drake]" in lines[0]
+
+
+@pytest.mark.slow  # Drake's hydroelastic step costs about a millisecond: ~10 s
+def test_drake_hydroelastic_limit_follows_its_pressure_and_is_not_linear():
+    """Drake's limit (measured off the box's momentum balance, as for every engine) is the
+    friction coefficient × its sphere's pressure torque (∫ p r dA) within 10%, and grows faster
+    than linearly with the grip over 0.2–2 N, unlike MuJoCo's and PyBullet's single coefficient."""
+    pytest.importorskip("pydrake")
+    E = peer.drake_modulus()
+    grips = (0.2, 0.5, 2.0)
+    limits = [peer.limit("drake hydroelastic", g) / 2.0 for g in grips]
+    for g, v in zip(grips, limits):
+        assert v == pytest.approx(peer.DRAKE_MU * peer._sphere_pressed(E, g)[2], rel=0.10)
+    assert 1.1 < peer.exponent(grips, limits, 0.2, 2.0) < 1.4
+
+
+def test_an_exponent_needs_its_whole_range():
+    """A limit measured only up to 3 N (Drake's soft sphere bottoms out past 4 N) has no
+    0.5–8 N exponent; with the range covered the slope of P^1.5 is 1.5, missing points skipped."""
+    grips = (0.5, 1.0, 2.0, 3.0, 8.0)
+    limits = [g ** 1.5 for g in grips]
+    assert peer.exponent(grips, limits, 0.5, 8.0) == pytest.approx(1.5)
+    assert peer.exponent(grips, limits[:-1] + [None], 0.5, 8.0) is None
+    assert peer.exponent(grips, limits[:-1] + [None], 0.5, 3.0) == pytest.approx(1.5)
