@@ -147,19 +147,27 @@ def _grasp(physics_rate_hz):
     return np.array(forces), pose
 
 
-def test_the_grasp_holds_at_250_hz_physics_and_repeats_exactly():
-    """The shipped grasp with MuJoCo at 250 Hz under the 1 kHz loop: the box ends where the
-    one-rate run leaves it (within 0.5 mm and 0.5°), the force never steps more than the
-    one-rate run's own largest step (at first touch) plus 0.02 N, and a second run gives the
-    same forces bit for bit (lockstep two rates are deterministic)."""
-    one, (x1, q1) = _grasp(None)
-    two, (x2, q2) = _grasp(250.0)
-    again, _ = _grasp(250.0)
-    np.testing.assert_array_equal(two, again)
+@pytest.fixture(scope="module")
+def one_rate_grasp():
+    return _grasp(None)
+
+
+@pytest.mark.parametrize("physics_rate_hz", [250.0, 50.0])
+def test_the_grasp_holds_with_mujoco_at_a_lower_rate(one_rate_grasp, physics_rate_hz):
+    """The shipped grasp with MuJoCo at 250 or 50 Hz under the 1 kHz loop: the box ends where
+    the one-rate run leaves it (within 0.5 mm and 0.5°), still squeezed, and the force never
+    steps more than the one-rate run's own largest step (at first touch) plus 0.15 N."""
+    one, (x1, q1) = one_rate_grasp
+    two, (x2, q2) = _grasp(physics_rate_hz)
     assert np.linalg.norm(x2 - x1) < 5e-4
     turn = 2.0 * math.degrees(math.acos(min(1.0, abs(float(np.dot(q1, q2))))))
     assert turn < 0.5
-    step_one = np.abs(np.diff(one, axis=0)).max()
-    step_two = np.abs(np.diff(two, axis=0)).max()
-    assert step_two <= step_one + 0.02
+    assert np.abs(np.diff(two, axis=0)).max() <= np.abs(np.diff(one, axis=0)).max() + 0.15
     assert np.abs(two[2000:, 0]).min() > 2.5  # still squeezing at the end: the box was held
+
+
+def test_two_rates_in_lockstep_repeat_exactly():
+    """Two runs of the grasp with MuJoCo at 100 Hz give the same forces bit for bit."""
+    first, _ = _grasp(100.0)
+    again, _ = _grasp(100.0)
+    np.testing.assert_array_equal(first, again)

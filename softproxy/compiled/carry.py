@@ -10,26 +10,29 @@ change per tick, through the operational-space response the implicit coupling co
 the haptic ticks of its step (`finger.write_wrenches`' scale).
 
 At each MuJoCo step the carried pose and the new state differ by what the local model left
-out (the other contacts, the change of the mass matrix; with gravity on a resting body:
-nothing). That difference is not a jump: it is kept as an offset that fades out linearly
-over the next step (`body_err`), so a shape's carried pose is continuous across updates and
-meets MuJoCo's own trajectory one step later. A body's pose is carried about its centre of
-mass (xipos) by a rotation vector θ and a displacement p:
+out (the other contacts, the change of the mass matrix, and MuJoCo's own integration: its
+Euler step moves a body by H times its velocity at the end of the step, half a step's
+velocity change ahead of the local model). That difference is not a jump: it is kept as an
+offset that fades out linearly over FADE_STEPS steps (`body_err`; what is left of the last
+offset at an update is carried into the next), so a shape's carried pose is continuous
+across updates and converges on MuJoCo's trajectory. A body's pose is carried about its
+centre of mass (xipos) by a rotation vector θ and a displacement p:
 
-    θ(τ) = ω τ + Θ(τ) + (1 - τ/H) e_θ,   p(τ) = v τ + P(τ) + (1 - τ/H) e_p,
+    θ(τ) = ω τ + Θ(τ) + f(τ) e_θ,   p(τ) = v τ + P(τ) + f(τ) e_p,   f(τ) = 1 - τ / (FADE_STEPS H),
 
 ω, v the body's velocity at MuJoCo's last state (v at its centre of mass), Θ, P the integral
 of the fingers' response since then, e the offset kept at the update; a geom at x₀, R₀ then is
 at c + p + R(θ)(x₀ - c), R(θ) R₀. The carried angular velocity (cvel's first three, which
-drags the fingers' torsion, eqs 41-42) is ω + Θ' - e_θ / H. Units: m, s, rad.
+drags the fingers' torsion, eqs 41-42) is ω + Θ' - e_θ / (FADE_STEPS H). Units: m, s, rad.
 
-Measured (`tests/test_two_rates.py`, the grasp of a 100 g box at k = 2000 N/m under a 1 kHz
-loop): without the fingers' response in the local model the force rang at the physics rate
-(jumps of 0.5 N p99 at 250 Hz); with it, the force's largest step at 200 and 250 Hz is the
-one-rate run's own (0.25 N, at first touch). Starting each step half a MuJoCo velocity change
-ahead (its Euler step moves a body by H times its velocity at the end of the step) was tried
-and made it worse. At 100 Hz (kH²/m = 2) the grasp is lost: the averaged wrench MuJoCo
-integrates explicitly over its step is then too stiff for the box.
+Measured on the shipped grasp (a 100 g box, k = 2000 N/m, a 1 kHz loop; docs/engine-log.md):
+without the fingers' response in the local model the force rang at the physics rate (steps
+of 0.5 N p99 at 250 Hz); with it, the force's largest step at 100 to 250 Hz is the one-rate
+run's own (0.25 N, at first touch). An offset faded over one step fed MuJoCo's integration
+error back through the fingers' damper each step: at 100 Hz (kH²/m = 2) the box's velocity
+rang and the grasp was lost, and at 50 Hz too; faded over 2, 4 or 8 steps it holds at both
+(largest step 0.25 N at 100 Hz, 0.38 N at 50 Hz with 4). Starting each step half a velocity
+change ahead, to meet MuJoCo's Euler step, was tried and made it worse.
 """
 
 from __future__ import annotations
@@ -40,6 +43,9 @@ import numpy as np
 from numba import njit
 
 # a body's rows in body_vel, body_err, body_off and body_spin: angular (3), then linear (3)
+FADE_STEPS = 4.0
+"""MuJoCo steps over which the offset between a carried pose and MuJoCo's new one fades out
+(the module docstring: over one step the grasp rang at 100 Hz)."""
 NEAR_MARGIN = 2e-3
 """m beyond a finger's broad-phase ball (and the shape's own motion over a step) within
 which a moving shape is carried every tick."""
@@ -115,8 +121,11 @@ def snapshot(cr, H, fresh):
             e[:] = 0.0
         else:
             # where the local model carried the body to by the end of the step just taken
-            tx, ty, tz = v[0] * H + o[0], v[1] * H + o[1], v[2] * H + o[2]
-            px, py, pz = c[0] + v[3] * H + o[3], c[1] + v[4] * H + o[4], c[2] + v[5] * H + o[5]
+            left = 1.0 - 1.0 / FADE_STEPS
+            tx, ty, tz = v[0] * H + o[0] + left * e[0], v[1] * H + o[1] + left * e[1], v[2] * H + o[2] + left * e[2]
+            px = c[0] + v[3] * H + o[3] + left * e[3]
+            py = c[1] + v[4] * H + o[4] + left * e[4]
+            pz = c[2] + v[5] * H + o[5] + left * e[5]
             # its orientation R(θ) X_old against the new X: the offset E = R(θ) X_old X_newᵀ
             X0, X1, E = cr.body_xmat[b], cr.ximat[b], cr.scratch
             for i in range(3):
@@ -162,9 +171,9 @@ def _carry_shape(cr, S, s, tau, fade, H):
     for j in range(3):  # each column of R₀ rotated
         R[j], R[3 + j], R[6 + j] = _rotate(tx, ty, tz, R0[j], R0[3 + j], R0[6 + j])
     w, spin = cr.cvel[b], cr.body_spin[b]
-    w[0] = v[0] + spin[0] - e[0] / H
-    w[1] = v[1] + spin[1] - e[1] / H
-    w[2] = v[2] + spin[2] - e[2] / H
+    w[0] = v[0] + spin[0] - e[0] / (H * FADE_STEPS)
+    w[1] = v[1] + spin[1] - e[1] / (H * FADE_STEPS)
+    w[2] = v[2] + spin[2] - e[2] / (H * FADE_STEPS)
 
 
 @njit(cache=True, error_model="numpy")
@@ -175,7 +184,7 @@ def carry(cr, sh, fingers, tau, H):
     its fading offset, within NEAR_MARGIN of the ball the finger's broad phase last gathered."""
     S = sh.S
     FM, FD = fingers.model, fingers.data
-    fade = 1.0 - tau / H
+    fade = 1.0 - tau / (H * FADE_STEPS)
     for s in range(S.shape[0]):
         if S[s].static:
             continue
