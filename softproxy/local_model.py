@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 
 from softproxy.compiled.carry import bodies_moving
-from softproxy.compiled.layout import Carried, Shapes
+from softproxy.compiled.handoff import CTL_SIZE
+from softproxy.compiled.layout import Carried, Handoff, MjArrays, Shapes
 
 MAX_EVERY = 1000
 """The most haptic ticks per MuJoCo step (a MuJoCo step of 1 s at 1 kHz)."""
@@ -40,8 +42,21 @@ def physics_every(rate_hz: float, physics_rate_hz: float | None) -> int:
     return every
 
 
+def mj_arrays(data) -> MjArrays:
+    """The arrays of an mjData the servo side reads of MuJoCo's state (views)."""
+    return MjArrays(data.geom_xpos, data.geom_xmat, data.cvel, data.xipos, data.ximat, data.subtree_com,
+                    data.qvel, data.qacc, data.cdof, data.qLD, data.qLDiagInv)
+
+
+def _copies(arrays: MjArrays) -> MjArrays:
+    return MjArrays(*(np.array(a) for a in arrays))
+
+
 class LocalModel:
-    """The carried copies of a world's poses and the per-body state of `softproxy.compiled.carry`."""
+    """The carried copies of a world's poses and the per-body state of `softproxy.compiled.carry`,
+    in two bundles: `carried` over the world's mjData (lockstep: MuJoCo steps in the servo
+    thread) and `threaded` over `mirror`, an mjData of the servo side's own that MuJoCo's
+    thread publishes its state into (`softproxy.compiled.handoff`). Both carry the same poses."""
 
     def __init__(self, world) -> None:
         model, data, shapes = world.model, world.data, world.shapes
@@ -49,15 +64,29 @@ class LocalModel:
         self.geom_xpos = np.array(data.geom_xpos)  # the carried poses (m), what the fingers read
         self.geom_xmat = np.array(data.geom_xmat)
         self.cvel = np.array(data.cvel)
-        self.carried = Carried(
-            data.geom_xpos, data.geom_xmat, data.cvel, data.qvel, data.qacc, data.xipos, data.ximat, data.subtree_com,
-            model.body_rootid, bodies_moving(shapes.S),
-            self.geom_xpos, self.geom_xmat, self.cvel,
-            np.zeros((ngeom, 3)), np.zeros((ngeom, 9)),
-            np.zeros((nbody, 3)), np.zeros((nbody, 9)), np.zeros((nbody, 6)), np.zeros((nbody, 6)),
-            np.zeros((nbody, 6)), np.zeros((nbody, 6)), np.zeros(nbody, dtype=np.bool_),
-            np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(9))
-        """The bundle the compiled tick takes (`softproxy.compiled.layout.Carried`)."""
+        self.moving = bodies_moving(shapes.S)
+        """The bodies of the shapes that can move: those the fingers push."""
+        self.mirror = mujoco.MjData(model)
+        """The servo side's copy of MuJoCo's state in a threaded run (what the handoff fills)."""
+        state = mj_arrays(data)
+        self.handoff = Handoff(np.zeros(1, np.int64), np.zeros(1, np.int64), _copies(state), mj_arrays(self.mirror),
+                               np.zeros(1, np.int64), np.zeros((nbody, 6)), np.zeros(1, np.int64),
+                               np.zeros(CTL_SIZE, np.int64))
+        """The two threads' handoff (`softproxy.compiled.layout.Handoff`)."""
+        own = (self.geom_xpos, self.geom_xmat, self.cvel,
+               np.zeros((ngeom, 3)), np.zeros((ngeom, 9)),
+               np.zeros((nbody, 3)), np.zeros((nbody, 9)), np.zeros((nbody, 6)), np.zeros((nbody, 6)),
+               np.zeros((nbody, 6)), np.zeros((nbody, 6)), np.zeros(nbody, dtype=np.bool_),
+               np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(9), self.handoff)
+
+        def over(d):
+            return Carried(d.geom_xpos, d.geom_xmat, d.cvel, d.qvel, d.qacc, d.xipos, d.ximat, d.subtree_com,
+                           model.body_rootid, self.moving, *own)
+
+        self.carried = over(data)
+        """The bundle the compiled tick takes in lockstep (`softproxy.compiled.layout.Carried`)."""
+        self.threaded = over(self.mirror)
+        """... and with MuJoCo in its own thread: MuJoCo's state read from `mirror`."""
         t = shapes.tables
         self.shapes = Shapes(t.S, t.T, t.C, self.geom_xpos, self.geom_xmat, self.cvel)
         """The world's shapes at the carried poses: what the haptic ticks' queries read."""

@@ -46,6 +46,7 @@ from softproxy.compiled.dispatch import entry
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
 from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, StatRings
 from softproxy.local_model import LocalModel, physics_every
+from softproxy.physics_thread import PhysicsThread
 from softproxy.device import Device, check_device, DeviceSample
 from softproxy.device_group import DeviceGroup
 from softproxy.device_guard import as_limit
@@ -192,8 +193,10 @@ class ServoLoop:
     1 / physics_rate_hz every rate_hz / physics_rate_hz ticks, with each finger's wrench
     averaged over them, and the ticks in between render against the local model
     (`softproxy.local_model`: the shapes carried forward from MuJoCo's last state, answering
-    the fingers' wrenches). For a world whose step costs more than a servo period; in
-    lockstep, deterministic.
+    the fingers' wrenches). For a world whose step costs more than a servo period. A
+    real-time run (`run(realtime=True)`) steps MuJoCo in a thread of its own
+    (`softproxy.physics_thread`): the servo ticks never wait for a step. Lockstep runs and
+    `tick()` step it in the servo thread, deterministically.
     """
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device | list[Device],
@@ -312,6 +315,9 @@ class ServoLoop:
         self._idle.set()
         self._limit_array = np.zeros(2)  # [max_force, max_torque] for a compiled block whose device keeps none
         self._coupling = coupling.workspace(world.model.nv, len(fingers))  # the implicit coupling's scratch
+        self.physics = None
+        """With two rates, MuJoCo's thread for real-time runs (`softproxy.physics_thread.
+        PhysicsThread`: its steps, late steps, costliest step); None with one rate."""
         self._compile()
 
     # -- views of the state record ---------------------------------------------------------
@@ -368,7 +374,13 @@ class ServoLoop:
         self.local = LocalModel(world)
         """The local model the haptic ticks render against between MuJoCo's steps (two rates;
         with one rate it is kept but not used)."""
-        self._mj = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos, self.local.carried)
+        self._mj = self._mj_lockstep = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos,
+                                               self.local.carried)
+        mirror = self.local.mirror  # with MuJoCo in its own thread the servo side reads its own copy
+        self._mj_threaded = MjViews(m, np.uintp(native.addresses(world.model, mirror)[1]), mirror.qvel, mirror.qacc,
+                                    mirror.xfrc_applied, mirror.xipos, self.local.threaded)
+        if self.physics_every > 1:
+            self.physics = PhysicsThread(world, self.local, self.period * self.physics_every)
         self._shapes = shapes.tables if self.physics_every == 1 else self.local.shapes
         self._fingers = FingerTables(self.rows.model, self.rows.data, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
                                      world.bodies, world.counts, self._coupling)
@@ -628,6 +640,13 @@ class ServoLoop:
             block_s = FAST_BLOCK_S if self.rate_hz > FAST_RATE_HZ else BLOCK_S
             block = every if on_tick is not None else max(1, int(block_s * self.rate_hz))
             left = ticks
+            if realtime and self.physics is not None:
+                while st.phase != 0 and left > 0:  # the MuJoCo step under way ends in lockstep
+                    self.tick()
+                    left -= 1
+                self.physics.start()
+                self._mj, st.threaded = self._mj_threaded, True
+                st.next_ns = native.monotonic_ns()
             while left > 0 and not st.stop and not st.halt:
                 n = min(block, left)
                 if self.compiled_block:
@@ -652,10 +671,15 @@ class ServoLoop:
             if gc_was_enabled:
                 gc.enable()
             try:
-                if not st.halt:  # (closing: close() sends the zero once this run is over)
-                    self.stop()
+                if st.threaded:  # MuJoCo's thread ends after its step: lockstep goes on from there
+                    self._mj, st.threaded, st.phase = self._mj_lockstep, False, 0
+                    self.physics.stop()
             finally:
-                self._idle.set()
+                try:
+                    if not st.halt:  # (closing: close() sends the zero once this run is over)
+                        self.stop()
+                finally:
+                    self._idle.set()
 
     def request_stop(self) -> None:
         """Ask a `run` in progress (in another thread) to end after the tick it is in;

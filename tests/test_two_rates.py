@@ -171,3 +171,45 @@ def test_two_rates_in_lockstep_repeat_exactly():
     first, _ = _grasp(100.0)
     again, _ = _grasp(100.0)
     np.testing.assert_array_equal(first, again)
+
+
+def test_a_real_time_run_steps_mujoco_in_its_own_thread():
+    """`run(realtime=True)` with two rates: MuJoCo steps in its own thread (about one step per
+    4 ticks of real time), the finger presses the box on the floor through it, and when the
+    run ends the thread has stopped and left no wrench in xfrc_applied."""
+    loop = _loop(BOX_ON_PLANE_XML, lambda t: (0.0, 0.0, 0.068 - 0.005 * min(1.0, t / 0.05)), 250.0)
+    world = loop.world
+    box = world.body_id("box")
+    time_before = world.data.time
+    loop.run(300, realtime=True)
+    physics = loop.physics
+    assert physics.steps >= 10  # at 250 Hz over ~0.3 s: ~75, fewer on a loaded machine
+    assert world.data.time == pytest.approx(time_before + physics.steps * 0.004)
+    assert not world.data.xfrc_applied[box].any()
+    assert max(abs(f[2]) for f in loop.device.sent) > 1.0  # the finger pressed the box
+    assert not loop.state[0].threaded and loop.state[0].phase == 0
+    # lockstep ticks go on from MuJoCo's last step
+    loop.tick()
+    assert world.data.time == pytest.approx(time_before + physics.steps * 0.004)
+    loop.close()
+
+
+def test_pushing_a_free_box_in_two_threads_creates_no_energy():
+    """The energy balance of `test_pushing_a_free_box_creates_no_energy` with MuJoCo in its own
+    thread at 250 Hz, in real time: the box gets at most the work the hand did."""
+    speed = 0.1
+
+    def path(t):
+        return (-0.05 + speed * min(t, 0.3) - speed * max(0.0, t - 0.3), 0.0, 0.1)
+
+    loop = _loop(FREE_BOX_XML, path, 250.0)
+    xs = []
+    loop.run(500, realtime=True, on_tick=lambda lp: xs.append(path(lp.t - lp.period)[0]), every=1)
+    sent = np.array(loop.device.sent)[:, 0]
+    work = float(np.sum(-sent[:len(xs) - 1] * np.diff(xs)))  # (then the zero sent at the end)
+    v = loop.world.data.qvel
+    inertia = loop.world.model.body_inertia[1]
+    kinetic = 0.5 * 0.1 * float(np.dot(v[:3], v[:3])) + 0.5 * float(np.dot(inertia, v[3:] ** 2))
+    assert kinetic > 1e-4
+    assert kinetic <= work * 1.001 + 1e-7
+    loop.close()

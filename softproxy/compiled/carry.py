@@ -94,11 +94,12 @@ def _log(R):
 
 
 @njit(cache=True, error_model="numpy")
-def snapshot(cr, H, fresh):
+def snapshot(cr, dt, H, fresh):
     """At a MuJoCo step (after mj_step1): its state becomes the local model's. The offset each
-    moving body's carried pose had from the new state is kept to fade over the step (none
-    when `fresh`: the loop's first step). Every shape's carried pose restarts from MuJoCo's
-    (those near a finger are carried again by `carry` this tick). H: the step (s).
+    moving body's carried pose had from the new state is kept to fade (none when `fresh`:
+    the loop's first step). Every shape's carried pose restarts from MuJoCo's (those near a
+    finger are carried again by `carry` this tick). dt: the time since the last state (s; a
+    step, H, in lockstep; what MuJoCo's thread took in a threaded run).
 
     The local model's generalised acceleration without the fingers (`qacc_free`: gravity,
     the other contacts, all held over the step) is MuJoCo's last one less the fingers' part
@@ -121,11 +122,11 @@ def snapshot(cr, H, fresh):
             e[:] = 0.0
         else:
             # where the local model carried the body to by the end of the step just taken
-            left = 1.0 - 1.0 / FADE_STEPS
-            tx, ty, tz = v[0] * H + o[0] + left * e[0], v[1] * H + o[1] + left * e[1], v[2] * H + o[2] + left * e[2]
-            px = c[0] + v[3] * H + o[3] + left * e[3]
-            py = c[1] + v[4] * H + o[4] + left * e[4]
-            pz = c[2] + v[5] * H + o[5] + left * e[5]
+            left = max(0.0, 1.0 - dt / (FADE_STEPS * H))
+            tx, ty, tz = v[0] * dt + o[0] + left * e[0], v[1] * dt + o[1] + left * e[1], v[2] * dt + o[2] + left * e[2]
+            px = c[0] + v[3] * dt + o[3] + left * e[3]
+            py = c[1] + v[4] * dt + o[4] + left * e[4]
+            pz = c[2] + v[5] * dt + o[5] + left * e[5]
             # its orientation R(θ) X_old against the new X: the offset E = R(θ) X_old X_newᵀ
             X0, X1, E = cr.body_xmat[b], cr.ximat[b], cr.scratch
             for i in range(3):
@@ -142,7 +143,7 @@ def snapshot(cr, H, fresh):
         cr.body_spin[b, :] = 0.0
         cr.touched[b] = False
     for k in range(cr.qvel.shape[0]):
-        cr.qacc_free[k] = cr.d_qacc[k] - (0.0 if fresh else cr.dqvel[k] / H)
+        cr.qacc_free[k] = cr.d_qacc[k] - (0.0 if fresh else cr.dqvel[k] / dt)
     cr.qvel0[:] = cr.d_qvel
     cr.qvel[:] = cr.d_qvel
     cr.dqvel[:] = 0.0

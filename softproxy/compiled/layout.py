@@ -23,7 +23,7 @@ mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied 
 N and N·m), xipos (nbody × 3, m); and the local model of two rates (`Carried`)."""
 Carried = namedtuple("Carried", "d_xpos d_xmat d_cvel d_qvel d_qacc xipos ximat subtree_com body_rootid moving "
                                 "geom_xpos geom_xmat cvel snap_xpos snap_xmat body_com body_xmat body_vel body_err "
-                                "body_off body_spin touched qvel0 qvel dqvel qacc_free scratch")
+                                "body_off body_spin touched qvel0 qvel dqvel qacc_free scratch handoff")
 """The local model the haptic ticks render against between MuJoCo's steps (two rates;
 `softproxy.compiled.carry`): views of mjData (geom_xpos, geom_xmat, cvel, qvel, qacc, xipos,
 ximat, subtree_com) and mjModel (body_rootid); the bodies that can move; the carried
@@ -32,7 +32,17 @@ geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9) and cvel (nbody × 6) the hapt
 mass, orientation, velocity (ω, v at the centre of mass), the offset fading over the step,
 the fingers' carried change (integral, rate) and whether a finger touched it); the local
 generalised velocity (qvel0 at the last state, qvel now, dqvel the fingers' part, nv) and
-the acceleration held over the step (qacc_free); 9 floats of scratch."""
+the acceleration held over the step (qacc_free); 9 floats of scratch; the `Handoff` to a
+MuJoCo thread (two rates in a real-time run)."""
+MjArrays = namedtuple("MjArrays", "xpos xmat cvel xipos ximat subtree_com qvel qacc cdof qLD qLDiagInv")
+"""The part of an mjData the servo side reads of MuJoCo's state with two rates in two threads:
+geom_xpos, geom_xmat, cvel, xipos, ximat, subtree_com, qvel, qacc (for the local model), cdof,
+qLD, qLDiagInv (what mj_jac and mj_solveM read, for the implicit coupling)."""
+Handoff = namedtuple("Handoff", "seq stamp pub mirror wseq wsum wcount ctl")
+"""MuJoCo's thread and the servo thread (`softproxy.compiled.handoff`): the published state's
+seqlock counter and stamp (CLOCK_MONOTONIC ns), the published `MjArrays` and the servo side's
+mirror of them (views of its own mjData), the wrench sums' seqlock, sums (nbody × 6, about the
+world origin) and tick count, and the control slots (`handoff.STOP`…)."""
 Shapes = namedtuple("Shapes", "S T C xpos xmat cvel")
 """The shapes as every query reads them (`sh` in the kernels): their SHAPE records, the mesh
 triangle table T and the mesh grids C (None in a world without meshes), and their poses,

@@ -256,6 +256,29 @@ def _compiled_sleep_until_ns(deadline):
     return impl
 
 
+@intrinsic
+def _fence_seq_cst(typingctx):
+    """A sequentially consistent memory fence (LLVM `fence seq_cst`): neither the compiler
+    nor the CPU moves a load or store across it."""
+    def codegen(context, builder, signature, args):
+        builder.fence("seq_cst")
+        return context.get_dummy_value()
+
+    return types.none(), codegen
+
+
+def fence() -> None:
+    """A full memory fence between a seqlock's counter and the data it guards
+    (`softproxy.compiled.handoff`); in Python a no-op (the GIL orders everything)."""
+
+
+@overload(fence)
+def _compiled_fence():
+    def impl():
+        _fence_seq_cst()
+    return impl
+
+
 # -- the emergency path for a MuJoCo error inside a direct call --------------------------
 
 EXIT_CODE = 3

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from softproxy.compiled import carry, finger
+from softproxy.compiled import carry, finger, handoff
 from softproxy.compiled.native import mj_step1, mj_step2, monotonic_ns, sleep_until_ns
 
 STAGES = ("device read", "mj_step1", "fingers", "device sends", "wrenches + mj_step2")
@@ -36,6 +36,7 @@ LOOP = np.dtype([
     ("ticks", np.int64),
     ("every", np.int64),  # haptic ticks per MuJoCo step (1: one rate; more: `softproxy.compiled.carry`)
     ("phase", np.int64),  # haptic ticks into the current MuJoCo step
+    ("threaded", np.bool_),  # two rates, MuJoCo in its own thread (`softproxy.compiled.handoff`)
     ("next_ns", np.int64),  # CLOCK_MONOTONIC deadline of the next paced tick
     ("spin_ns", np.int64),  # a paced tick sleeps until this long before its deadline, then spins
     ("overrun_ns", np.int64),  # a tick longer than this trips the watchdog (when watching)
@@ -118,12 +119,20 @@ def begin_tick(loop, samples, ok, mj, sh, fingers):
         fd.in_twist = s.twist
         fd.in_valid = True
     H = L.every * L.period
-    if L.phase == 0:
-        mj_step1(mj.m, mj.d)
+    cr = mj.carry
+    if L.threaded:  # MuJoCo's newest state, if one came; the shapes carried to now
+        interval = handoff.take(cr.handoff)
+        if interval >= 0.0:
+            carry.snapshot(cr, interval if interval > 0.0 else H, H, L.ticks == 0)
+        tau = (monotonic_ns() - cr.handoff.ctl[handoff.SEEN_STAMP]) * 1e-9
+        carry.carry(cr, sh, fingers, min(max(tau, 0.0), carry.FADE_STEPS * H), H)
+    else:
+        if L.phase == 0:
+            mj_step1(mj.m, mj.d)
+            if L.every > 1:
+                carry.snapshot(cr, H, H, L.ticks == 0)
         if L.every > 1:
-            carry.snapshot(mj.carry, H, L.ticks == 0)
-    if L.every > 1:
-        carry.carry(mj.carry, sh, fingers, L.phase * L.period, H)
+            carry.carry(cr, sh, fingers, L.phase * L.period, H)
     _stage(L, STEP1_STAGE)
     refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, L.every > 1)
     L.invalid_sample += refused
@@ -138,8 +147,11 @@ def end_tick(loop, mj, fingers, stats, start_ns):
     tick's duration since `start_ns` into the statistics; an overrun (while watching) makes
     the next tick render zero."""
     L = loop[0]
-    L.phase += 1
-    if L.phase >= L.every:  # MuJoCo's step: the wrenches averaged over its haptic ticks
+    if L.threaded:  # MuJoCo's thread averages them over its step
+        handoff.add_wrenches(mj.carry.handoff, fingers.wrench, fingers.bodies[finger.TOUCHED], fingers.counts)
+    else:
+        L.phase += 1
+    if not L.threaded and L.phase >= L.every:  # MuJoCo's step: the wrenches averaged over its haptic ticks
         finger.write_wrenches(mj.xfrc, mj.xipos, fingers.wrench, fingers.bodies, fingers.counts, 1.0 / L.phase)
         mj_step2(mj.m, mj.d)
         L.phase = 0
