@@ -424,6 +424,10 @@ def cmd_run(args: argparse.Namespace) -> int:
                       f"{result['device_error']}")
             if result.get("deadline_misses") is not None:
                 print(f"  deadline misses {result['deadline_misses']} ({result['scheduling']})")
+            if result.get("physics_thread"):
+                p = result["physics_thread"]
+                print(f"  MuJoCo's thread: {p['steps']} steps, {p['late_steps']} fell behind real time, "
+                      f"the costliest {p['max_step_ms']:.2f} ms")
             if "device" in result:
                 d = result["device"]
                 print(f"  device: injected {d['faults_injected']}; largest force sent {d['max_force_sent_N']} N "

@@ -27,7 +27,8 @@ FIRST_STATE_S = 5.0
 class PhysicsThread:
     """MuJoCo's thread for one run: `start()` before the servo ticks, `stop()` after (joins,
     clears the wrenches it left in xfrc_applied). Its counters: `steps`, `late` (steps that
-    ended after their deadline), `max_cost_s` (the most a step's mj_step1 + mj_step2 took)."""
+    started more than a step after they were due: the world fell behind real time),
+    `max_cost_s` (the most a step's mj_step1 + mj_step2 took)."""
 
     def __init__(self, world, local: LocalModel, period_s: float) -> None:
         self.world, self.local = world, local

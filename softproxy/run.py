@@ -296,6 +296,9 @@ def run_scene(scene: Scene, device: Device, duration_s: float | None = None, rat
                              for d, n, e in zip(original.devices, original.read_failures, original.last_errors)]
     result["tick_us"] = loop.stats.summary_us()
     result["deadline_misses"] = loop.stats.misses if realtime else None
+    physics = loop.physics
+    result["physics_thread"] = None if not (realtime and physics is not None) else {
+        "steps": physics.steps, "late_steps": physics.late, "max_step_ms": physics.max_cost_s * 1e3}
     result["faults"] = dict(loop.faults)
     if loop.last_device_error:
         result["device_error"] = loop.last_device_error

@@ -122,9 +122,9 @@ def run_physics(m, d, state, ho, xfrc, moving, period_ns, start_ns, sums):
 
     Each step: mj_step1, the state published (current at its scheduled time), a sleep to the
     step's end, the fingers' wrenches averaged over the servo ticks since the last step into
-    xfrc_applied (moved to each body's centre of mass), mj_step2. A step that ends after its
-    deadline counts as LATE, and a world that falls more than a step behind is rescheduled
-    from now: it then runs slower than real time, never in bursts. `sums` (nbody × 2 × 6):
+    xfrc_applied (moved to each body's centre of mass), mj_step2. A step that starts more than
+    a step after it was due counts as LATE and the schedule goes on from now: a world that
+    cannot keep up runs slower than real time, never in bursts. `sums` (nbody × 2 × 6):
     scratch for the sums read now and at the last step. Returns the steps taken."""
     ctl = ho.ctl
     now_sums, last_sums = sums[:, 0, :], sums[:, 1, :]
@@ -133,6 +133,10 @@ def run_physics(m, d, state, ho, xfrc, moving, period_ns, start_ns, sums):
     while ctl[STOP] == 0:
         due = start_ns + k * period_ns
         t0 = monotonic_ns()
+        if t0 > due + period_ns:  # more than a step behind: go on from now, slower than real time
+            ctl[LATE] += 1
+            start_ns = t0 - k * period_ns
+            due = t0
         mj_step1(m, d)
         publish(ho, state, due)
         cost = monotonic_ns() - t0
@@ -164,10 +168,4 @@ def run_physics(m, d, state, ho, xfrc, moving, period_ns, start_ns, sums):
             ctl[MAX_COST_NS] = cost
         ctl[STEPS] += 1
         k += 1
-        now = monotonic_ns()
-        if now > end + period_ns:  # more than a step behind: go on from now, slower than real time
-            ctl[LATE] += 1
-            start_ns = now - k * period_ns
-        elif now > end:
-            ctl[LATE] += 1
     return k
