@@ -16,7 +16,7 @@ import math
 import mujoco
 import numpy as np
 
-from softproxy.compiled.carry import bodies_moving
+from softproxy.compiled.carry import bodies_moving, movers
 from softproxy.compiled.handoff import CTL_SIZE
 from softproxy.compiled.layout import Carried, Handoff, MjArrays, Shapes
 
@@ -76,12 +76,15 @@ class LocalModel:
         own = (self.geom_xpos, self.geom_xmat, self.cvel,
                np.zeros((ngeom, 3)), np.zeros((ngeom, 9)),
                np.zeros((nbody, 3)), np.zeros((nbody, 9)), np.zeros((nbody, 6)), np.zeros((nbody, 6)),
-               np.zeros((nbody, 6)), np.zeros((nbody, 6)), np.zeros(nbody, dtype=np.bool_),
+               np.zeros((nbody, 6)), np.zeros((nbody, 6)), np.zeros((nbody, 2)), np.zeros(nbody, dtype=np.bool_),
+               np.zeros(nbody, dtype=np.bool_),
                np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(9), self.handoff)
+
+        shapes_moving = movers(shapes.S)
 
         def over(d):
             return Carried(d.geom_xpos, d.geom_xmat, d.cvel, d.qvel, d.qacc, d.xipos, d.ximat, d.subtree_com,
-                           model.body_rootid, self.moving, *own)
+                           model.body_rootid, self.moving, *shapes_moving, *own)
 
         self.carried = over(data)
         """The bundle the compiled tick takes in lockstep (`softproxy.compiled.layout.Carried`)."""

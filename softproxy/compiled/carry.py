@@ -56,6 +56,15 @@ def bodies_moving(S) -> np.ndarray:
     return np.array(sorted({int(s["body"]) for s in S if not s["static"]}), dtype=np.int64)
 
 
+def movers(S) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shapes that can move, as `carry` walks them: their geoms, bodies and bounding radii
+    (m; inf for a plane), apart from the SHAPE records (whose hint slots make each ~3 kB)."""
+    rows = [s for s in S if not s["static"]]
+    return (np.array([int(s["geom"]) for s in rows], dtype=np.int64),
+            np.array([int(s["body"]) for s in rows], dtype=np.int64),
+            np.array([float(s["rbound"]) for s in rows], dtype=np.float64))
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _rotate(tx, ty, tz, x, y, z):
     """R(θ) applied to (x, y, z): the rotation by the rotation vector θ (rad), Rodrigues."""
@@ -118,8 +127,9 @@ def snapshot(cr, dt, H, fresh):
         vx = w[3] + w[1] * rz - w[2] * ry
         vy = w[4] + w[2] * rx - w[0] * rz
         vz = w[5] + w[0] * ry - w[1] * rx
-        if fresh:
-            e[:] = 0.0
+        if fresh or not cr.body_near[b]:  # no finger near it: nothing carried to keep continuous
+            for j in range(6):
+                e[j] = 0.0
         else:
             # where the local model carried the body to by the end of the step just taken
             left = max(0.0, 1.0 - dt / (FADE_STEPS * H))
@@ -136,12 +146,18 @@ def snapshot(cr, dt, H, fresh):
                 E[j], E[3 + j], E[6 + j] = _rotate(tx, ty, tz, E[j], E[3 + j], E[6 + j])
             e[0], e[1], e[2] = _log(E)
             e[3], e[4], e[5] = px - nc[0], py - nc[1], pz - nc[2]
-        c[:] = nc
-        cr.body_xmat[b, :] = cr.ximat[b]
+        c[0], c[1], c[2] = nc[0], nc[1], nc[2]
+        X, Xn = cr.body_xmat[b], cr.ximat[b]
+        for j in range(9):
+            X[j] = Xn[j]
         v[0], v[1], v[2], v[3], v[4], v[5] = w[0], w[1], w[2], vx, vy, vz
-        o[:] = 0.0
-        cr.body_spin[b, :] = 0.0
+        spin = cr.body_spin[b]
+        for j in range(6):
+            o[j] = 0.0
+            spin[j] = 0.0
         cr.touched[b] = False
+        cr.body_near[b] = False
+        _bound(cr, b, H)
     for k in range(cr.qvel.shape[0]):
         cr.qacc_free[k] = cr.d_qacc[k] - (0.0 if fresh else cr.dqvel[k] / dt)
     cr.qvel0[:] = cr.d_qvel
@@ -154,10 +170,24 @@ def snapshot(cr, dt, H, fresh):
     cr.cvel[:] = cr.d_cvel
 
 
-@njit(cache=True, error_model="numpy")
-def _carry_shape(cr, S, s, tau, fade, H):
-    """Shape row s's geom at its body's carried pose, τ s into the step (fade = 1 - τ/H)."""
-    k, b = S[s].geom, S[s].body
+@njit(cache=True, error_model="numpy", inline="always")
+def _bound(cr, b, H):
+    """How far body b's carried pose may get from where the step began, within the fade:
+    body_bound[b] = (displacement (m), turn (rad)), from its velocity, the fingers' change of
+    it and its offset (`carry`'s broad test)."""
+    v, e, spin = cr.body_vel[b], cr.body_err[b], cr.body_spin[b]
+    span = FADE_STEPS * H
+    speed = math.sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5]) + math.sqrt(spin[3] * spin[3] + spin[4] * spin[4] + spin[5] * spin[5])
+    turn = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + math.sqrt(spin[0] * spin[0] + spin[1] * spin[1] + spin[2] * spin[2])
+    cr.body_bound[b, 0] = speed * span + math.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]) + math.sqrt(
+        cr.body_off[b, 3] ** 2 + cr.body_off[b, 4] ** 2 + cr.body_off[b, 5] ** 2)
+    cr.body_bound[b, 1] = turn * span + math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) + math.sqrt(
+        cr.body_off[b, 0] ** 2 + cr.body_off[b, 1] ** 2 + cr.body_off[b, 2] ** 2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _carry_shape(cr, k, b, tau, fade, H):
+    """Geom k at its body b's carried pose, τ s into the step (fade: what is left of the offset)."""
     v, e, o, c = cr.body_vel[b], cr.body_err[b], cr.body_off[b], cr.body_com[b]
     tx = v[0] * tau + o[0] + fade * e[0]
     ty = v[1] * tau + o[1] + fade * e[1]
@@ -181,46 +211,39 @@ def _carry_shape(cr, S, s, tau, fade, H):
 def carry(cr, sh, fingers, tau, H):
     """Every moving shape near a placed finger at its carried pose τ s into the step of H s
     (into the local geom_xpos, geom_xmat and cvel the haptic side's Shapes read). Near: its
-    bounding sphere where the step began, widened by as far as its body moves in a step and
-    its fading offset, within NEAR_MARGIN of the ball the finger's broad phase last gathered."""
-    S = sh.S
+    bounding sphere where the step began, widened by as far as its body may get within the
+    fade (`body_bound`), within NEAR_MARGIN of the ball the finger's broad phase last gathered."""
     FM, FD = fingers.model, fingers.data
     fade = 1.0 - tau / (H * FADE_STEPS)
-    for s in range(S.shape[0]):
-        if S[s].static:
-            continue
-        k, b = S[s].geom, S[s].body
-        rb = S[s].rbound
+    for j in range(cr.mover_geom.shape[0]):
+        k, b, rb = cr.mover_geom[j], cr.mover_body[j], cr.mover_rbound[j]
         near = rb == math.inf
         if not near:
-            v, e, spin = cr.body_vel[b], cr.body_err[b], cr.body_spin[b]
-            speed = math.sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5]) \
-                + math.sqrt(spin[3] * spin[3] + spin[4] * spin[4] + spin[5] * spin[5])
-            turn = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) \
-                + math.sqrt(spin[0] * spin[0] + spin[1] * spin[1] + spin[2] * spin[2])
-            off = math.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]) + rb * math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
             x0 = cr.snap_xpos[k]
+            grown = rb + cr.body_bound[b, 0] + rb * cr.body_bound[b, 1] + NEAR_MARGIN
             for i in range(FD.shape[0]):
                 fd = FD[i]
                 if not fd.placed:
                     continue
-                reach = rb + FM[i].radius + fd.ball_room + (speed + turn * rb) * H + off + NEAR_MARGIN
+                reach = grown + FM[i].radius + fd.ball_room
                 dx, dy, dz = x0[0] - fd.ball[0], x0[1] - fd.ball[1], x0[2] - fd.ball[2]
                 if dx * dx + dy * dy + dz * dz <= reach * reach:
                     near = True
                     break
         if near:
-            _carry_shape(cr, S, s, tau, fade, H)
+            cr.body_near[b] = True
+            _carry_shape(cr, k, b, tau, fade, H)
 
 
 @njit(cache=True, error_model="numpy")
-def respond(cr, FD, ws, n, h):
+def respond(cr, FD, ws, n, h, H):
     """The local model over one haptic tick of h s: its generalised velocity under the held
     acceleration (`qacc_free`) and this tick's sent wrenches (on the fingers; the bodies get
     minus them), -h Σ M⁻¹Gᵀ W over the coupled fingers (`ws`, `n`: the implicit coupling's
     workspace and how many it coupled); each touched body's twist change from that, at its
-    centre of mass (`body_spin`), and its integral over the tick into `body_off`. A body
-    keeps its change once touched, until the next MuJoCo step."""
+    centre of mass (`body_spin`), and its integral over the tick into `body_off` (and its
+    `body_bound` widened). A body keeps its change once touched, until the next MuJoCo step
+    (of H s)."""
     jacs, _, _, Q, _, _, rows = ws
     nv = cr.qvel.shape[0]
     dq, q, a = cr.dqvel, cr.qvel, cr.qacc_free
@@ -262,3 +285,4 @@ def respond(cr, FD, ws, n, h):
             o, spin = cr.body_off[b], cr.body_spin[b]
             for j in range(6):
                 o[j] += h * spin[j]
+            _bound(cr, b, H)

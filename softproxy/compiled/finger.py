@@ -460,7 +460,7 @@ def _clamp_for_device(fm, fd, safe, fmax, tmax):
 
 
 @njit(cache=True, error_model="numpy")
-def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, carried):
+def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, H):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2 (`mj`,
     `sh`, `fingers`: MjViews, Shapes, FingerTables of `softproxy.compiled.layout`).
 
@@ -470,8 +470,8 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, carried):
     mjModel/mjData, their qvel and qacc; `fingers.ws` its workspace), and each finger's
     energy observed, and with `control` the excess dissipated (`passivity`). Adds the fingers'
     wrenches to `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each
-    device finger is sent into its sent_ fields. With `carried` (two rates) the bodies answer
-    in the local model (`carry.respond`: the coupling solves against its velocity and held
+    device finger is sent into its sent_ fields. With two rates (H, MuJoCo's step (s), > 0;
+    0 with one rate) the bodies answer in the local model (`carry.respond`: the coupling solves against its velocity and held
     acceleration, and the sent wrenches move it). `bodies`: rows FIXED (welded to the world),
     TOUCHED and PUSHED (body lists, lengths in `counts`).
     Returns (refused, unsafe): how many valid samples were refused (not finite, or refused by
@@ -504,7 +504,7 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, carried):
         passivity.observe(fm, fd)  # last tick's sends times this tick's motion
     coupled = 0
     if not safe:
-        if carried:
+        if H > 0.0:
             cr = mj.carry
             coupled = coupling.implicit(mj.m, mj.d, cr.qvel, cr.qacc_free, FM, FD, bodies[FIXED], dt, fingers.ws, False)
         else:
@@ -521,8 +521,8 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, carried):
             (fx, fy, fz), (tx, ty, tz), (px, py, pz) = fd.sent_force, fd.sent_torque, fd.contact_pos
             push(wrench, bodies, counts, int(fd.body), -fx, -fy, -fz, px, py, pz, -tx, -ty, -tz)
             fd.push_body = fd.body
-    if carried:
-        carry.respond(mj.carry, FD, fingers.ws, coupled, dt)
+    if H > 0.0:
+        carry.respond(mj.carry, FD, fingers.ws, coupled, dt, H)
     return refused, unsafe
 
 

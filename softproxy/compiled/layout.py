@@ -22,15 +22,18 @@ MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos carry")
 mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied (nbody × 6,
 N and N·m), xipos (nbody × 3, m); and the local model of two rates (`Carried`)."""
 Carried = namedtuple("Carried", "d_xpos d_xmat d_cvel d_qvel d_qacc xipos ximat subtree_com body_rootid moving "
+                                "mover_geom mover_body mover_rbound "
                                 "geom_xpos geom_xmat cvel snap_xpos snap_xmat body_com body_xmat body_vel body_err "
-                                "body_off body_spin touched qvel0 qvel dqvel qacc_free scratch handoff")
+                                "body_off body_spin body_bound body_near touched qvel0 qvel dqvel qacc_free scratch handoff")
 """The local model the haptic ticks render against between MuJoCo's steps (two rates;
 `softproxy.compiled.carry`): views of mjData (geom_xpos, geom_xmat, cvel, qvel, qacc, xipos,
-ximat, subtree_com) and mjModel (body_rootid); the bodies that can move; the carried
+ximat, subtree_com) and mjModel (body_rootid); the bodies that can move, and the shapes
+(their geom, body and bounding radius, m); the carried
 geom_xpos (ngeom × 3, m), geom_xmat (ngeom × 9) and cvel (nbody × 6) the haptic side's
 `Shapes` read; the poses of MuJoCo's last state (snap_xpos, snap_xmat; per body its centre of
 mass, orientation, velocity (ω, v at the centre of mass), the offset fading over the step,
-the fingers' carried change (integral, rate) and whether a finger touched it); the local
+the fingers' carried change (integral, rate), how far it may get within the fade (m, rad),
+whether a shape of it was carried and whether a finger touched it); the local
 generalised velocity (qvel0 at the last state, qvel now, dqvel the fingers' part, nv) and
 the acceleration held over the step (qacc_free); 9 floats of scratch; the `Handoff` to a
 MuJoCo thread (two rates in a real-time run)."""

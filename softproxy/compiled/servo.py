@@ -134,7 +134,7 @@ def begin_tick(loop, samples, ok, mj, sh, fingers):
         if L.every > 1:
             carry.carry(cr, sh, fingers, L.phase * L.period, H)
     _stage(L, STEP1_STAGE)
-    refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, L.every > 1)
+    refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, H if L.every > 1 else 0.0)
     L.invalid_sample += refused
     L.unsafe_output += unsafe
     _stage(L, FINGERS_STAGE)
