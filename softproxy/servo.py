@@ -44,7 +44,7 @@ from softproxy.compiled import group as group_kernel
 from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
-from softproxy.compiled.layout import DeviceIO, FingerTables, MjViews, StatRings
+from softproxy.compiled.layout import DeviceIO, FingerTables, MassMatrix, MjViews, StatRings
 from softproxy.local_model import LocalModel, physics_every
 from softproxy.physics_thread import PhysicsThread
 from softproxy.device import Device, check_device, DeviceSample
@@ -164,6 +164,12 @@ def _compiled_io(device):
         if name in vars(device) or getattr(type(device), name, None) is not getattr(owner, name, None):
             return None
     return device.compiled_io()
+
+
+def _mass_matrix(model, data) -> MassMatrix:
+    """The mass matrix by tree as the implicit coupling solves with it (`layout.MassMatrix`)."""
+    return MassMatrix(data.qLD, data.qLDiagInv, model.M_rownnz, model.M_rowadr, model.M_colind, model.body_treeid,
+                      model.tree_dofadr, model.tree_dofnum, np.arange(model.nv, dtype=np.int32))
 
 
 class ServoLoop:
@@ -374,11 +380,12 @@ class ServoLoop:
         self.local = LocalModel(world)
         """The local model the haptic ticks render against between MuJoCo's steps (two rates;
         with one rate it is kept but not used)."""
+        model = world.model
         self._mj = self._mj_lockstep = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos,
-                                               self.local.carried)
+                                               _mass_matrix(model, data), self.local.carried)
         mirror = self.local.mirror  # with MuJoCo in its own thread the servo side reads its own copy
-        self._mj_threaded = MjViews(m, np.uintp(native.addresses(world.model, mirror)[1]), mirror.qvel, mirror.qacc,
-                                    mirror.xfrc_applied, mirror.xipos, self.local.threaded)
+        self._mj_threaded = MjViews(m, np.uintp(native.addresses(model, mirror)[1]), mirror.qvel, mirror.qacc,
+                                    mirror.xfrc_applied, mirror.xipos, _mass_matrix(model, mirror), self.local.threaded)
         if self.physics_every > 1:
             self.physics = PhysicsThread(world, self.local, self.period * self.physics_every)
         self._shapes = shapes.tables if self.physics_every == 1 else self.local.shapes

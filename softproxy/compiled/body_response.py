@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.native import mj_jac, mj_solveM
+from softproxy.compiled.native import mj_jac, mj_solveLD, mj_solveM
 
 _F64 = 8
 """Bytes per float64 (mjtNum)."""
@@ -50,6 +50,22 @@ def response(m, d, jac, work):
     """work (C-contiguous 6×nv) = the rows of (M⁻¹ Jᵀ)ᵀ: the 6 rows of J are 6 vectors of nv,
     one mj_solveM over the factorisation mj_step1 left."""
     mj_solveM(m, d, np.uintp(work.ctypes.data), np.uintp(jac.ctypes.data), 6)
+
+
+@njit(cache=True, error_model="numpy")
+def response_in_tree(mass, jac, work, lo, hi):
+    """`response` over the dofs lo..hi of one kinematic tree (the rows of jac zero outside
+    them, as a body's Jacobian is): work[:, lo:hi] = the rows of (M⁻¹ Jᵀ)ᵀ there, bit for bit
+    mj_solveM's, at that tree's cost; work outside lo..hi is left as it was. `mass`: a
+    `layout.MassMatrix` of the mjData the factorisation is read from."""
+    idx = np.uintp(mass.dof_index.ctypes.data) + np.uintp(4 * lo)
+    for r in range(6):
+        for k in range(lo, hi):
+            work[r, k] = jac[r, k]
+        x = work[r]
+        mj_solveLD(np.uintp(x.ctypes.data), np.uintp(mass.qLD.ctypes.data), np.uintp(mass.qLDiagInv.ctypes.data),
+                   hi - lo, np.uintp(mass.rownnz.ctypes.data), np.uintp(mass.rowadr.ctypes.data),
+                   np.uintp(mass.colind.ctypes.data), idx)
 
 
 @njit(cache=True, error_model="numpy")

@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.body_response import point_jacobian, response
+from softproxy.compiled.body_response import point_jacobian, response_in_tree
 from softproxy.compiled.vector import dot3
 
 CHANNELS = 4
@@ -47,12 +47,14 @@ def workspace(nv: int, fingers: int) -> tuple:
     """The scratch `implicit` needs for a model of `nv` dofs and a loop of `fingers` fingers:
     (J per finger, M⁻¹Jᵀ per finger, G and Q per finger (channels × nv),
     the system (4n × 4n+1), the channels' table (4n × 5: H, hK, W_prev, u, a_free), the
-    coupled fingers' rows (n))."""
+    coupled fingers' rows (n), and the dofs of each one's tree (n × 2: first, end); G, Q and
+    M⁻¹Jᵀ are filled over those dofs only)."""
     n = max(1, int(fingers))
     nv = int(nv)
     return (np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
             np.zeros((n, CHANNELS, nv)), np.zeros((n, CHANNELS, nv)),
-            np.zeros((CHANNELS * n, CHANNELS * n + 1)), np.zeros((CHANNELS * n, 5)), np.zeros(n, dtype=np.int64))
+            np.zeros((CHANNELS * n, CHANNELS * n + 1)), np.zeros((CHANNELS * n, 5)), np.zeros(n, dtype=np.int64),
+            np.zeros((n, 2), dtype=np.int64))
 
 
 @njit(cache=True, error_model="numpy")
@@ -84,26 +86,30 @@ def _solve(system, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _dot_columns(a, b, nv):
-    """Σ_k a[k] b[k] over the nv dofs (a: a channel's Jacobian row, mostly zeros)."""
+def _dot_columns(a, b, lo, hi):
+    """Σ_k a[k] b[k] over the dofs lo..hi of a's tree (a: a channel's Jacobian row, zero
+    outside them and mostly zeros within)."""
     acc = 0.0
-    for k in range(nv):
+    for k in range(lo, hi):
         if a[k] != 0.0:
             acc += a[k] * b[k]
     return acc
 
 
 @njit(cache=True, error_model="numpy")
-def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
+def implicit(mj, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     """Every finger in contact with a body that moves: its wrench (fd.force, fd.torque,
     fd.torque_n, fd.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
-    docstring). Between mj_step1 and mj_step2, after every finger's update. `bodies_fixed`: 1
-    for a body welded to the world. `qacc`: with `prev`, MuJoCo's last, which holds the
+    docstring). Between mj_step1 and mj_step2, after every finger's update; `mj`: the
+    `layout.MjViews` whose mjData (and `mass`) hold the state at hand. Each finger's
+    Jacobian and solve cost its body's kinematic tree only (M is block diagonal by tree: two
+    fingers on different trees do not answer each other). `bodies_fixed`: 1 for a body welded
+    to the world. `qacc`: with `prev`, MuJoCo's last, which holds the
     fingers' last wrenches (added back to get a_free); without, already without them (two
     rates: `softproxy.compiled.carry`'s held acceleration). Returns how many fingers were
     coupled (their rows of ws filled, in `rows`)."""
-    jacs, mijs, G, Q, system, chan, rows = ws
-    nv = qvel.shape[0]
+    jacs, mijs, G, Q, system, chan, rows, spans = ws
+    m, d, mass = mj.m, mj.d, mj.mass
     n = 0
     point = chan[0, :3]  # (scratch: the table is filled after the last Jacobian)
     for i in range(FD.shape[0]):
@@ -112,12 +118,16 @@ def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         if not fd.valid or body <= 0 or bodies_fixed[body] or n >= rows.shape[0]:
             continue
         point[0], point[1], point[2] = fd.contact_pos
+        tree = mass.body_treeid[body]
+        lo = mass.tree_dofadr[tree]
+        hi = lo + mass.tree_dofnum[tree]
+        spans[n, 0], spans[n, 1] = lo, hi
         point_jacobian(m, d, body, np.uintp(point.ctypes.data), jacs[n])
-        response(m, d, jacs[n], mijs[n])
+        response_in_tree(mass, jacs[n], mijs[n], lo, hi)
         # the 4 channels' rows: the point's linear rows, and n·(angular rows)
         J, MJ, g, q = jacs[n], mijs[n], G[n], Q[n]
         nx, ny, nz = fd.normal
-        for k in range(nv):
+        for k in range(lo, hi):
             for c in range(3):
                 g[c, k] = J[c, k]
                 q[c, k] = MJ[c, k]
@@ -145,15 +155,17 @@ def implicit(m, d, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         chan[r0 + 1, 2] = fd.sent_force[1] if same else 0.0
         chan[r0 + 2, 2] = fd.sent_force[2] if same else 0.0
         chan[r0 + 3, 2] = dot3(fd.sent_torque, fd.normal) if same else 0.0
-    # A = G M⁻¹ Gᵀ into the system, u = G qvel, a_free = G qacc + A W_prev
+    # A = G M⁻¹ Gᵀ into the system (zero between fingers on different trees), u = G qvel,
+    # a_free = G qacc + A W_prev
     for r in range(size):
         a, c = r // CHANNELS, r % CHANNELS
-        acc = _dot_columns(G[a, c], qacc, nv)
+        lo, hi = spans[a, 0], spans[a, 1]
+        acc = _dot_columns(G[a, c], qacc, lo, hi)
         for e in range(size):
-            A = _dot_columns(G[a, c], Q[e // CHANNELS, e % CHANNELS], nv)
+            A = _dot_columns(G[a, c], Q[e // CHANNELS, e % CHANNELS], lo, hi) if spans[e // CHANNELS, 0] == lo else 0.0
             system[r, e] = A
             acc += A * chan[e, 2]
-        chan[r, 3] = _dot_columns(G[a, c], qvel, nv)
+        chan[r, 3] = _dot_columns(G[a, c], qvel, lo, hi)
         chan[r, 4] = acc
     # each finger's rows times its H, and the right-hand side W_exp + h K u + H a_free; the
     # force block's H and K are k·I while the proxy sticks, k·n nᵀ while it slides

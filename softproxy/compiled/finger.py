@@ -506,9 +506,9 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, H):
     if not safe:
         if H > 0.0:
             cr = mj.carry
-            coupled = coupling.implicit(mj.m, mj.d, cr.qvel, cr.qacc_free, FM, FD, bodies[FIXED], dt, fingers.ws, False)
+            coupled = coupling.implicit(mj, cr.qvel, cr.qacc_free, FM, FD, bodies[FIXED], dt, fingers.ws, False)
         else:
-            coupling.implicit(mj.m, mj.d, mj.qvel, mj.qacc, FM, FD, bodies[FIXED], dt, fingers.ws, True)
+            coupling.implicit(mj, mj.qvel, mj.qacc, FM, FD, bodies[FIXED], dt, fingers.ws, True)
     for i in range(FD.shape[0]):
         fm, fd = FM[i], FD[i]
         if control and not safe:

@@ -176,6 +176,36 @@ def _compiled_mj_solveM(m_addr, d_addr, x_addr, y_addr, n):
     return impl
 
 
+_SOLVE_LD_SIGNATURE = types.void(types.uintp, types.uintp, types.uintp, types.int32, types.int32, types.uintp,
+                                 types.uintp, types.uintp, types.uintp)
+"""void mj_solveLD(mjtNum* x, const mjtNum* qLD, const mjtNum* qLDiagInv, int nv, int n,
+const int* rownnz, const int* rowadr, const int* colind, const int* index)."""
+
+_mj_solveLD_c = _lib.mj_solveLD
+_mj_solveLD_c.argtypes = (ctypes.c_void_p,) * 3 + (ctypes.c_int,) * 2 + (ctypes.c_void_p,) * 4
+_mj_solveLD_c.restype = None
+_mj_solveLD_external = types.ExternalFunction("mj_solveLD", _SOLVE_LD_SIGNATURE)
+
+
+def mj_solveLD(x_addr, qLD_addr, qLDiagInv_addr, count, rownnz_addr, rowadr_addr, colind_addr, index_addr):
+    """MuJoCo's `mj_solveLD` on one vector, in place: x = M⁻¹ x over the `count` dofs listed
+    (int32) at `index_addr` (x: nv float64, zero outside those dofs; M's factorisation and
+    sparsity: an mjData's qLD and qLDiagInv, an mjModel's M_rownnz, M_rowadr, M_colind). Over
+    the dofs of one kinematic tree (M is block diagonal by tree) it gives mj_solveM's answer
+    bit for bit, at the cost of that tree alone."""
+    _mj_solveLD_c(int(x_addr), int(qLD_addr), int(qLDiagInv_addr), int(count), 1, int(rownnz_addr),
+                  int(rowadr_addr), int(colind_addr), int(index_addr))
+
+
+@overload(mj_solveLD, inline="never")
+def _compiled_mj_solveLD(x_addr, qLD_addr, qLDiagInv_addr, count, rownnz_addr, rowadr_addr, colind_addr, index_addr):
+    def impl(x_addr, qLD_addr, qLDiagInv_addr, count, rownnz_addr, rowadr_addr, colind_addr, index_addr):
+        _mj_solveLD_external(np.uintp(x_addr), np.uintp(qLD_addr), np.uintp(qLDiagInv_addr), np.int32(count),
+                             np.int32(1), np.uintp(rownnz_addr), np.uintp(rowadr_addr), np.uintp(colind_addr),
+                             np.uintp(index_addr))
+    return impl
+
+
 # -- the monotonic clock -----------------------------------------------------------------
 
 CLOCK_MONOTONIC = getattr(time, "CLOCK_MONOTONIC", 1)
