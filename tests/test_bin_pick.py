@@ -77,8 +77,8 @@ def test_the_pushed_box_moves_as_one_rate_mujoco_at_the_same_rate_says(two_rates
     """The issue's target: the pushed box's trajectory with the haptic loop at 1 or 4 kHz and
     MuJoCo at 250 or 500 Hz stays within 1 mm of a one-rate lockstep run at MuJoCo's rate (the
     same keyframes, the same MuJoCo step), compared step by step; and the box did move (about
-    4 cm). (With MuJoCo at 200 Hz it strays 1.6 mm, at 100 Hz the push itself differs:
-    `softproxy bench multirate`.)"""
+    4 cm). Not so at lower physics rates: at 200 Hz it strayed 1.6 mm, at 100 Hz centimetres
+    (`softproxy bench multirate` prints the figure as "track mm")."""
     two = two_rates[1] if (haptic_hz, physics_hz) == (1000.0, 250.0) else _run(haptic_hz, physics_hz)[1]
     _, one, every = _run(physics_hz, physics_hz)
     assert every == 1 and two.shape == one.shape
