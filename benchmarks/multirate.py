@@ -11,14 +11,16 @@ a tracked body (the pushed box, the grasped box) strays from where a one-rate lo
 MuJoCo's rate has it; and the trade: the RMS, over the run and every finger, of the difference between the force sent and
 the force a one-rate lockstep run at 10 kHz sends at the same instant. Beside them, the cost
 of one bare `mj_step` of each world at each physics step (from compiled code, on a copy of
-the scene's start state). Prints a table, writes multirate.json and multirate.png.
+the scene's start state). Then each haptic rate paced in real time, MuJoCo at 250 Hz and per
+tick: deadline misses and overruns beside the pacer's alone around an empty tick. Prints a
+table, writes multirate.json and multirate.png.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .latency import _bare_step_ns
+from .latency import _bare_step_ns, _empty_misses
 from .report import Progress, figure, publish
 from softproxy.compiled import native
 from softproxy.run import build, open_device
@@ -33,6 +35,9 @@ TRACKED = {"bin_pick": "pushed", "two_finger_grasp": "box"}
 """The body whose trajectory a run compares with a one-rate run at MuJoCo's rate."""
 QUICK_S = 1.0
 """Seconds of each run with --quick (the grasp's squeeze, the bin's first push)."""
+PACED_PHYSICS_HZ = 250.0
+"""MuJoCo's rate in the paced runs, beside one step per tick."""
+QUICK_PACED_S = 0.5
 STEPS_TIMED = 200
 
 
@@ -87,6 +92,21 @@ def run(scene_name: str, haptic_hz: float, physics_hz: float, seconds: float) ->
             "track": np.array(track)}
 
 
+def paced(scene_name: str, haptic_hz: float, physics_hz: float, seconds: float) -> dict:
+    """Deadline misses of a run paced in real time (ordinary scheduling, the overrun watchdog
+    on: a tick over 3 periods makes the next render zero), then of the pacer alone around an
+    empty tick for as long (`softproxy bench latency`'s)."""
+    scene = load_scene(scene_name)
+    loop = build(scene, open_device("sim", scene), rate_hz=haptic_hz, audit=False, physics_rate_hz=physics_hz)
+    ticks = int(round(seconds * loop.rate_hz))
+    loop.run(ticks, realtime=True)
+    row = {"haptic_hz": haptic_hz, "physics_hz": physics_hz, "one_rate": physics_hz == haptic_hz, "ticks": loop.ticks,
+           "misses": loop.stats.misses, "overruns": int(loop.faults["overrun"]), "tick_us": loop.stats.summary_us()}
+    loop.close()
+    row["pacer_alone_misses"] = _empty_misses(haptic_hz, ticks)
+    return row
+
+
 def compare(result: dict, reference: np.ndarray, haptic_hz: float, one_rate_track: np.ndarray | None) -> dict:
     """A run's figures: force jumps at updates and elsewhere, its force error (RMS, N) against
     the reference run's force at the same instants, and how far (mm) its tracked body strays
@@ -114,9 +134,11 @@ def compare(result: dict, reference: np.ndarray, haptic_hz: float, one_rate_trac
     }
 
 
-def measure(seconds: float, scenes=SCENES, haptic=HAPTIC_HZ, physics=PHYSICS_HZ, progress=None) -> dict:
+def measure(seconds: float, paced_s: float, scenes=SCENES, haptic=HAPTIC_HZ, physics=PHYSICS_HZ,
+            progress=None) -> dict:
     """Every (scene, haptic rate, physics rate) run, the step costs and the figures (see the
-    module docstring); `seconds` of each run (at most the scene's duration)."""
+    module docstring); `seconds` of each run (at most the scene's duration); then, `paced_s`
+    long, each haptic rate paced in real time with MuJoCo at PACED_PHYSICS_HZ and per tick."""
     out = {"haptic_hz": list(haptic), "physics_hz": list(physics) + ["per tick"], "reference_hz": REFERENCE_HZ,
            "scenes": {}}
     for name in scenes:
@@ -140,7 +162,14 @@ def measure(seconds: float, scenes=SCENES, haptic=HAPTIC_HZ, physics=PHYSICS_HZ,
                 rows.append({"haptic_hz": h, "physics_hz": p, "one_rate": p == h,
                              **compare(r, reference, h, None if p == h else one_rate[p])})
         costs = {f"{p:g}": step_cost_us(name, p) for p in sorted({*physics, *haptic})}
-        out["scenes"][name] = {"seconds": span, "tracked": TRACKED[name], "mj_step_us": costs, "runs": rows}
+        pacing = []
+        for h in haptic:
+            for p in (PACED_PHYSICS_HZ, h):
+                if progress is not None:
+                    progress(f"{name}: paced at {h:g} Hz, MuJoCo at {p:g} Hz")
+                pacing.append(paced(name, h, p, min(paced_s, scene.duration_s)))
+        out["scenes"][name] = {"seconds": span, "tracked": TRACKED[name], "mj_step_us": costs, "runs": rows,
+                               "paced": pacing}
     return out
 
 
@@ -202,12 +231,19 @@ def print_report(result: dict) -> None:
         print(f"  (times in µs, forces in N; 'between': ticks that neither begin nor end a MuJoCo step; "
               f"the reference's force RMS {s['runs'][0]['force_rms_N']:.3f} N; track: the farthest "
               f"{s['tracked']!r} gets from a one-rate run at MuJoCo's rate)")
+        for r in s["paced"]:
+            mu = "per tick" if r["one_rate"] else f"at {r['physics_hz']:g} Hz"
+            print(f"  paced at {r['haptic_hz']:g} Hz, MuJoCo {mu}: {r['misses']} of {r['ticks']} deadlines missed, "
+                  f"{r['overruns']} overruns (zero force), tick p99 {r['tick_us']['p99']} µs; "
+                  f"the pacer alone: {r['pacer_alone_misses']}")
 
 
 def main(args) -> int:
     progress = Progress("multirate")
-    seconds = QUICK_S if getattr(args, "quick", False) else args.duration
-    result = measure(seconds, progress=progress)
+    quick = getattr(args, "quick", False)
+    seconds = QUICK_S if quick else args.duration
+    paced_s = QUICK_PACED_S if quick else (args.paced if args.paced is not None else seconds)
+    result = measure(seconds, paced_s, progress=progress)
     progress.done()
     result["quick"] = bool(getattr(args, "quick", False))
     publish(args, "multirate", result, chart(result), print_report)

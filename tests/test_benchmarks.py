@@ -204,7 +204,8 @@ def test_multirate_bench(tmp_path):
     """`softproxy bench multirate --quick`: every (scene, haptic rate, MuJoCo rate) once, the
     one-rate 10 kHz run its own reference (no error), every other run's force off it and
     less so with MuJoCo at 500 Hz than at 100 Hz (lockstep runs: deterministic), ordered
-    percentiles, and no ticks "between steps" when a step spans at most two ticks."""
+    percentiles, no ticks "between steps" when a step spans at most two ticks, and a paced
+    run of 0.5 s for each haptic rate with MuJoCo at 250 Hz and per tick, its counts in range."""
     data, text = bench(tmp_path, "multirate", "--quick")
     assert data["quick"] is True and set(data["scenes"]) == {"bin_pick", "two_finger_grasp"}
     for name, scene in data["scenes"].items():
@@ -223,4 +224,11 @@ def test_multirate_bench(tmp_path):
             assert (r["track_vs_one_rate_mm"] is None) == (p == h), (name, h, p)
         for h in (1000.0, 4000.0, 10000.0):
             assert runs[(h, 100.0)]["force_error_rms_N"] > runs[(h, 500.0)]["force_error_rms_N"], (name, h)
-    assert "F err RMS" in text and "bare mj_step" in text
+        paced = scene["paced"]
+        assert [(r["haptic_hz"], r["physics_hz"]) for r in paced] == [
+            (h, p) for h in (1000.0, 4000.0, 10000.0) for p in (250.0, h)]
+        for r in paced:
+            assert r["ticks"] == int(0.5 * r["haptic_hz"]) and r["one_rate"] == (r["physics_hz"] == r["haptic_hz"])
+            assert 0 <= r["misses"] <= r["ticks"] and 0 <= r["overruns"] <= r["ticks"], r
+            assert 0 <= r["pacer_alone_misses"] <= r["ticks"], r
+    assert "F err RMS" in text and "bare mj_step" in text and "the pacer alone" in text
