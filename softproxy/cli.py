@@ -785,6 +785,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--paced", type=float, default=None, help="seconds of the paced (real-time) run (default: --duration)")
     p.add_argument("--out", default="bench-out", help="folder for JSON and charts (default bench-out)")
     p.add_argument("--full", action="store_true", help="the long versions (e.g. a 20 s grasp hold)")
+    p.add_argument("--quick", action="store_true", help="multirate: 1 s runs instead of --duration's")
     p.add_argument("--json", action="store_true", help="print the JSON result")
     p.add_argument("--realtime", action="store_true",
                    help="latency: also pace under SCHED_FIFO (priority 80) on a CPU of its own, where the OS "

@@ -198,3 +198,37 @@ def test_friction_bench(tmp_path):
         assert len(state) == len(tick) == 1, motion
         assert state[0]["transitions"] < tick[0]["transitions"] and state[0]["ripple"] <= tick[0]["ripple"], motion
     assert "trans/s" in text
+
+
+def test_multirate_bench(tmp_path):
+    """`softproxy bench multirate --quick`: every (scene, haptic rate, MuJoCo rate) once, the
+    one-rate 10 kHz run its own reference (no error), every other run's force off it and
+    less so with MuJoCo at 500 Hz than at 100 Hz (lockstep runs: deterministic), ordered
+    percentiles, no ticks "between steps" when a step spans at most two ticks, and a paced
+    run of 0.5 s for each haptic rate with MuJoCo at 250 Hz and per tick, its counts in range."""
+    data, text = bench(tmp_path, "multirate", "--quick")
+    assert data["quick"] is True and set(data["scenes"]) == {"bin_pick", "two_finger_grasp"}
+    for name, scene in data["scenes"].items():
+        assert scene["seconds"] == 1.0 and scene["tracked"] in {"pushed", "box"}
+        assert set(scene["mj_step_us"]) == {"100", "250", "500", "1000", "4000", "10000"}
+        runs = {(r["haptic_hz"], r["physics_hz"]): r for r in scene["runs"]}
+        assert set(runs) == {(h, p) for h in (1000.0, 4000.0, 10000.0) for p in (100.0, 250.0, 500.0, h)}
+        for (h, p), r in runs.items():
+            assert r["one_rate"] == (p == h)
+            for key in ("tick_us", "jump_at_updates_N"):
+                assert 0 <= r[key]["p50"] <= r[key]["p99"] <= r[key]["max"], (name, h, p, key)
+            assert (r["between_steps_tick_us"]["p50"] is None) == (h / p <= 2), (name, h, p)
+            assert (r["jump_elsewhere_N"]["p50"] is None) == (p == h), (name, h, p)
+            assert (r["force_error_rms_N"] == 0.0) == (h == p == 10000.0), (name, h, p)
+            assert r["force_rms_N"] > 1.0  # the fingers squeezed: there was force to get wrong
+            assert (r["track_vs_one_rate_mm"] is None) == (p == h), (name, h, p)
+        for h in (1000.0, 4000.0, 10000.0):
+            assert runs[(h, 100.0)]["force_error_rms_N"] > runs[(h, 500.0)]["force_error_rms_N"], (name, h)
+        paced = scene["paced"]
+        assert [(r["haptic_hz"], r["physics_hz"]) for r in paced] == [
+            (h, p) for h in (1000.0, 4000.0, 10000.0) for p in (250.0, h)]
+        for r in paced:
+            assert r["ticks"] == int(0.5 * r["haptic_hz"]) and r["one_rate"] == (r["physics_hz"] == r["haptic_hz"])
+            assert 0 <= r["misses"] <= r["ticks"] and 0 <= r["overruns"] <= r["ticks"], r
+            assert 0 <= r["pacer_alone_misses"] <= r["ticks"], r
+    assert "F err RMS" in text and "bare mj_step" in text and "the pacer alone" in text
