@@ -208,9 +208,9 @@ def _carry_shape(cr, k, b, tau, fade, H):
 
 
 @njit(cache=True, error_model="numpy")
-def carry(cr, sh, fingers, tau, H):
+def carry(cr, fingers, tau, H):
     """Every moving shape near a placed finger at its carried pose τ s into the step of H s
-    (into the local geom_xpos, geom_xmat and cvel the haptic side's Shapes read). Near: its
+    (into the local geom_xpos, geom_xmat and cvel the haptic side's `Shapes` read). Near: its
     bounding sphere where the step began, widened by as far as its body may get within the
     fade (`body_bound`), within NEAR_MARGIN of the ball the finger's broad phase last gathered."""
     FM, FD = fingers.model, fingers.data

@@ -125,14 +125,14 @@ def begin_tick(loop, samples, ok, mj, sh, fingers):
         if interval >= 0.0:
             carry.snapshot(cr, interval if interval > 0.0 else H, H, L.ticks == 0)
         tau = (monotonic_ns() - cr.handoff.ctl[handoff.SEEN_STAMP]) * 1e-9
-        carry.carry(cr, sh, fingers, min(max(tau, 0.0), carry.FADE_STEPS * H), H)
+        carry.carry(cr, fingers, min(max(tau, 0.0), carry.FADE_STEPS * H), H)
     else:
         if L.phase == 0:
             mj_step1(mj.m, mj.d)
             if L.every > 1:
                 carry.snapshot(cr, H, H, L.ticks == 0)
         if L.every > 1:
-            carry.carry(cr, sh, fingers, L.phase * L.period, H)
+            carry.carry(cr, fingers, L.phase * L.period, H)
     _stage(L, STEP1_STAGE)
     refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, H if L.every > 1 else 0.0)
     L.invalid_sample += refused
