@@ -166,10 +166,26 @@ def _compiled_io(device):
     return device.compiled_io()
 
 
-def _mass_matrix(model, data) -> MassMatrix:
-    """The mass matrix by tree as the implicit coupling solves with it (`layout.MassMatrix`)."""
-    return MassMatrix(data.qLD, data.qLDiagInv, model.M_rownnz, model.M_rowadr, model.M_colind, model.body_treeid,
-                      model.tree_dofadr, model.tree_dofnum, np.arange(model.nv, dtype=np.int32))
+class _TreeDofs:
+    """What `_mass_matrix` points the kernels at, kept alive with the loop: 0..nv-1 as int32, and
+    each body's tree's dofs (first, end)."""
+
+    def __init__(self, model) -> None:
+        self.dof_index = np.arange(model.nv, dtype=np.int32)
+        self.body_dofs = np.zeros((model.nbody, 2), dtype=np.int64)
+        for b, tree in enumerate(model.body_treeid):
+            if tree >= 0:
+                first = int(model.tree_dofadr[tree])
+                self.body_dofs[b] = first, first + int(model.tree_dofnum[tree])
+
+
+def _mass_matrix(model, data, trees: _TreeDofs) -> MassMatrix:
+    """The mass matrix by tree as the implicit coupling solves with it (`layout.MassMatrix`):
+    addresses into the model and data, which the loop keeps alive."""
+    def at(a):
+        return np.uintp(a.ctypes.data)
+    return MassMatrix(at(data.qLD), at(data.qLDiagInv), at(model.M_rownnz), at(model.M_rowadr), at(model.M_colind),
+                      at(trees.dof_index), trees.body_dofs)
 
 
 class ServoLoop:
@@ -381,11 +397,14 @@ class ServoLoop:
         """The local model the haptic ticks render against between MuJoCo's steps (two rates;
         with one rate it is kept but not used)."""
         model = world.model
+        self._trees = _TreeDofs(model)
         self._mj = self._mj_lockstep = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos,
-                                               _mass_matrix(model, data), self.local.carried)
+                                               _mass_matrix(model, data, self._trees))
         mirror = self.local.mirror  # with MuJoCo in its own thread the servo side reads its own copy
         self._mj_threaded = MjViews(m, np.uintp(native.addresses(model, mirror)[1]), mirror.qvel, mirror.qacc,
-                                    mirror.xfrc_applied, mirror.xipos, _mass_matrix(model, mirror), self.local.threaded)
+                                    mirror.xfrc_applied, mirror.xipos, _mass_matrix(model, mirror, self._trees))
+        # the local model of two rates, an argument of the tick's kernels: None with one rate
+        self._cr = self._cr_lockstep = self.local.carried if self.physics_every > 1 else None
         if self.physics_every > 1:
             self.physics = PhysicsThread(world, self.local, self.period * self.physics_every)
         self._shapes = shapes.tables if self.physics_every == 1 else self.local.shapes
@@ -396,8 +415,8 @@ class ServoLoop:
         self._samples = self._sample_rows.array.view(np.recarray)  # fields by attribute, interpreted too
         with_names = "the servo tick"
         self._begin = entry(kernel.begin_tick, (self.state, self._samples, True, self._mj, self._shapes,
-                                                self._fingers), with_names)
-        self._end = entry(kernel.end_tick, (self.state, self._mj, self._fingers, self._stats, 0), with_names)
+                                                self._fingers, self._cr), with_names)
+        self._end = entry(kernel.end_tick, (self.state, self._mj, self._fingers, self._stats, 0, self._cr), with_names)
         self._pace = entry(kernel.pace, (self.state,), with_names)
         self._paced_done = entry(kernel.paced_done, (self.state, stats.counters), with_names)
         if self._group_io is not None:
@@ -407,7 +426,7 @@ class ServoLoop:
             limits = io.limits if io.limits is not None else self._limit_array
             self._device_io = DeviceIO(io.address, self._samples, np.uintp(self._samples.ctypes.data), limits)
             self._block = entry(kernel.run_ticks, (self.state, io.read, io.send, self._device_io, self._mj,
-                                                   self._shapes, self._fingers, self._stats, 1, False), with_names)
+                                                   self._shapes, self._fingers, self._stats, 1, False, self._cr), with_names)
 
     def _compile_group(self, with_names: str) -> None:
         """The compiled block of a DeviceGroup of compiled members: their cfuncs, a table of
@@ -424,7 +443,7 @@ class ServoLoop:
             warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
             self._group_block = entry(group_kernel.run_group_ticks, (self.state, *self._group_args, self._mj,
                                                                      self._shapes, self._fingers, self._stats, 1,
-                                                                     False), with_names)
+                                                                     False, self._cr), with_names)
 
     def _run_group_block(self, n: int, paced: bool) -> int:
         """`_run_block` for a DeviceGroup of compiled members: up to n ticks in one call, then
@@ -436,7 +455,7 @@ class ServoLoop:
         st = self.state[0]
         errors_before = int(st.device_error)
         done = self._group_block(self.state, *self._group_args, self._mj, self._shapes, self._fingers, self._stats,
-                                 n, paced)
+                                 n, paced, self._cr)
         for k, io in enumerate(ios):
             if table[k, 5]:
                 group.read_failures[k] += int(table[k, 5])
@@ -539,7 +558,7 @@ class ServoLoop:
         """Up to n compiled ticks in one call (GIL released); then the device's error messages
         and its last samples as DeviceSamples. Returns the ticks run."""
         done = self._block(self.state, self.io.read, self.io.send, self._device_io, self._mj, self._shapes,
-                           self._fingers, self._stats, n, paced)
+                           self._fingers, self._stats, n, paced, self._cr)
         self._after_block()
         return done
 
@@ -567,11 +586,11 @@ class ServoLoop:
             ok = False
         if ok:
             self._take_samples()
-        self._begin(self.state, self._samples, ok, self._mj, self._shapes, self._fingers)
+        self._begin(self.state, self._samples, ok, self._mj, self._shapes, self._fingers, self._cr)
         self._sends()
         for ch in self.sensors:
             ch.tick(self)
-        self._end(self.state, self._mj, self._fingers, self._stats, start)
+        self._end(self.state, self._mj, self._fingers, self._stats, start, self._cr)
 
     def _take_samples(self) -> None:
         """The device's DeviceSamples into the SAMPLE rows the tick reads; a sample that is not
@@ -652,7 +671,7 @@ class ServoLoop:
                     self.tick()
                     left -= 1
                 self.physics.start()
-                self._mj, st.threaded = self._mj_threaded, True
+                self._mj, self._cr, st.threaded = self._mj_threaded, self.local.threaded, True
                 st.next_ns = native.monotonic_ns()
             while left > 0 and not st.stop and not st.halt:
                 n = min(block, left)
@@ -679,7 +698,7 @@ class ServoLoop:
                 gc.enable()
             try:
                 if st.threaded:  # MuJoCo's thread ends after its step: lockstep goes on from there
-                    self._mj, st.threaded, st.phase = self._mj_lockstep, False, 0
+                    self._mj, self._cr, st.threaded, st.phase = self._mj_lockstep, self._cr_lockstep, False, 0
                     self.physics.stop()
             finally:
                 try:

@@ -58,14 +58,12 @@ def response_in_tree(mass, jac, work, lo, hi):
     them, as a body's Jacobian is): work[:, lo:hi] = the rows of (M⁻¹ Jᵀ)ᵀ there, bit for bit
     mj_solveM's, at that tree's cost; work outside lo..hi is left as it was. `mass`: a
     `layout.MassMatrix` of the mjData the factorisation is read from."""
-    idx = np.uintp(mass.dof_index.ctypes.data) + np.uintp(4 * lo)
+    idx = mass.dof_index + np.uintp(4 * lo)
     for r in range(6):
         for k in range(lo, hi):
             work[r, k] = jac[r, k]
-        x = work[r]
-        mj_solveLD(np.uintp(x.ctypes.data), np.uintp(mass.qLD.ctypes.data), np.uintp(mass.qLDiagInv.ctypes.data),
-                   hi - lo, np.uintp(mass.rownnz.ctypes.data), np.uintp(mass.rowadr.ctypes.data),
-                   np.uintp(mass.colind.ctypes.data), idx)
+        mj_solveLD(np.uintp(work[r].ctypes.data), mass.qLD, mass.qLDiagInv, hi - lo, mass.rownnz, mass.rowadr,
+                   mass.colind, idx)
 
 
 @njit(cache=True, error_model="numpy")

@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
-from softproxy.compiled.body_response import point_jacobian, response_in_tree
+from softproxy.compiled.body_response import point_jacobian, response, response_in_tree
 from softproxy.compiled.vector import dot3
 
 CHANNELS = 4
@@ -97,11 +97,11 @@ def _dot_columns(a, b, lo, hi):
 
 
 @njit(cache=True, error_model="numpy")
-def implicit(mj, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
+def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     """Every finger in contact with a body that moves: its wrench (fd.force, fd.torque,
     fd.torque_n, fd.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
-    docstring). Between mj_step1 and mj_step2, after every finger's update; `mj`: the
-    `layout.MjViews` whose mjData (and `mass`) hold the state at hand. Each finger's
+    docstring). Between mj_step1 and mj_step2, after every finger's update; `m`, `d`: the
+    mjModel's and mjData's addresses, `mass` that mjData's `layout.MassMatrix`. Each finger's
     Jacobian and solve cost its body's kinematic tree only (M is block diagonal by tree: two
     fingers on different trees do not answer each other). `bodies_fixed`: 1 for a body welded
     to the world. `qacc`: with `prev`, MuJoCo's last, which holds the
@@ -109,7 +109,7 @@ def implicit(mj, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     rates: `softproxy.compiled.carry`'s held acceleration). Returns how many fingers were
     coupled (their rows of ws filled, in `rows`)."""
     jacs, mijs, G, Q, system, chan, rows, spans = ws
-    m, d, mass = mj.m, mj.d, mj.mass
+    nv = qvel.shape[0]
     n = 0
     point = chan[0, :3]  # (scratch: the table is filled after the last Jacobian)
     for i in range(FD.shape[0]):
@@ -118,12 +118,13 @@ def implicit(mj, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         if not fd.valid or body <= 0 or bodies_fixed[body] or n >= rows.shape[0]:
             continue
         point[0], point[1], point[2] = fd.contact_pos
-        tree = mass.body_treeid[body]
-        lo = mass.tree_dofadr[tree]
-        hi = lo + mass.tree_dofnum[tree]
+        lo, hi = mass.body_dofs[body, 0], mass.body_dofs[body, 1]
         spans[n, 0], spans[n, 1] = lo, hi
         point_jacobian(m, d, body, np.uintp(point.ctypes.data), jacs[n])
-        response_in_tree(mass, jacs[n], mijs[n], lo, hi)
+        if hi - lo == nv:  # one tree: one solve of the six rows
+            response(m, d, jacs[n], mijs[n])
+        else:
+            response_in_tree(mass, jacs[n], mijs[n], lo, hi)
         # the 4 channels' rows: the point's linear rows, and n·(angular rows)
         J, MJ, g, q = jacs[n], mijs[n], G[n], Q[n]
         nx, ny, nz = fd.normal

@@ -28,7 +28,7 @@ import math
 
 from numba import njit
 
-from softproxy.compiled import carry, coupling, godobject, passivity
+from softproxy.compiled import coupling, godobject, passivity
 from softproxy.compiled.finite import finite
 from softproxy.compiled.guard import P_MAX, guard_wrench
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_SPIN, RESTICK_TRAVEL, restick_travel
@@ -460,7 +460,7 @@ def _clamp_for_device(fm, fd, safe, fmax, tmax):
 
 
 @njit(cache=True, error_model="numpy")
-def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, H):
+def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2 (`mj`,
     `sh`, `fingers`: MjViews, Shapes, FingerTables of `softproxy.compiled.layout`).
 
@@ -470,13 +470,14 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, H):
     mjModel/mjData, their qvel and qacc; `fingers.ws` its workspace), and each finger's
     energy observed, and with `control` the excess dissipated (`passivity`). Adds the fingers'
     wrenches to `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each
-    device finger is sent into its sent_ fields. With two rates (H, MuJoCo's step (s), > 0;
-    0 with one rate) the bodies answer in the local model (`carry.respond`: the coupling solves against its velocity and held
-    acceleration, and the sent wrenches move it). `bodies`: rows FIXED (welded to the world),
-    TOUCHED and PUSHED (body lists, lengths in `counts`).
-    Returns (refused, unsafe): how many valid samples were refused (not finite, or refused by
+    device finger is sent into its sent_ fields. With two rates (`cr`, the local model; None
+    with one rate) the coupling solves against the local model's velocity and held
+    acceleration (and the caller lets the sent wrenches move it: `carry.respond`). `bodies`:
+    rows FIXED (welded to the world), TOUCHED and PUSHED (body lists, lengths in `counts`).
+    Returns (refused, unsafe, coupled): how many valid samples were refused (not finite, or refused by
     their finger: spikes, garbage positions, a non-finite twist), and how many wrenches were
-    not finite (zeroed before they reached a body or the device). The touched body gets the
+    not finite (zeroed before they reached a body or the device), and how many fingers the
+    implicit coupling coupled (their rows of `fingers.ws`). The touched body gets the
     reaction of exactly the wrench the device is sent, after every clamp (the finger's, the
     device's, the soft start's), so both sides of the coupling exchange the same energy."""
     FM, FD, near, scratch = fingers.model, fingers.data, fingers.near, fingers.scratch
@@ -504,11 +505,12 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, H):
         passivity.observe(fm, fd)  # last tick's sends times this tick's motion
     coupled = 0
     if not safe:
-        if H > 0.0:
-            cr = mj.carry
-            coupled = coupling.implicit(mj, cr.qvel, cr.qacc_free, FM, FD, bodies[FIXED], dt, fingers.ws, False)
+        if cr is not None:
+            coupled = coupling.implicit(mj.m, mj.d, mj.mass, cr.qvel, cr.qacc_free, FM, FD, bodies[FIXED], dt,
+                                        fingers.ws, False)
         else:
-            coupling.implicit(mj, mj.qvel, mj.qacc, FM, FD, bodies[FIXED], dt, fingers.ws, True)
+            coupled = coupling.implicit(mj.m, mj.d, mj.mass, mj.qvel, mj.qacc, FM, FD, bodies[FIXED], dt, fingers.ws,
+                                        True)
     for i in range(FD.shape[0]):
         fm, fd = FM[i], FD[i]
         if control and not safe:
@@ -521,9 +523,7 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, H):
             (fx, fy, fz), (tx, ty, tz), (px, py, pz) = fd.sent_force, fd.sent_torque, fd.contact_pos
             push(wrench, bodies, counts, int(fd.body), -fx, -fy, -fz, px, py, pz, -tx, -ty, -tz)
             fd.push_body = fd.body
-    if H > 0.0:
-        carry.respond(mj.carry, FD, fingers.ws, coupled, dt, H)
-    return refused, unsafe
+    return refused, unsafe, coupled
 
 
 # -- entries for the views: finger i of a table (`fg`: a `layout.Fingers`) ----------------------

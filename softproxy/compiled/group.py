@@ -40,7 +40,7 @@ def clamp_length(lim, x, y, z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_group_ticks(loop, reads, sends, members, limits, samples, samples_at, mj, sh, fingers, stats, n, paced):
+def run_group_ticks(loop, reads, sends, members, limits, samples, samples_at, mj, sh, fingers, stats, n, paced, cr):
     """Up to n ticks (fewer if `L.stop` is set) of a group of compiled devices; returns how
     many ran. `reads`, `sends`: the members' cfuncs (tuples); `members`: an int64 table, one
     row per member: [state address, first row, rows, stall code, stall ns, failed reads,
@@ -86,7 +86,7 @@ def run_group_ticks(loop, reads, sends, members, limits, samples, samples_at, mj
             sleep_until_ns(start + stall)
         if failed == m:
             L.device_error += 1
-        begin_tick(loop, samples, failed < m, mj, sh, fingers)
+        begin_tick(loop, samples, failed < m, mj, sh, fingers, cr)
         for i in range(FD.shape[0]):
             fd = FD[i]
             row = device_of[i]
@@ -103,7 +103,7 @@ def run_group_ticks(loop, reads, sends, members, limits, samples, samples_at, mj
                 L.send_error += 1
                 members[k, 7] = code
         _stage(L, SENDS_STAGE)
-        end_tick(loop, mj, fingers, stats, start)
+        end_tick(loop, mj, fingers, stats, start, cr)
         if paced:
             paced_done(loop, stats.counters)
         done += 1

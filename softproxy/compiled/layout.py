@@ -17,15 +17,17 @@ from collections import namedtuple
 import numpy as np
 
 # -- what the kernels take: five bundles of arrays, built once per loop (or per shape set) ----
-MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos mass carry")
+MjViews = namedtuple("MjViews", "m d qvel qacc xfrc xipos mass")
 """MuJoCo as the tick's coupling reads and writes it: the mjModel and mjData addresses (for
 mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied (nbody × 6,
-N and N·m), xipos (nbody × 3, m); its mass matrix by tree (`MassMatrix`); and the local
-model of two rates (`Carried`)."""
-MassMatrix = namedtuple("MassMatrix", "qLD qLDiagInv rownnz rowadr colind body_treeid tree_dofadr tree_dofnum dof_index")
-"""M's factorisation (an mjData's qLD, qLDiagInv) and sparsity (an mjModel's M_rownnz,
-M_rowadr, M_colind), and its trees: each body's tree, each tree's first dof and dof count, and
-0..nv-1 as int32 (the dofs a solve over one tree lists): `body_response.response_in_tree`."""
+N and N·m), xipos (nbody × 3, m); and its mass matrix by tree (`MassMatrix`). Every array a
+kernel takes costs a reference count in and out of each call, so the tick's bundles hold
+few: the local model of two rates (`Carried`) is an argument of its own, None with one rate."""
+MassMatrix = namedtuple("MassMatrix", "qLD qLDiagInv rownnz rowadr colind dof_index body_dofs")
+"""M's factorisation (the addresses of an mjData's qLD, qLDiagInv) and sparsity (of an
+mjModel's M_rownnz, M_rowadr, M_colind), the address of 0..nv-1 as int32 (the dofs a solve
+over one tree lists), and per body the dofs of its tree (nbody × 2: first, end; 0, 0 for the
+world): `body_response.response_in_tree`."""
 Carried = namedtuple("Carried", "d_xpos d_xmat d_cvel d_qvel d_qacc xipos ximat subtree_com body_rootid moving "
                                 "mover_geom mover_body mover_rbound "
                                 "geom_xpos geom_xmat cvel snap_xpos snap_xmat body_com body_xmat body_vel body_err "

@@ -92,14 +92,15 @@ def paced_done(loop, counters):
 
 
 @njit(cache=True, error_model="numpy")
-def begin_tick(loop, samples, ok, mj, sh, fingers):
+def begin_tick(loop, samples, ok, mj, sh, fingers, cr):
     """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
     failed) into the finger records, mj_step1 (on the first tick of a MuJoCo step; with two
     rates the local model then takes MuJoCo's state, and every tick carries the shapes near
     the fingers forward: `softproxy.compiled.carry`), then every finger (`finger.tick`). A
     sample the device marked not valid is an invalid_sample fault. `mj`, `sh`, `fingers`:
     the bundles of `softproxy.compiled.layout` (MjViews, Shapes, FingerTables); with two
-    rates `sh` reads the local model's poses."""
+    rates `sh` reads the local model's poses and `cr` is that model (`Carried`; None with
+    one rate: numba then compiles this tick without any of it)."""
     L = loop[0]
     safe = L.safe_next
     L.safe_next = False
@@ -118,43 +119,48 @@ def begin_tick(loop, samples, ok, mj, sh, fingers):
         fd.in_quat[:] = s.qw, s.qx, s.qy, s.qz
         fd.in_twist = s.twist
         fd.in_valid = True
-    H = L.every * L.period
-    cr = mj.carry
-    if L.threaded:  # MuJoCo's newest state, if one came; the shapes carried to now
-        interval = handoff.take(cr.handoff)
-        if interval >= 0.0:
-            carry.snapshot(cr, interval if interval > 0.0 else H, H, L.ticks == 0)
-        tau = (monotonic_ns() - cr.handoff.ctl[handoff.SEEN_STAMP]) * 1e-9
-        carry.carry(cr, fingers, min(max(tau, 0.0), carry.FADE_STEPS * H), H)
+    if cr is None:
+        mj_step1(mj.m, mj.d)
     else:
-        if L.phase == 0:
-            mj_step1(mj.m, mj.d)
-            if L.every > 1:
+        H = L.every * L.period
+        if L.threaded:  # MuJoCo's newest state, if one came; the shapes carried to now
+            interval = handoff.take(cr.handoff)
+            if interval >= 0.0:
+                carry.snapshot(cr, interval if interval > 0.0 else H, H, L.ticks == 0)
+            tau = (monotonic_ns() - cr.handoff.ctl[handoff.SEEN_STAMP]) * 1e-9
+            carry.carry(cr, fingers, min(max(tau, 0.0), carry.FADE_STEPS * H), H)
+        else:
+            if L.phase == 0:
+                mj_step1(mj.m, mj.d)
                 carry.snapshot(cr, H, H, L.ticks == 0)
-        if L.every > 1:
             carry.carry(cr, fingers, L.phase * L.period, H)
     _stage(L, STEP1_STAGE)
-    refused, unsafe = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, H if L.every > 1 else 0.0)
+    refused, unsafe, coupled = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, cr)
+    if cr is not None:  # the bodies answer the sent wrenches in the local model
+        carry.respond(cr, fingers.data, fingers.ws, coupled, L.period, L.every * L.period)
     L.invalid_sample += refused
     L.unsafe_output += unsafe
     _stage(L, FINGERS_STAGE)
 
 
 @njit(cache=True, error_model="numpy")
-def end_tick(loop, mj, fingers, stats, start_ns):
+def end_tick(loop, mj, fingers, stats, start_ns, cr):
     """The tick after the sends: on the last tick of a MuJoCo step the wrenches into
     xfrc_applied (averaged over the step's haptic ticks) and mj_step2; loop time, and the
     tick's duration since `start_ns` into the statistics; an overrun (while watching) makes
     the next tick render zero."""
     L = loop[0]
-    if L.threaded:  # MuJoCo's thread averages them over its step
-        handoff.add_wrenches(mj.carry.handoff, fingers.wrench, fingers.bodies[finger.TOUCHED], fingers.counts)
+    if cr is None:
+        finger.write_wrenches(mj.xfrc, mj.xipos, fingers.wrench, fingers.bodies, fingers.counts, 1.0)
+        mj_step2(mj.m, mj.d)
+    elif L.threaded:  # MuJoCo's thread averages them over its step
+        handoff.add_wrenches(cr.handoff, fingers.wrench, fingers.bodies[finger.TOUCHED], fingers.counts)
     else:
         L.phase += 1
-    if not L.threaded and L.phase >= L.every:  # MuJoCo's step: the wrenches averaged over its haptic ticks
-        finger.write_wrenches(mj.xfrc, mj.xipos, fingers.wrench, fingers.bodies, fingers.counts, 1.0 / L.phase)
-        mj_step2(mj.m, mj.d)
-        L.phase = 0
+        if L.phase >= L.every:  # MuJoCo's step: the wrenches averaged over its haptic ticks
+            finger.write_wrenches(mj.xfrc, mj.xipos, fingers.wrench, fingers.bodies, fingers.counts, 1.0 / L.phase)
+            mj_step2(mj.m, mj.d)
+            L.phase = 0
     _stage(L, STEP2_STAGE)
     L.t += L.period
     L.ticks += 1
@@ -170,10 +176,11 @@ def end_tick(loop, mj, fingers, stats, start_ns):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced):
+def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced, cr):
     """Up to n ticks (fewer if `L.stop` is set), paced in real time or not; returns how many
     ran. `read`/`send`: the device's cfuncs over its `device` (DeviceIO: its state, SAMPLE
-    rows and limits, read every tick). A read that fails renders no finger (each holds) and
+    rows and limits, read every tick); `cr`: the local model of two rates, or None. A read
+    that fails renders no finger (each holds) and
     counts a device_error; one that stalled waits the device's stall time first."""
     L = loop[0]
     samples, limits, io = device.samples, device.limits, device.io
@@ -194,7 +201,7 @@ def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced):
             L.read_code = code
             if code == L.stall_code:
                 sleep_until_ns(start + L.stall_ns)
-        begin_tick(loop, samples, code == 0, mj, sh, fingers)
+        begin_tick(loop, samples, code == 0, mj, sh, fingers, cr)
         for i in range(FD.shape[0]):
             fd = FD[i]
             if L.halt:  # closing from another thread: this block may send nothing but zero
@@ -206,7 +213,7 @@ def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced):
                 L.send_error += 1
                 L.send_code = code
         _stage(L, SENDS_STAGE)
-        end_tick(loop, mj, fingers, stats, start)
+        end_tick(loop, mj, fingers, stats, start, cr)
         if paced:
             paced_done(loop, stats.counters)
         done += 1
