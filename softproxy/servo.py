@@ -393,21 +393,23 @@ class ServoLoop:
         of arrays they take (`softproxy.compiled.layout`: built once, the same arrays every tick)."""
         world, shapes, data = self.world, self.world.shapes, self.world.data
         m, d = (np.uintp(a) for a in native.addresses(world.model, data))
-        self.local = LocalModel(world)
-        """The local model the haptic ticks render against between MuJoCo's steps (two rates;
-        with one rate it is kept but not used)."""
         model = world.model
         self._trees = _TreeDofs(model)
         self._mj = self._mj_lockstep = MjViews(m, d, data.qvel, data.qacc, data.xfrc_applied, data.xipos,
                                                _mass_matrix(model, data, self._trees))
-        mirror = self.local.mirror  # with MuJoCo in its own thread the servo side reads its own copy
-        self._mj_threaded = MjViews(m, np.uintp(native.addresses(model, mirror)[1]), mirror.qvel, mirror.qacc,
-                                    mirror.xfrc_applied, mirror.xipos, _mass_matrix(model, mirror, self._trees))
-        # the local model of two rates, an argument of the tick's kernels: None with one rate
-        self._cr = self._cr_lockstep = self.local.carried if self.physics_every > 1 else None
+        self._cr = self._cr_lockstep = None  # the local model of two rates, an argument of the tick's kernels
+        self._shapes = shapes.tables
+        self.local = None
+        """With two rates, the local model the haptic ticks render against between MuJoCo's
+        steps (`softproxy.local_model.LocalModel`); None with one rate."""
         if self.physics_every > 1:
+            self.local = LocalModel(world)
+            mirror = self.local.mirror  # with MuJoCo in its own thread the servo side reads its own copy
+            self._mj_threaded = MjViews(m, np.uintp(native.addresses(model, mirror)[1]), mirror.qvel, mirror.qacc,
+                                        mirror.xfrc_applied, mirror.xipos, _mass_matrix(model, mirror, self._trees))
+            self._cr = self._cr_lockstep = self.local.carried
+            self._shapes = self.local.shapes
             self.physics = PhysicsThread(world, self.local, self.period * self.physics_every)
-        self._shapes = shapes.tables if self.physics_every == 1 else self.local.shapes
         self._fingers = FingerTables(self.rows.model, self.rows.data, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
                                      world.bodies, world.counts, self._coupling)
         stats = self.stats
