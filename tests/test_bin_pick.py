@@ -5,7 +5,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from devices.simulated import SimulatedDevice
+from softproxy.devices.simulated import SimulatedDevice
 from softproxy.run import build, run_scene
 from softproxy.scene import load_scene
 

@@ -223,7 +223,7 @@ def test_cap_per_device_in_a_group():
 
 def test_vendor_figures():
     """The adapters' tables give CHAI3D's figures for the devices the issue names."""
-    from devices import forcedimension, openhaptics
+    from softproxy.devices import forcedimension, openhaptics
 
     assert openhaptics.model_stiffness("Touch") == (400.0, 4.0)
     assert forcedimension.MODEL_STIFFNESS[33] == (5000.0, 30.0)  # omega.3

@@ -133,7 +133,7 @@ def test_pushing_a_free_box_creates_no_energy(physics_rate_hz):
 
 def _grasp(physics_rate_hz):
     """The shipped grasp on its simulated device: per tick the right finger's force; the box."""
-    from devices.simulated import SimulatedDevice
+    from softproxy.devices.simulated import SimulatedDevice
     from softproxy.run import build
     from softproxy.scene import load_scene
 
