@@ -31,9 +31,11 @@ def loads_kernels(n: int) -> tuple[int, bool]:
 
 
 def waits(i: int, flag: str) -> int:
-    """Cell 0 waits (up to 30 s) for the last cell to raise `flag`, so it ends last."""
+    """Cell 0 waits for the last cell to raise `flag`, so it ends last (up to 300 s: a guard
+    against a hang, long enough for the other worker to start and run four cells on a loaded
+    machine; 30 s was not, once, in CI)."""
     if i == 0:
-        deadline = time.monotonic() + 30.0
+        deadline = time.monotonic() + 300.0
         while not os.path.exists(flag) and time.monotonic() < deadline:
             time.sleep(0.01)
     elif i == 4:
