@@ -16,7 +16,6 @@ import math
 import mujoco
 import numpy as np
 
-from softproxy.compiled.carry import bodies_moving, movers
 from softproxy.compiled.handoff import CTL_SIZE
 from softproxy.compiled.layout import Carried, Handoff, MjArrays, Shapes
 
@@ -42,6 +41,15 @@ def physics_every(rate_hz: float, physics_rate_hz: float | None) -> int:
     return every
 
 
+def movers(S) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shapes that can move (rows of the SHAPE table `S` not static), as `carry` walks
+    them: their geoms, bodies and bounding radii (m; inf for a plane), apart from the SHAPE
+    records (whose hint slots make each ~3 kB)."""
+    moving = ~S["static"]
+    return (S["geom"][moving].astype(np.int64), S["body"][moving].astype(np.int64),
+            S["rbound"][moving].astype(np.float64))
+
+
 def mj_arrays(data) -> MjArrays:
     """The arrays of an mjData the servo side reads of MuJoCo's state (views)."""
     return MjArrays(data.geom_xpos, data.geom_xmat, data.cvel, data.xipos, data.ximat, data.subtree_com,
@@ -64,8 +72,9 @@ class LocalModel:
         self.geom_xpos = np.array(data.geom_xpos)  # the carried poses (m), what the fingers read
         self.geom_xmat = np.array(data.geom_xmat)
         self.cvel = np.array(data.cvel)
-        self.moving = bodies_moving(shapes.S)
-        """The bodies of the shapes that can move: those the fingers push."""
+        shapes_moving = movers(shapes.S)
+        self.moving = np.unique(shapes_moving[1])
+        """The bodies of the shapes that can move (each once, ascending): those the fingers push."""
         self.mirror = mujoco.MjData(model)
         """The servo side's copy of MuJoCo's state in a threaded run (what the handoff fills)."""
         state = mj_arrays(data)
@@ -79,8 +88,6 @@ class LocalModel:
                np.zeros((nbody, 6)), np.zeros((nbody, 6)), np.zeros((nbody, 2)), np.zeros(nbody, dtype=np.bool_),
                np.zeros(nbody, dtype=np.bool_),
                np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(9), self.handoff)
-
-        shapes_moving = movers(shapes.S)
 
         def over(d):
             return Carried(d.geom_xpos, d.geom_xmat, d.cvel, d.qvel, d.qacc, d.xipos, d.ximat, d.subtree_com,

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 # a body's rows in body_vel, body_err, body_off and body_spin: angular (3), then linear (3)
@@ -49,20 +48,6 @@ FADE_STEPS = 4.0
 NEAR_MARGIN = 2e-3
 """m beyond a finger's broad-phase ball (and the shape's own motion over a step) within
 which a moving shape is carried every tick."""
-
-
-def bodies_moving(S) -> np.ndarray:
-    """The bodies of the shapes that can move (rows of the SHAPE table `S` not static), once each."""
-    return np.array(sorted({int(s["body"]) for s in S if not s["static"]}), dtype=np.int64)
-
-
-def movers(S) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The shapes that can move, as `carry` walks them: their geoms, bodies and bounding radii
-    (m; inf for a plane), apart from the SHAPE records (whose hint slots make each ~3 kB)."""
-    rows = [s for s in S if not s["static"]]
-    return (np.array([int(s["geom"]) for s in rows], dtype=np.int64),
-            np.array([int(s["body"]) for s in rows], dtype=np.int64),
-            np.array([float(s["rbound"]) for s in rows], dtype=np.float64))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
