@@ -27,6 +27,7 @@ patch); without Drake its rows are skipped. Writes peer.json and peer.png.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, replace
@@ -347,7 +348,8 @@ FINGERTIP_CONTACT = ((0.78, 87.36e-6), (1.03, 124.4e-6), (1.71, 132.8e-6))
 of *A preliminary approach to study the behavior of human fingertip at contact via
 experimental test and numerical model*: what Drake's soft sphere is fitted to."""
 DRAKE_RESOLUTION = 0.004     # m: the sphere's tessellation hint; 2 mm gives the same limits within 0.3% at 3x the cost
-DRAKE_MU = 1.0               # the first pass's Coulomb friction (the best coefficient is refitted)
+DRAKE_FLOOR_MODULUS = 1e7    # Pa: the floor a compliant-hydroelastic half-space, stiff beside the finger
+DRAKE_FLOOR_SLAB = 0.01      # m: its slab's thickness (sets the pressure gradient with the modulus)
 
 
 @dataclass(frozen=True)
@@ -358,6 +360,8 @@ class DrakeSetup:
 
     solver: str = "sap"
     modulus: float | None = None
+    time_step: float = 1e-3
+    stiction_tolerance: float | None = None
 
     def options(self) -> str:
         e = drake_modulus() if self.modulus is None else self.modulus
@@ -402,6 +406,7 @@ def drake_capacity(modulus: float, radius: float = FINGER_RADIUS) -> float:
     return math.pi * modulus * radius * radius / 3.0
 
 
+@functools.cache
 def drake_modulus(radius: float = FINGER_RADIUS) -> float:
     """Hydroelastic modulus (Pa) for which a sphere of `radius` has the fingertip's measured
     contact radii at the measured forces (`FINGERTIP_CONTACT`; least squares on the radius)."""
@@ -414,60 +419,85 @@ def drake_modulus(radius: float = FINGER_RADIUS) -> float:
     return math.exp(minimize_scalar(misfit, bounds=(math.log(3e4), math.log(1e6)), method="bounded").x)
 
 
+def drake_peer_mu(setup: DrakeSetup = DrakeSetup()) -> float:
+    """Drake's Coulomb μ by the peers' rule: its soft sphere pressed with the grasp's grip resists
+    softproxy's default limit there (the pressure's torque per unit μ, `_sphere_pressed`)."""
+    modulus = setup.modulus or drake_modulus()
+    return default_limit(GRIP_N) / _sphere_pressed(modulus, GRIP_N)[2]
+
+
 class DrakeRig:
-    """The torsion test in Drake: each finger a sphere on a prismatic joint along the grasp axis
-    (the squeeze, with the peers' joint damping), the box a free body; zero gravity only (Drake
-    gives the limit, not the hold). The box's own damping is added to the applied torque."""
+    """The grasp in Drake, built as its user builds it: each finger a sphere on three prismatic
+    joints (links of 5 g, 5 g and the 10 g finger, as in PyBullet), the squeeze a force on the
+    x joint (with the peers' joint damping), y and z driven by Drake's own PD-controlled
+    actuators (kp, kv as the peers'; SAP takes them implicitly) plus the finger's weight (as
+    MuJoCo's gravcomp); the box a free body. With gravity the floor is a compliant-hydroelastic
+    half-space, so every contact is hydroelastic. The box's own damping (the scene's 0.001
+    N·m·s/rad, about every axis) is added to the applied torque."""
 
     def __init__(self, setup: DrakeSetup, grip: float, gravity: bool, mu: float):
-        from pydrake.geometry import (AddCompliantHydroelasticProperties, AddContactMaterial,
-                                      AddRigidHydroelasticProperties, Box, ProximityProperties, Sphere)
+        from pydrake.geometry import (AddCompliantHydroelasticProperties,
+                                      AddCompliantHydroelasticPropertiesForHalfSpace, AddContactMaterial,
+                                      AddRigidHydroelasticProperties, Box, HalfSpace, ProximityProperties, Sphere)
         from pydrake.math import RigidTransform
         from pydrake.multibody.plant import (AddMultibodyPlant, CoulombFriction, ExternallyAppliedSpatialForce,
                                              MultibodyPlantConfig)
-        from pydrake.multibody.tree import FixedOffsetFrame, PrismaticJoint, SpatialInertia
+        from pydrake.multibody.tree import FixedOffsetFrame, PdControllerGains, PrismaticJoint, SpatialInertia
         from pydrake.systems.analysis import Simulator
         from pydrake.systems.framework import DiagramBuilder
 
-        if gravity:
-            raise ValueError("the Drake rig measures the torsional limit only (zero gravity)")
-        self.grip = grip
+        self.grip, self.path = grip, _Path(still=not gravity)
         builder = DiagramBuilder()
-        plant, _ = AddMultibodyPlant(MultibodyPlantConfig(time_step=1e-3, contact_model="hydroelastic",
-                                                          discrete_contact_approximation=setup.solver), builder)
-        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, 0.0])
-        friction = CoulombFriction(mu, mu)
+        config = MultibodyPlantConfig(time_step=setup.time_step, contact_model="hydroelastic",
+                                      discrete_contact_approximation=setup.solver)
+        if setup.stiction_tolerance is not None:
+            config.stiction_tolerance = setup.stiction_tolerance
+        plant, _ = AddMultibodyPlant(config, builder)
+        if not gravity:
+            plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, 0.0])
+        friction = CoulombFriction(mu, mu)  # one coefficient, static = dynamic, as the other peers
         bx, by, bz = BOX_HALF
         self.body = box = plant.AddRigidBody("box", SpatialInertia.SolidBoxWithMass(BOX_MASS, 2 * bx, 2 * by, 2 * bz))
         rigid = ProximityProperties()
         AddRigidHydroelasticProperties(DRAKE_RESOLUTION, rigid)
         AddContactMaterial(friction=friction, properties=rigid)
         plant.RegisterCollisionGeometry(box, RigidTransform(), Box(2 * bx, 2 * by, 2 * bz), "box", rigid)
+        if gravity:  # without gravity the floor is out of play, as in the other rigs
+            floor = ProximityProperties()
+            AddCompliantHydroelasticPropertiesForHalfSpace(DRAKE_FLOOR_SLAB, DRAKE_FLOOR_MODULUS, floor)
+            AddContactMaterial(dissipation=1.0, friction=CoulombFriction(1.0, 1.0), properties=floor)
+            plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "floor", floor)
         soft = ProximityProperties()
         AddCompliantHydroelasticProperties(DRAKE_RESOLUTION, setup.modulus or drake_modulus(), soft)
         AddContactMaterial(dissipation=1.0, friction=friction, properties=soft)
-        x0, y0 = _finger_start(False)
+        x0, y0 = _finger_start(gravity)
+        gains = PdControllerGains(p=KP, d=KV)
         for name, x in (("right", x0), ("left", -x0)):
-            finger = plant.AddRigidBody(name, SpatialInertia.SolidSphereWithMass(FINGER_MASS, FINGER_RADIUS))
-            anchor = plant.AddFrame(FixedOffsetFrame(f"{name}_anchor", plant.world_frame(),
+            parent = plant.AddFrame(FixedOffsetFrame(f"{name}_anchor", plant.world_frame(),
                                                      RigidTransform([x, y0, BOX_HALF[2]])))
-            joint = plant.AddJoint(PrismaticJoint(f"{name}_x", anchor, finger.body_frame(), [1.0, 0.0, 0.0],
-                                                  damping=X_DAMPING))
-            plant.AddJointActuator(f"{name}_x", joint)
-            plant.RegisterCollisionGeometry(finger, RigidTransform(), Sphere(FINGER_RADIUS), name, soft)
+            for axis, mass in (("x", 0.005), ("y", 0.005), ("z", FINGER_MASS)):
+                link = plant.AddRigidBody(f"{name}_{axis}", SpatialInertia.SolidSphereWithMass(mass, FINGER_RADIUS))
+                unit = [float(axis == a) for a in "xyz"]
+                joint = plant.AddJoint(PrismaticJoint(f"{name}_{axis}", parent, link.body_frame(), unit,
+                                                      damping=X_DAMPING if axis == "x" else 0.0))
+                actuator = plant.AddJointActuator(f"{name}_{axis}", joint)
+                if axis != "x":
+                    actuator.set_controller_gains(gains)
+                parent = link.body_frame()
+            plant.RegisterCollisionGeometry(link, RigidTransform(), Sphere(FINGER_RADIUS), name, soft)
         plant.Finalize()
         self.plant = plant
-        diagram = builder.Build()
-        self.simulator = Simulator(diagram)
-        root = self.simulator.get_mutable_context()
-        self.context = plant.GetMyMutableContextFromRoot(root)
-        plant.SetFreeBodyPose(self.context, box, RigidTransform([0.0, 0.0, BOX_HALF[2]]))
+        self.simulator = Simulator(builder.Build())
+        self.context = plant.GetMyMutableContextFromRoot(self.simulator.get_mutable_context())
+        plant.SetFreeBodyPose(self.context, box, RigidTransform([0.0, 0.0, BOX_HALF[2] + 1e-4]))
         self.force = ExternallyAppliedSpatialForce()
         self.force.body_index = box.index()
         self._applied = plant.get_applied_spatial_force_input_port()
         self._actuation = plant.get_actuation_input_port()
+        self._desired = plant.get_desired_state_input_port(box.model_instance())
         self.inertia = BOX_MASS * ((2 * by) ** 2 + (2 * bz) ** 2) / 12.0
         self.damping = BOX_DAMPING
+        self.weight = FINGER_MASS * (9.81 if gravity else 0.0)  # what the z joint holds up (gravcomp)
         self.torque = 0.0
         self.simulator.Initialize()
 
@@ -475,15 +505,30 @@ class DrakeRig:
         from pydrake.multibody.math import SpatialForce
 
         g = _grip_ramp(t, self.grip)
-        self._actuation.FixValue(self.context, [-g, g])
-        self.force.F_Bq_W = SpatialForce([self.torque - self.damping * self.spin(), 0.0, 0.0], [0.0, 0.0, 0.0])
+        ry, rz, ly, lz = self.path.targets(t)
+        # actuators in the order added: right x, y, z, left x, y, z; the desired state is
+        # [q (6), v (6)], its x entries unused (the squeeze is a force)
+        self._actuation.FixValue(self.context, [-g, 0.0, self.weight, g, 0.0, self.weight])
+        self._desired.FixValue(self.context, [0.0, ry, rz, 0.0, ly, lz] + [0.0] * 6)
+        wx, wy, wz = self._omega()
+        self.force.F_Bq_W = SpatialForce([self.torque - self.damping * wx, -self.damping * wy, -self.damping * wz],
+                                         [0.0, 0.0, 0.0])
         self._applied.FixValue(self.context, [self.force])
         start = time.perf_counter()
         self.simulator.AdvanceTo(t + 1e-3)
         return time.perf_counter() - start
 
+    def _omega(self):
+        return self.plant.EvalBodySpatialVelocityInWorld(self.context, self.body).rotational()
+
+    def quat(self):
+        return self.plant.EvalBodyPoseInWorld(self.context, self.body).rotation().ToQuaternion().wxyz()
+
+    def height(self) -> float:
+        return float(self.plant.EvalBodyPoseInWorld(self.context, self.body).translation()[2])
+
     def spin(self) -> float:
-        return float(self.plant.EvalBodySpatialVelocityInWorld(self.context, self.body).rotational()[0])
+        return float(self._omega()[0])
 
     def apply(self, torque: float) -> None:
         self.torque = torque
@@ -543,7 +588,7 @@ def make_rig(name, grip: float = GRIP_N, gravity: bool = True, coefficient: floa
     if isinstance(setup, PybulletSetup):
         return PybulletRig(setup, grip, gravity, c)
     if isinstance(setup, DrakeSetup):  # its coefficient is Coulomb's μ, not a length
-        return DrakeRig(setup, grip, gravity, DRAKE_MU if coefficient is None else coefficient)
+        return DrakeRig(setup, grip, gravity, drake_peer_mu(setup) if coefficient is None else coefficient)
     return SoftproxyRig(setup, grip, gravity)
 
 
@@ -652,26 +697,40 @@ class _Transmitted:
         return abs(self.inertia * rate - applied)
 
 
-def limit(name: str, grip: float, coefficient: float | None = None, seconds: float = 4.0,
-          costs: list | None = None) -> float:
-    """The largest torque the two contacts transmit at `grip` per finger before they slip (N·m);
-    each step's cost (s) appended to `costs` if given."""
+class _Twist:
+    """A torsion run: the rig squeezes the box untwisted until SQUEEZE_END_S, then steps 1 ms
+    at a time under the torque about the grasp axis set in `torque` (N·m) before each step.
+    Iterating gives, after each step past the squeeze, (t s, the box's spin rad/s, the torque
+    the contacts transmit N·m)."""
+
+    def __init__(self, rig, seconds: float):
+        self.rig, self.seconds, self.torque = rig, seconds, 0.0
+
+    def __iter__(self):
+        rig = self.rig
+        transmitted = _Transmitted(rig.inertia, rig.damping)
+        for i in range(int(round((SQUEEZE_END_S + self.seconds) * 1000))):
+            t = i * 1e-3
+            torque = self.torque if t > SQUEEZE_END_S else 0.0
+            rig.apply(torque)
+            rig.step(t)
+            if t > SQUEEZE_END_S:
+                w = rig.spin()
+                yield t, w, transmitted(w, torque)
+
+
+def limit(name: str, grip: float, coefficient: float | None = None, seconds: float = 4.0) -> float:
+    """The largest torque the two contacts transmit at `grip` per finger before they slip (N·m)."""
     rig = make_rig(name, grip, gravity=False, coefficient=coefficient)
     rate = RAMP_PER_N * grip
-    transmitted, peak = _Transmitted(rig.inertia, rig.damping), 0.0
+    twist, peak = _Twist(rig, seconds), 0.0
+    twist.torque = rate * 1e-3  # the ramp from SQUEEZE_END_S, at the first step after it
     try:
-        for i in range(int((SQUEEZE_END_S + seconds) * 1000)):
-            t = i * 1e-3
-            torque = max(t - SQUEEZE_END_S, 0.0) * rate
-            rig.apply(torque)
-            cost = rig.step(t)
-            if costs is not None:
-                costs.append(cost)
-            w = rig.spin()
-            if t > SQUEEZE_END_S:
-                if abs(w) > SLIP_SPEED:
-                    break
-                peak = max(peak, transmitted(w, torque))
+        for t, w, now in twist:
+            if abs(w) > SLIP_SPEED:
+                break
+            peak = max(peak, now)
+            twist.torque = (t + 1e-3 - SQUEEZE_END_S) * rate
     finally:
         _close(rig)
     return peak
@@ -682,19 +741,11 @@ def hysteresis(name: str, grip: float = GRIP_N, seconds: float = 6.0) -> dict:
     which the contact re-sticks (still for 0.3 s), as fractions of the break-away torque."""
     rig = make_rig(name, grip, gravity=False)
     rate = RAMP_PER_N * grip
-    transmitted = _Transmitted(rig.inertia, rig.damping)
-    torque, peak, slipped_at, sliding, restick, still_since = 0.0, 0.0, None, [], None, None
+    twist = _Twist(rig, seconds)
+    twist.torque = rate * 1e-3  # up at `rate` from SQUEEZE_END_S; down at it once slipping
+    peak, slipped_at, sliding, restick, still_since = 0.0, None, [], None, None
     try:
-        for i in range(int((SQUEEZE_END_S + seconds) * 1000)):
-            t = i * 1e-3
-            if t > SQUEEZE_END_S:
-                torque = max(torque + (rate if slipped_at is None else -rate) * 1e-3, 0.0)
-            rig.apply(torque)
-            rig.step(t)
-            w = rig.spin()
-            if t <= SQUEEZE_END_S:
-                continue
-            now = transmitted(w, torque)
+        for t, w, now in twist:
             if slipped_at is None:
                 peak = max(peak, now)
                 if abs(w) > SLIP_SPEED:
@@ -708,6 +759,7 @@ def hysteresis(name: str, grip: float = GRIP_N, seconds: float = 6.0) -> dict:
                     break
             else:
                 still_since = None
+            twist.torque = max(twist.torque + (rate if slipped_at is None else -rate) * 1e-3, 0.0)
     finally:
         _close(rig)
     out = {"breakaway_Nm": peak, "slipped": slipped_at is not None, "resticks": restick is not None,
@@ -739,24 +791,16 @@ def steady_slide(name, grip: float = GRIP_N, speed: float = SLIDE_SPEED) -> dict
     and its 5th–95th percentile, rad/s), and for softproxy the fingers' setting μ_d/μ_s."""
     rig = make_rig(name, grip, gravity=False)
     kp = rig.inertia / SLIDE_TIME_CONSTANT
-    transmitted = _Transmitted(rig.inertia, rig.damping)
-    integral, torque, torques, spins = 0.0, 0.0, [], []
-    end = SQUEEZE_END_S + SLIDE_SETTLE_S + SLIDE_MEASURE_S
+    twist = _Twist(rig, SLIDE_SETTLE_S + SLIDE_MEASURE_S)
+    integral, torques, spins = 0.0, [], []
     try:
-        for i in range(int(round(end * 1000))):
-            t = i * 1e-3
-            rig.apply(torque)
-            rig.step(t)
-            w = rig.spin()
-            if t <= SQUEEZE_END_S:
-                continue
-            now = transmitted(w, torque)
+        for t, w, now in twist:
             if t > SQUEEZE_END_S + SLIDE_SETTLE_S:
                 torques.append(now)
                 spins.append(w)
             error = speed - w
             integral += error * 1e-3
-            torque = kp * (error + integral / SLIDE_INTEGRAL_S)
+            twist.torque = kp * (error + integral / SLIDE_INTEGRAL_S)
         ratio = getattr(rig, "dynamic_ratio", None)
     finally:
         _close(rig)
@@ -810,10 +854,9 @@ def measure(duration: float = 20.0, grips=LIMIT_GRIPS, progress=None, names=None
     out = {"duration_s": duration, "grip_N": GRIP_N, "peer_torsion_coefficient_m": peer_coefficient(),
            "default_saturate": FingerParams().saturate, "pybullet": pybullet_available(), "drake": drake_available(),
            "setups": {n: SETUPS[n].options() for n in names}, "hold": {}, "traces": {}}
-    holds = [n for n in names if not isinstance(SETUPS[n], DrakeSetup)]  # Drake: the torsional limit only
-    for i, name in enumerate(holds):
+    for i, name in enumerate(names):
         if progress:
-            progress(f"hold {i + 1}/{len(holds)}: {name}")
+            progress(f"hold {i + 1}/{len(names)}: {name}")
         r = hold(name, duration)
         out["hold"][name] = {**summarise(r["trace"]), "step_us": r["step_us"]}
         out["traces"][name] = r["trace"]
@@ -821,24 +864,20 @@ def measure(duration: float = 20.0, grips=LIMIT_GRIPS, progress=None, names=None
     for h in out["hold"].values():
         h["cost_vs_mujoco_default"] = h["step_us"] / base if base else None
     limit_names = [n for n in LIMIT_RUNS if n in names]
-    limits, statics, costs = {}, {}, {}
+    limits, statics = {}, {}
     for i, name in enumerate(limit_names):
         if progress:
             progress(f"torsion limit {i + 1}/{len(limit_names)}: {name}")
-        costs[name] = []
         # Drake's soft sphere carries no more than its capacity: no limit at a grip past 95% of it
         most = 0.95 * drake_capacity(SETUPS[name].modulus or drake_modulus()) \
             if isinstance(SETUPS[name], DrakeSetup) else math.inf
-        limits[name] = [limit(name, g, costs=costs[name] if g == GRIP_N else None) / 2.0 if g < most else None
-                        for g in grips]  # per contact
-        if not isinstance(SETUPS[name], DrakeSetup):  # Drake: limit and cost only (each of its steps costs ms)
-            statics[name] = dynamic_friction(name)
-    for name in (n for n in limit_names if isinstance(SETUPS[n], DrakeSetup)):
-        # Drake's step, one AdvanceTo per 1 ms step at the grasp's grip, over MuJoCo's default step
-        step_us = float(np.median(costs[name])) * 1e6
+        limits[name] = [limit(name, g) / 2.0 if g < most else None for g in grips]  # per contact
+        statics[name] = dynamic_friction(name)
+    for name in (n for n in names if isinstance(SETUPS[n], DrakeSetup)):
         modulus = SETUPS[name].modulus or drake_modulus()
-        out["drake_step"] = {"name": name, "step_us": step_us, "cost_vs_mujoco_default": step_us / base if base else None,
-                             "modulus_Pa": modulus, "capacity_N": drake_capacity(modulus)}
+        out["drake_settings"] = {"name": name, "modulus_Pa": modulus, "capacity_N": drake_capacity(modulus),
+                                 "mu": drake_peer_mu(SETUPS[name]), "time_step_s": SETUPS[name].time_step,
+                                 "solver": SETUPS[name].solver}
     out["limit_per_contact_Nm"] = {"grip_N": list(grips), **limits}
     out["limit_exponent"] = {n: {"0.1-2 N": exponent(grips, v, 0.1, 2.0), "0.5-8 N": exponent(grips, v, 0.5, 8.0)}
                              for n, v in limits.items()}
@@ -863,7 +902,7 @@ def fidelity(limits: dict, grips, progress=None) -> dict:
             rows[name] = {**relative_errors(v, inside), "coefficient": "Simulating human fingers, Table 1", "limit_Nm": v}
             continue
         if isinstance(SETUPS[name], DrakeSetup):  # Coulomb's μ scales its pressure's torque
-            mu = DRAKE_MU * best_scale(v, inside)
+            mu = drake_peer_mu(SETUPS[name]) * best_scale(v, inside)
             if progress:
                 progress(f"fidelity: {name} at its best friction coefficient {mu:.2f}")
             refit = [limit(name, g, coefficient=mu) / 2.0 for g in inside]
@@ -968,15 +1007,12 @@ def print_report(result: dict) -> None:
               f"{_fmt((s.get('steady_slide') or {}).get('setting_dynamic_over_static'), '.2f', 6)}"
               f"{restick:>10s}{h['step_us']:10.1f}"
               f"{_fmt(cost, '.2f', 7)}  {device}")
-    d = result.get("drake_step")
+    d = result.get("drake_settings")
     if d:
-        e = lim.get(d["name"], {})
-        print(f"  {d['name']:27s}{'-':>13s}{'-':>10s}{'-':>14s}{'-':>8s}{_fmt(e.get('0.1-2 N'), '.2f', 11)}"
-              f"{_fmt(e.get('0.5-8 N'), '.2f', 11)}{'-':>12s}{'-':>6s}{'-':>10s}{d['step_us']:10.1f}"
-              f"{_fmt(d['cost_vs_mujoco_default'], '.2f', 7)}  no")
-        print(f"  (Drake: torsional limit only, at 1 ms steps, one AdvanceTo a step; its soft sphere carries at most "
-              f"πER²/3 = {d['capacity_N']:.2f} N, E = {d['modulus_Pa'] / 1e6:.4f} MPa fitted to a fingertip's contact "
-              "radii: no limit at the grips past it)")
+        print(f"  ({d['name']}: discrete_contact_approximation {d['solver']}, {d['time_step_s'] * 1e3:g} ms steps, one AdvanceTo a step; "
+              f"each finger a soft sphere, E = {d['modulus_Pa'] / 1e6:.4f} MPa fitted to a fingertip's contact radii, "
+              f"carrying at most πER²/3 = {d['capacity_N']:.2f} N (no limit at the grips past it); friction "
+              f"μ = {d['mu']:.2f}, static = dynamic, at which its limit at {result['grip_N']:g} N is softproxy's)")
     print(f"  (held: the box's centre still above {HELD_HEIGHT * 100:g} cm at the end; re-stick: applied torque at which "
           "a slipping contact sticks again / break-away; cost: step p50 / MuJoCo default step p50, this run)")
     if st:
