@@ -19,10 +19,11 @@ the break-away torque); the cost of a step, as ratios to MuJoCo's default
 step in the same run; and the fidelity of each limit to the fingertip measured in seed 002
 (E3, eq 24) over 0.1–3 N, the peers with their best single coefficient. PyBullet is the
 optional extra `softproxy[peers]`; without it its rows are skipped. Drake (the extra
-`softproxy[drake]`) gives its torsional limit and cost only: hydroelastic contact with the SAP
-solver, each finger a soft sphere whose modulus is fitted to a measured fingertip's contact
-radii (no torsional law written anywhere: the limit comes from the pressure over the contact
-patch); without Drake its rows are skipped. Writes peer.json and peer.png.
+`softproxy[drake]`) runs every part too: hydroelastic contact with the SAP solver at 1 ms, each
+finger a soft sphere whose modulus is fitted to a measured fingertip's contact radii (no
+torsional law written anywhere: the limit comes from the pressure over the contact patch), its
+friction coefficient set by the peers' rule; without Drake its rows are skipped. Writes
+peer.json and peer.png.
 """
 
 from __future__ import annotations
@@ -354,7 +355,8 @@ DRAKE_FLOOR_SLAB = 0.01      # m: its slab's thickness (sets the pressure gradie
 
 @dataclass(frozen=True)
 class DrakeSetup:
-    """Drake's MultibodyPlant, 1 ms discrete step, `solver` ("sap"), hydroelastic contact: each
+    """Drake's MultibodyPlant, discrete step `time_step` (s), contact approximation `solver`
+    ("sap"; "lagged" and "similar" take `stiction_tolerance`, m/s), hydroelastic contact: each
     finger a compliant-hydroelastic sphere of modulus `modulus` (Pa; None: fitted to the
     fingertip's contact radii, `drake_modulus()`), the box rigid-hydroelastic."""
 
@@ -365,7 +367,7 @@ class DrakeSetup:
 
     def options(self) -> str:
         e = drake_modulus() if self.modulus is None else self.modulus
-        return (f"MultibodyPlant time_step 0.001, contact_model hydroelastic, discrete_contact_approximation "
+        return (f"MultibodyPlant time_step {self.time_step:g}, contact_model hydroelastic, discrete_contact_approximation "
                 f"{self.solver}; finger: compliant hydroelastic sphere, modulus {e / 1e6:.4f} MPa (fitted to a "
                 f"fingertip's contact radii), resolution_hint {DRAKE_RESOLUTION * 1e3:g} mm; box: rigid hydroelastic")
 
@@ -600,14 +602,15 @@ def _close(rig) -> None:
 # ---------------------------------------------------------------------------------
 # The hold: gravity on, squeeze, lift 5 cm, hold; rotation about the grasp axis from 0.8 s
 # ---------------------------------------------------------------------------------
-def hold(name: str, duration: float) -> dict:
+def hold(name: str, duration: float, coefficient: float | None = None) -> dict:
     """Rotation trace [(s, deg, height m)] every 10 ms, and the p50 cost of a step (µs), each
     engine timed the fastest way its user has: softproxy's compiled servo loop (its tick
     statistics), MuJoCo's `mj_step(m, d, nstep=10)` on the held grasp after the hold (no
-    Python call per step), PyBullet's `stepSimulation` (one call per step; its finger servos
-    are computed in Python, outside the timing). The p50, not the mean: on a shared machine
-    the mean carries other processes' preemptions."""
-    rig = make_rig(name)
+    Python call per step), PyBullet's `stepSimulation` and Drake's `Simulator.AdvanceTo` (one
+    call per step; their inputs are set in Python, outside the timing). The p50, not the
+    mean: on a shared machine the mean carries other processes' preemptions. `coefficient`
+    overrides a peer's torsional coefficient (as in `make_rig`)."""
+    rig = make_rig(name, coefficient=coefficient)
     n = int(round(duration * 1000))
     try:
         if isinstance(rig, SoftproxyRig):

@@ -159,7 +159,8 @@ def test_without_drake_the_bench_skips_its_rows_and_says_so(monkeypatch, capsys)
     monkeypatch.setitem(sys.modules, "pydrake", None)  # `import pydrake...` now raises ImportError
     assert not peer.drake_available()
     result = peer.measure(1.0, grips=(0.5, 1.0), names=["mujoco newcomer", "drake hydroelastic"])
-    assert not result["drake"] and "drake_step" not in result
+    assert not result["drake"] and "drake_settings" not in result
+    assert not any("drake" in k for k in result["hold"]) and not any("drake" in k for k in result["static_dynamic"])
     assert not any("drake" in k for k in result["limit_per_contact_Nm"])
     assert not any("drake" in k for k in result["fidelity"]["rows"])
     peer.print_report(result)
@@ -175,10 +176,45 @@ def test_drake_hydroelastic_limit_follows_its_pressure_and_is_not_linear():
     pytest.importorskip("pydrake")
     E = peer.drake_modulus()
     grips = (0.2, 0.5, 2.0)
-    limits = [peer.limit("drake hydroelastic", g) / 2.0 for g in grips]
+    limits = [peer.limit("drake hydroelastic", g, coefficient=1.0) / 2.0 for g in grips]  # μ = 1
     for g, v in zip(grips, limits):
-        assert v == pytest.approx(peer.DRAKE_MU * peer._sphere_pressed(E, g)[2], rel=0.10)
+        assert v == pytest.approx(peer._sphere_pressed(E, g)[2], rel=0.10)
     assert 1.1 < peer.exponent(grips, limits, 0.2, 2.0) < 1.4
+
+
+@pytest.mark.slow  # two 3 s holds at ~1.5 ms a Drake step: ~15 s
+def test_drake_holds_the_grasp_only_with_friction_enough_for_the_twist():
+    """Drake's hold row is the box's turn, read off its pose: with the peers' friction
+    coefficient (its torsional limit at 3 N is softproxy's, 2.6× the 9.8 N·mm of gravity's twist
+    per contact) the box is lifted and turns under a degree; with μ = 0.5 (limit ~5.8 N·mm per
+    contact, under the twist; lateral friction still carries the 0.98 N) it is lifted and turns
+    about the grasp axis until its centre of mass hangs below it."""
+    pytest.importorskip("pydrake")
+    held = peer.summarise(peer.hold("drake hydroelastic", 3.0)["trace"])
+    weak = peer.summarise(peer.hold("drake hydroelastic", 3.0, coefficient=0.5)["trace"])
+    assert held["height_end_m"] > 0.07 and abs(held["rotation_max_deg"]) < 1.0
+    assert weak["height_end_m"] > peer.HELD_HEIGHT and abs(weak["rotation_max_deg"]) > 20.0
+
+
+@pytest.mark.slow  # Drake in every part of the bench at short runs: ~40 s
+def test_drake_s_rows_in_the_bench_hold_limit_and_slide(capsys):
+    """With Drake installed its row is in the hold, the limit and the slide like every peer's:
+    held, a cost per step over MuJoCo's, a break-away of twice its limit per contact at 3 N
+    (the peers' rule makes that softproxy's, within 10%), and a measured slide at the speed set
+    whose sliding torque is its break-away's (one coefficient: static = dynamic)."""
+    pytest.importorskip("pydrake")
+    result = peer.measure(2.0, grips=(0.5, 1.0, 3.0), names=["mujoco newcomer", "drake hydroelastic"])
+    drake = result["hold"]["drake hydroelastic"]
+    assert drake["height_end_m"] > 0.07 and drake["cost_vs_mujoco_default"] > 1.0
+    slide = result["static_dynamic"]["drake hydroelastic"]
+    per_contact = result["limit_per_contact_Nm"]["drake hydroelastic"][-1]
+    assert slide["breakaway_Nm"] == pytest.approx(2 * per_contact, rel=0.05)
+    assert slide["breakaway_Nm"] == pytest.approx(2 * peer.default_limit(peer.GRIP_N), rel=0.10)
+    assert slide["steady_slide"]["speed_rad_s"] == pytest.approx(peer.SLIDE_SPEED, rel=0.02)
+    assert slide["steady_sliding_over_breakaway"] == pytest.approx(1.0, abs=0.05)
+    peer.print_report(result)
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("drake hydroelastic")]
+    assert len(rows) == 2  # its row in the table, its row in the fidelity table
 
 
 def test_an_exponent_needs_its_whole_range():
