@@ -349,8 +349,8 @@ FINGERTIP_CONTACT = ((0.78, 87.36e-6), (1.03, 124.4e-6), (1.71, 132.8e-6))
 of *A preliminary approach to study the behavior of human fingertip at contact via
 experimental test and numerical model*: what Drake's soft sphere is fitted to."""
 DRAKE_RESOLUTION = 0.004     # m: the sphere's tessellation hint; 2 mm gives the same limits within 0.3% at 3x the cost
-DRAKE_FLOOR_MODULUS = 1e7    # Pa: the floor a compliant-hydroelastic half-space, stiff beside the finger
-DRAKE_FLOOR_SLAB = 0.01      # m: its slab's thickness (sets the pressure gradient with the modulus)
+DRAKE_FLOOR_MODULUS = 1e7    # Pa: the floor's hydroelastic modulus, stiff beside the finger
+DRAKE_FLOOR_SLAB = 0.02      # m: the floor a compliant box this thick (0.8 m square), its top at z = 0
 
 
 @dataclass(frozen=True)
@@ -434,13 +434,13 @@ class DrakeRig:
     x joint (with the peers' joint damping), y and z driven by Drake's own PD-controlled
     actuators (kp, kv as the peers'; SAP takes them implicitly) plus the finger's weight (as
     MuJoCo's gravcomp); the box a free body. With gravity the floor is a compliant-hydroelastic
-    half-space, so every contact is hydroelastic. The box's own damping (the scene's 0.001
+    slab, so every contact is hydroelastic. The box's own damping (the scene's 0.001
     N·m·s/rad, about every axis) is added to the applied torque."""
 
     def __init__(self, setup: DrakeSetup, grip: float, gravity: bool, mu: float):
         from pydrake.geometry import (AddCompliantHydroelasticProperties,
-                                      AddCompliantHydroelasticPropertiesForHalfSpace, AddContactMaterial,
-                                      AddRigidHydroelasticProperties, Box, HalfSpace, ProximityProperties, Sphere)
+                                      AddContactMaterial, AddRigidHydroelasticProperties, Box,
+                                      ProximityProperties, Sphere)
         from pydrake.math import RigidTransform
         from pydrake.multibody.plant import (AddMultibodyPlant, CoulombFriction, ExternallyAppliedSpatialForce,
                                              MultibodyPlantConfig)
@@ -466,9 +466,10 @@ class DrakeRig:
         plant.RegisterCollisionGeometry(box, RigidTransform(), Box(2 * bx, 2 * by, 2 * bz), "box", rigid)
         if gravity:  # without gravity the floor is out of play, as in the other rigs
             floor = ProximityProperties()
-            AddCompliantHydroelasticPropertiesForHalfSpace(DRAKE_FLOOR_SLAB, DRAKE_FLOOR_MODULUS, floor)
+            AddCompliantHydroelasticProperties(DRAKE_FLOOR_SLAB, DRAKE_FLOOR_MODULUS, floor)
             AddContactMaterial(dissipation=1.0, friction=CoulombFriction(1.0, 1.0), properties=floor)
-            plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "floor", floor)
+            plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform([0.0, 0.0, -DRAKE_FLOOR_SLAB / 2]),
+                                            Box(0.8, 0.8, DRAKE_FLOOR_SLAB), "floor", floor)
         soft = ProximityProperties()
         AddCompliantHydroelasticProperties(DRAKE_RESOLUTION, setup.modulus or drake_modulus(), soft)
         AddContactMaterial(dissipation=1.0, friction=friction, properties=soft)
