@@ -10,6 +10,7 @@ from softproxy import working_folder  # noqa: F401  (first: nothing from the wor
 from softproxy.device import Device, DeviceError, DeviceSample
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import MODELS, FingertipModel, model
+from softproxy.schema import Material
 from softproxy.run import build, open_device, run_scene
 from softproxy.scene import Scene, SceneError, load_scene
 from softproxy.servo import ServoLoop
@@ -19,7 +20,7 @@ from softproxy.world import World
 __version__ = "0.1.0"
 
 __all__ = [
-    "Device", "DeviceError", "DeviceSample", "FingerParams", "FingertipModel", "MODELS", "Scene",
+    "Device", "DeviceError", "DeviceSample", "FingerParams", "FingertipModel", "MODELS", "Material", "Scene",
     "SceneError", "ServoLoop", "SoftFingerProxy", "TorsionalFriction", "World", "build", "load_scene",
     "model", "open_device", "run_scene", "__version__",
 ]

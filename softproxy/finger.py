@@ -108,6 +108,7 @@ class SoftFingerProxy(RecordView):
         fm["max_force"], fm["max_torque"] = params.max_force, params.max_torque
         fm["origin"] = params.offset
         fm["scale"], fm["max_speed"], fm["soft_start"] = params.scale, params.max_speed, params.soft_start
+        fm["magnets"] = bool((self.god.shapes.S.magnet[:, 0] > 0.0).any()) if len(self.god.shapes) else False
         fd["placed"] = True
         fd["dt"] = 1e-3
         fd["ramp"] = 1.0

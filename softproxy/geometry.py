@@ -45,7 +45,7 @@ class Shape:
     flat = False
     convex = False
 
-    __slots__ = ("geom", "body", "name", "static", "rbound", "size", "data", "set", "row")
+    __slots__ = ("geom", "body", "name", "static", "rbound", "size", "data", "set", "row", "surface")
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, geom: int, static: bool) -> None:
         self.geom = geom
@@ -58,6 +58,7 @@ class Shape:
         self.data = data
         self.set: ShapeSet | None = None  # the first set made of it answers its queries
         self.row = -1
+        self.surface: dict | None = None  # its material's SHAPE fields (`softproxy.material.surface`)
 
     def prepare(self, radius: float) -> bool:
         """Get ready for a proxy of `radius` (m): build now whatever its queries would otherwise
@@ -205,6 +206,11 @@ class ShapeSet(list):
             r.rbound = s.rbound
             r.geom_size[:] = s.size
             r.hint = r.feature = -1
+            r.stiffness = r.damping = math.inf  # no material: the finger's own
+            r.friction[:] = math.nan
+            r.friction_scale = r.torsion = 1.0
+            for field, value in (s.surface or {}).items():
+                r[field] = value
         self.S = S
         self.T = self.C = None
         if any(s.gtype == GEOM_MESH for s in self):

@@ -29,6 +29,9 @@ A scene is `NAME.toml` beside its MJCF. Tables (every key optional unless marked
                          exclude_groups (geom groups 0-5) kept out of haptic contact, still in
                          MuJoCo's physics; mesh_surface ("true": a mesh's own triangles;
                          "hull": the convex hull MuJoCo collides it with)
+    [materials.NAME]   a material (`softproxy.Material`: stiffness, damping, mu_s, mu_d, torsion
+                         and the effects) for the geom, body or MJCF default class NAME
+                         (docs/materials.md)
 
 Scenes are found by name in the folders registered under the `softproxy.scene_dirs` entry
 point (the shipped `scenes/` folder), or given as a path. The tables, their fields, bounds
@@ -53,7 +56,8 @@ import mujoco
 from softproxy import schema
 from softproxy.geometry import exclusions, unsupported_geoms, unsupported_message
 from softproxy.mjcf_files import ModelFileError, check_model_files
-from softproxy.schema import FingerParams, InputError, SensingSpec, TactileSpec
+from softproxy.material import geom_classes, materials_by_geom
+from softproxy.schema import FingerParams, InputError, Material, SensingSpec, TactileSpec
 
 _CHANNELS = {"tactile": TactileSpec, "sensing": SensingSpec}
 
@@ -93,6 +97,8 @@ class Scene:
     mesh_surface: str = "true"            # "true" | "hull": what a mesh feels like
     keyframe: str | None = None           # the MJCF <key> the world starts from (None: qpos0)
     settle_s: float = 0.0                 # s the world runs alone before the device takes over
+    materials: dict = field(default_factory=dict)  # [materials.NAME]: softproxy.Material by geom, body or class name
+    material_classes: list | None = None  # each geom's MJCF default class, where a material names a class
 
     @property
     def device_fingers(self) -> int:
@@ -106,7 +112,8 @@ class Scene:
     def world_options(self) -> dict:
         """The keyword arguments of `World` this scene asks for (force shading, exclusions, mesh surface)."""
         return {"force_shading": self.force_shading, "exclude": self.exclude, "exclude_groups": self.exclude_groups,
-                "mesh_surface": self.mesh_surface}
+                "mesh_surface": self.mesh_surface, "materials": self.materials,
+                "material_classes": self.material_classes}
 
     def start_data(self, model: mujoco.MjModel) -> mujoco.MjData:
         """The state the run starts from: the scene's keyframe (else qpos0), then `settle_s` of
@@ -134,6 +141,19 @@ class Scene:
         self._check_model(model)
         return model
 
+    def _check_materials(self, model: mujoco.MjModel) -> None:
+        """Every [materials.NAME] names a geom, a body or an MJCF default class (whose geoms
+        are then looked up in the MJCF: `material_classes`)."""
+        if not self.materials:
+            return
+        unnamed = [k for k in self.materials if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, k) < 0
+                   and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, k) < 0]
+        try:
+            self.material_classes = geom_classes(self.mjcf, model) if unnamed else None
+            materials_by_geom(model, self.materials, self.material_classes, where=f"{self.path}: materials")
+        except ValueError as exc:
+            raise SceneError(f"{exc} ({self.mjcf.name})") from None
+
     def _check_model(self, model: mujoco.MjModel) -> None:
         if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
             # mj_step1/mj_step2 (the two halves the fingers act between) are not valid for RK4
@@ -144,6 +164,7 @@ class Scene:
             excluded, _ = exclusions(model, self.exclude, self.exclude_groups)
         except ValueError as exc:
             raise SceneError(f"{self.path}: [haptics] {exc} ({self.mjcf.name})") from None
+        self._check_materials(model)
         unsupported = unsupported_geoms(model, excluded)
         if unsupported:
             raise SceneError(f"{self.mjcf}: {unsupported_message(model, unsupported, scene=True)} ({self.path.name})")
@@ -254,6 +275,8 @@ def _scene(path: Path, doc: dict) -> Scene:
             said = "[[device]] tables" if isinstance(tables, list) else "device (its [device] table)"
             raise SceneError(f"{where}: finger[{i}].device is {params.device}, but the scene has {len(scene.devices)} "
                              f"{said}: give one [[device]] table per device, or device = 0..{len(scene.devices) - 1}")
+    scene.materials = {name: schema.build(Material, t.model_dump(), source=where, path=f"materials.{name}")
+                       for name, t in checked.materials.items()}
     h = checked.haptics
     scene.exclude, scene.exclude_groups, scene.mesh_surface = tuple(h.exclude), tuple(h.exclude_groups), h.mesh_surface
     if checked.measure is not None:

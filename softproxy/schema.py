@@ -457,6 +457,70 @@ class FingerParams:
 FingerParams.LIMITS = limits(FingerParams)
 
 # ---------------------------------------------------------------------------------------------
+# A material (softproxy.material): what a finger feels on the geoms it is given to
+
+
+@dataclasses.dataclass(frozen=True)
+class Material:
+    """What a finger feels on a surface beyond its own coupling (SI units; docs/materials.md).
+    Every field is optional: a field left out is the finger's own, or no effect. The spring
+    and damper render the softer of the surface's and the finger's; friction given here is the
+    pair's (the finger's is not combined with it); the effects are CHAI3D's `cMaterial`'s."""
+
+    stiffness: quantity("N/m", "the surface's stiffness: the softer of it and the finger's coupling renders",
+                        low=10.0, high=1e8, optional=True,
+                        hint_low="stiffness is in N/m: 2 N/mm is 2000 N/m") = None
+    damping: quantity("N·s/m", "the surface's damping: the lesser of it and the finger's renders",
+                      low=0.0, high=1e5, optional=True) = None
+    mu_s: quantity("", "static friction of the finger on this surface (the pair's)", low=0.0, high=10.0,
+                   optional=True) = None
+    mu_d: quantity("", "dynamic friction of the pair, <= mu_s (default 0.8 × mu_s)", low=0.0, high=10.0,
+                   optional=True) = None
+    torsion: quantity("", "factor on the torsional limit, over its scaling with the sliding friction",
+                      low=0.0, high=100.0) = 1.0
+    viscosity: quantity("N·s/m", "a damper on the finger's motion relative to the surface while in contact",
+                        low=0.0, high=1e3) = 0.0
+    vibration_hz: quantity("Hz", "frequency of a vibration along the contact normal", low=0.0, high=1e4) = 0.0
+    vibration_amplitude: quantity("N", "its amplitude (0: none; a contact never pulls, so at most the grip "
+                                  "of the negative half)", low=0.0, high=100.0) = 0.0
+    magnet_force: quantity("N", "a magnet's pull at the surface, in or out of contact (0: none)",
+                           low=0.0, high=100.0) = 0.0
+    magnet_reach: quantity("m", "how far from the surface the pull reaches, falling linearly to zero",
+                           low=0.0, high=0.1, hint_high="magnet_reach is in m: 1 cm is 0.01") = 0.0
+    stick_slip_force: quantity("N", "stick-slip: the anchor spring's break force (0: none)",
+                               low=0.0, high=100.0) = 0.0
+    stick_slip_stiffness: quantity("N/m", "stick-slip: the anchor spring's stiffness", low=0.0, high=1e6) = 0.0
+    texture_period: quantity("m", "a height grating's spatial period (0: none)", low=0.0, high=1.0,
+                             hint_high="texture_period is in m: 2 mm is 0.002") = 0.0
+    texture_height: quantity("m", "the grating's height amplitude", low=0.0, high=0.01,
+                             hint_high="texture_height is in m: 0.1 mm is 0.0001") = 0.0
+    texture_axis: vector3("the grating's axis in the geom's frame", direction=True) = (1.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        _check_dataclass(self)
+        if self.mu_d is not None:
+            if self.mu_s is None:
+                raise must_be("mu_d", "given with mu_s (the pair's static friction)", self.mu_d)
+            if self.mu_d > self.mu_s:
+                raise must_be("mu_d", f"<= mu_s ({self.mu_s!r})", self.mu_d)
+        if (self.magnet_force > 0.0) != (self.magnet_reach > 0.0):
+            raise must_be("magnet_reach" if self.magnet_force > 0.0 else "magnet_force",
+                          "given with the other: a magnet needs both its force and its reach",
+                          self.magnet_reach if self.magnet_force > 0.0 else self.magnet_force)
+        if (self.stick_slip_force > 0.0) != (self.stick_slip_stiffness > 0.0):
+            raise must_be("stick_slip_stiffness" if self.stick_slip_force > 0.0 else "stick_slip_force",
+                          "given with the other: stick-slip needs both its break force and its stiffness",
+                          self.stick_slip_stiffness if self.stick_slip_force > 0.0 else self.stick_slip_force)
+        if (self.texture_period > 0.0) != (self.texture_height > 0.0):
+            raise must_be("texture_height" if self.texture_period > 0.0 else "texture_period",
+                          "given with the other: a grating needs both its period and its height",
+                          self.texture_height if self.texture_period > 0.0 else self.texture_period)
+
+
+MaterialTable = create_model("MaterialTable", __base__=Table, __doc__="[materials.NAME]: Material's fields.",
+                             **fields_of(Material))
+
+# ---------------------------------------------------------------------------------------------
 # A finger's fingertip-sensor channels (softproxy.fingertip_sensors)
 
 CHANNEL_RATE_HZ = (0.01, 100_000.0)
@@ -648,6 +712,9 @@ class SceneFile(Table):
         default_factory=DeviceTableAny, description="[device]: the device; or [[device]], one table per device, "
         "each finger naming its own by `device` (an index)")
     haptics: HapticsTable = Field(default_factory=HapticsTable)
+    materials: Annotated[dict[Name, MaterialTable], Field(description="[materials.NAME]: a material for the geom, "
+                                                          "body or MJCF default class NAME (a geom's own name first, "
+                                                          "then its body's, then its class's)")] = {}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -14,6 +14,7 @@ import functools
 import mujoco
 import numpy as np
 
+from softproxy import material
 from softproxy.compiled import finger as kernel
 from softproxy.compiled.dispatch import entry
 from softproxy.geometry import ShapeSet, shapes_of
@@ -23,12 +24,16 @@ class World:
     """A MuJoCo model and data plus the shapes the fingers touch. SI units, world frame."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData | None = None, mesh_shape=None,
-                 force_shading: bool = False, *, exclude=(), exclude_groups=(), mesh_surface: str = "true") -> None:
+                 force_shading: bool = False, *, exclude=(), exclude_groups=(), mesh_surface: str = "true",
+                 materials: dict | None = None, material_classes: list[str] | None = None) -> None:
         """`force_shading`: mesh contacts report the normal interpolated from the vertex normals
         (smooth feel of a faceted surface); the proxy still stops on the true triangles.
         `exclude` (geom or flex names), `exclude_groups` (geom groups 0-5): kept out of haptic
         contact, still in MuJoCo's physics. `mesh_surface`: "true" (a mesh's own triangles) or
-        "hull" (the convex hull MuJoCo collides with). See `softproxy.geometry.shapes_of`."""
+        "hull" (the convex hull MuJoCo collides with). See `softproxy.geometry.shapes_of`.
+        `materials`: a `softproxy.Material` per geom name, body name or geom id (or, with
+        `material_classes`, the MJCF default class of each geom, an MJCF default class name);
+        every geom's MJCF friction is read too (`softproxy.material`)."""
         if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
             raise ValueError("the servo loop steps MuJoCo in two halves; RK4 cannot: use Euler or implicitfast")
         self.model = model
@@ -41,6 +46,7 @@ class World:
             mesh_shape = functools.partial(MeshShape, shading=True)
         self.shapes: ShapeSet = shapes_of(model, self.data, mesh_shape, exclude=exclude,
                                           exclude_groups=exclude_groups, mesh_surface=mesh_surface)
+        material.apply(self.shapes, model, material.materials_by_geom(model, materials or {}, material_classes))
         # this tick's wrench per body: force (N) and moment about the world origin (N·m), so a
         # push needs no body position; the bodies touched this tick and pushed last tick
         # (rows of `bodies`, lengths in `counts`), and those welded to the world (never pushed)

@@ -147,8 +147,8 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         same = prev and fd.push_body == fd.body
         r0 = CHANNELS * a
         for c in range(3):
-            chan[r0 + c, 0] = h * h * fm.stiffness + h * fm.damping
-            chan[r0 + c, 1] = h * fm.stiffness
+            chan[r0 + c, 0] = h * h * fd.contact_stiffness + h * fd.contact_damping
+            chan[r0 + c, 1] = h * fd.contact_stiffness
         chan[r0 + 3, 0] = h * h * fm.torsion_stiffness + h * fm.torsion_damping if spring_tau else 0.0
         chan[r0 + 3, 1] = h * fm.torsion_stiffness if spring_tau else 0.0
         # (sent_ still holds last tick's wrench here: this tick's clamp comes after)
@@ -219,7 +219,7 @@ def within_laws(fm, fd, fx, fy, fz, M):
     P = normal if normal > 0.0 else 0.0
     tx, ty, tz = fx - normal * nx, fy - normal * ny, fz - normal * nz
     t = math.sqrt(tx * tx + ty * ty + tz * tz)
-    cone = fm.mu_s * P
+    cone = fd.contact_friction[0] * P
     if t > cone:
         s = cone / t
         tx, ty, tz = tx * s, ty * s, tz * s

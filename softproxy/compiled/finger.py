@@ -28,7 +28,7 @@ import math
 
 from numba import njit
 
-from softproxy.compiled import coupling, godobject, passivity
+from softproxy.compiled import coupling, godobject, material, passivity
 from softproxy.compiled.finite import finite
 from softproxy.compiled.guard import P_MAX, guard_wrench
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_SPIN, RESTICK_TRAVEL, restick_travel
@@ -115,6 +115,7 @@ def torsion_step(fm, fd, alpha_s, P, dt):
             limit = 0.0
     else:
         limit = fm.torsion_mu_s * P ** fm.gamma
+    limit *= fd.contact_torsion  # the touched material's share (1: none)
     fd.alpha_g = alpha_s
     k_tau = fm.torsion_stiffness
     stretch = fd.alpha_p - alpha_s
@@ -289,12 +290,15 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
         fd.was_sticking = False
         if fm.has_torsion and fd.in_contact:
             torsion_release(fd)
+        material.leave(fd)
         fd.force[:] = 0.0
         fd.torque_n = fd.torque[:] = 0.0
         fd.body = -1
         fd.normal_force = 0.0
         return True
 
+    touched = int(fd.touched)
+    material.touch(S, fm, fd, touched)
     if fd.was_sticking and not fd.sticking:
         fd.slide_events += 1
     fd.was_sticking = fd.sticking
@@ -314,11 +318,15 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     elif not fd.sticking:  # slipping: along the surface friction acts, not the damper
         wn = wx * nx + wy * ny + wz * nz
         wx, wy, wz = wn * nx, wn * ny, wn * nz
-    k = fm.stiffness
-    c = fm.damping / dt  # (an unvalidated b of 1e308 makes c Inf and the force NaN: a counted fault)
+    k = fd.contact_stiffness
+    c = fd.contact_damping / dt  # (an unvalidated b of 1e308 makes c Inf and the force NaN: a counted fault)
     fx = k * sx + c * wx
     fy = k * sy + c * wy
     fz = k * sz + c * wz
+    if S[touched].material:  # the surface's effects, scaled by the coupling's normal force
+        P = fx * nx + fy * ny + fz * nz
+        ex, ey, ez = material.surface_force(sh, fm, fd, touched, P if P > 0.0 else 0.0, dt)
+        fx, fy, fz = fx + ex, fy + ey, fz + ez
     ramp = fd.ramp
     if ramp < 1.0:  # soft start: no kick when a finger starts inside an object
         v = ramp + dt / fm.soft_start
@@ -337,7 +345,7 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     fd.normal_force = P
     r = fm.radius
     fd.contact_pos[:] = fd.pos[0] - r * nx, fd.pos[1] - r * ny, fd.pos[2] - r * nz
-    fd.body = S[int(fd.touched)].body
+    fd.body = S[touched].body
     fmag = math.sqrt(fx * fx + fy * fy + fz * fz)
     if fmag > fd.max_force_seen:
         fd.max_force_seen = fmag
@@ -515,6 +523,8 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
         fm, fd = FM[i], FD[i]
         if control and not safe:
             passivity.control(fm, fd, dt)
+        if fm.magnets and fd.valid and not safe:
+            material.magnet(sh, fm, fd)
         if not _clamp_for_device(fm, fd, safe, fmax, tmax):
             unsafe += 1
             clear_output(fd)

@@ -52,6 +52,7 @@ import numpy as np
 from numba import njit
 
 from softproxy.compiled.finite import finite
+from softproxy.compiled.material import plane_friction, shape_friction
 from softproxy.compiled.layout import GEOM_MESH, PLANE_NORMAL, PLANE_OFFSET, PLANE_ROW, PLANE_SHAPE, PLANE_WIDTH
 from softproxy.compiled.shapes import (shape_distance, shape_feature, shape_feature_distance, shape_on_face, shape_sweep,
                                        shape_to_local, shape_to_world, shape_walk_distance)
@@ -704,7 +705,7 @@ def _still_stuck(sh, fm, fd, near, xd, yd, zd, pl):
     if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
         return False
     sx, sy, sz = x - fx, y - fy, z - fz
-    if sx * sx + sy * sy + sz * sz > (fm.mu_s * depth) ** 2:
+    if sx * sx + sy * sy + sz * sz > (shape_friction(S, fm, shape)[0] * depth) ** 2:
         return False
     for j in range(int(fd.nnear)):  # an obstacle on the face between the proxy and f changes f
         s = near[j]
@@ -1086,10 +1087,10 @@ def _move(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
 
 
 @njit(cache=True, error_model="numpy")
-def _slips(fm, fd, sx, sy, sz, slide, depth):
+def _slips(fm, fd, sx, sy, sz, slide, depth, mu_s, mu_d):
     """The friction cone's state this tick, from the offset s = h - f (m) of the proxy's first
     surface point h from the frictionless proxy f, |s| = slide, and the depth (m): True for
-    slipping (dynamic cone), False for stuck (static cone).
+    slipping (dynamic cone), False for stuck (static cone); mu_s, mu_d: the cone's coefficients.
 
     A proxy that slipped last tick keeps slipping while it has slid RESTICK_TRAVEL of its
     offset within `slide_restick` s (the motion has not stopped) and s along the way it last
@@ -1099,9 +1100,9 @@ def _slips(fm, fd, sx, sy, sz, slide, depth):
     0 that is the only test, every tick."""
     if fd.contact and not fd.sticking and fd.slide_idle < fm.slide_restick:
         along = sx * fd.slide_dir[0] + sy * fd.slide_dir[1] + sz * fd.slide_dir[2]
-        if along >= RESTICK_FRACTION * fm.mu_d * depth:
+        if along >= RESTICK_FRACTION * mu_d * depth:
             return True
-    return slide > fm.mu_s * depth
+    return slide > mu_s * depth
 
 
 @njit(cache=True, error_model="numpy")
@@ -1169,9 +1170,10 @@ def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
     # friction cone, tested from the first surface point the proxy reached this tick
     sx, sy, sz = hx - fx, hy - fy, hz - fz
     slide = math.sqrt(sx * sx + sy * sy + sz * sz)
-    slipping = _slips(fm, fd, sx, sy, sz, slide, depth)
+    mu_s, mu_d = plane_friction(S, fm, pl, n)  # the touched shapes' materials
+    slipping = _slips(fm, fd, sx, sy, sz, slide, depth, mu_s, mu_d)
     # held at h: stuck, or slipping with the device inside the dynamic cone (not pulling on)
-    held = not slipping or slide <= fm.mu_d * depth
+    held = not slipping or slide <= mu_d * depth
     _store_planes(fd, pl, n)
     if held:
         fx, fy, fz = hx, hy, hz
@@ -1182,16 +1184,16 @@ def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
         fd.slide_dir[:] = sx / slide, sy / slide, sz / slide
         if fd.sticking or not fd.contact:  # a new slip
             fd.slide_idle = fd.slide_travel = 0.0
-        fd.slide_travel += slide - fm.mu_d * depth
+        fd.slide_travel += slide - mu_d * depth
     if slipping:  # the stop watch: time since the proxy last slid RESTICK_TRAVEL of its offset
-        if fd.slide_travel >= restick_travel(RESTICK_TRAVEL * fm.mu_d * depth, RESTICK_SPEED, fm.slide_restick):
+        if fd.slide_travel >= restick_travel(RESTICK_TRAVEL * mu_d * depth, RESTICK_SPEED, fm.slide_restick):
             fd.slide_idle = fd.slide_travel = 0.0
         else:
             fd.slide_idle += dt
-    if not held and fm.mu_d > 0.0:
+    if not held and mu_d > 0.0:
         # back to the dynamic cone's edge: a point on the way from h to the frictionless proxy
         # (back < 1 since slide > μ_d·depth)
-        back = fm.mu_d * depth / slide
+        back = mu_d * depth / slide
         tx, ty, tz = fx + back * sx, fy + back * sy, fz + back * sz
         if straight:  # h to f was one swept, clear segment: t lies on it, nothing to sweep
             fx, fy, fz = tx, ty, tz
@@ -1208,7 +1210,7 @@ def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
     fd.sticking = not slipping
     # the finger's planes rest on their shapes at the proxy (checked by the solve or by
     # _keep_resting), except those of the frictionless proxy kept for a point on the chord
-    rested = 0 if (not held and fm.mu_d > 0.0 and straight) else int(fd.nplanes)
+    rested = 0 if (not held and mu_d > 0.0 and straight) else int(fd.nplanes)
     best = _touched_at(sh, fm, fd, near, fx, fy, fz, nx, ny, nz, rested)
     if best < 0:  # floating on the chord across an edge: down onto the surface it pushes
         fx, fy, fz = _land(sh, fm, fd, near, fx, fy, fz, xd, yd, zd, saved)

@@ -122,6 +122,19 @@ SHAPE = np.dtype([
     ("patch", np.int64),      # where its patches begin in C: one per hint slot, PATCH_WIDTH floats each (-1: none)
     ("kept", np.float64),     # the reach (m) its kept certificates were built over (`MeshShape.prepare`)
     ("ball", np.float64),     # the radius (m) of its ball certificates' resting ball (0: none)
+    # its material (`softproxy.material`; `softproxy.compiled.material` renders it): what a
+    # finger feels on it beyond the finger's own coupling and friction
+    ("material", np.bool_),   # anything below differs from the finger's own (False: none read)
+    ("stiffness", np.float64),  # the surface's spring (N/m; inf: the finger's); the softer one renders
+    ("damping", np.float64),  # the surface's damper (N·s/m; inf: the finger's); the lesser one renders
+    ("friction", np.float64, 2),  # the pair's static and dynamic coefficients (NaN: the finger's × friction_scale)
+    ("friction_scale", np.float64),  # the geom's MJCF friction: the finger's coefficients times it
+    ("torsion", np.float64),  # the torsional limit's factor over the finger's law scaled with friction (1)
+    ("viscosity", np.float64),  # a damper on the finger's motion relative to the surface, in contact (N·s/m)
+    ("vibration", np.float64, 2),  # frequency (Hz) and amplitude (N) along the normal, in contact
+    ("magnet", np.float64, 2),  # the pull at the surface (N) and the distance it reaches (m)
+    ("stick_slip", np.float64, 2),  # the anchor spring's break force (N) and stiffness (N/m), in contact
+    ("texture", np.float64, 5),  # a height grating in the geom frame: unit axis (3), period (m), height (m)
 ], align=True)
 """A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
 
@@ -222,6 +235,7 @@ FINGER_MODEL = np.dtype([
     ("scale", np.float64),
     ("max_speed", np.float64),              # the spike filter's speed (m/s)
     ("soft_start", np.float64),             # s for the clamps to ramp up after placement
+    ("magnets", np.bool_),                  # a shape of its world pulls it (a material's magnet)
     # torsion (`softproxy.torsion.TorsionalFriction`): the fingertip law, eqs 26-27 and 38-40
     ("has_torsion", np.bool_),              # a soft finger; False: a point contact
     ("torsion_stiffness", np.float64),      # k_τ (N·m/rad)
@@ -298,6 +312,15 @@ FINGER_DATA = np.dtype([
     ("in_pos", np.float64, 3), ("in_twist", np.float64),  # device frame (m, rad)
     ("in_quat", np.float64, 4),             # w, x, y, z
     ("in_valid", np.bool_),
+    # the touched shape's material as this contact renders it (`softproxy.compiled.material`)
+    ("contact_stiffness", np.float64),      # k (N/m): the finger's, or the surface's where softer
+    ("contact_damping", np.float64),        # b (N·s/m)
+    ("contact_friction", np.float64, 2),    # μ_s, μ_d of the friction cone
+    ("contact_torsion", np.float64),        # the torsional limit's factor over the finger's law
+    ("vibration_phase", np.float64),        # rad, while in contact with a vibrating surface
+    ("anchor", np.float64, 3),              # the stick-slip anchor (m, the touched geom's frame)
+    ("anchored", np.bool_),
+    ("effect_force", np.float64, 3),        # the field effects' force this tick (magnet, vibration; N)
 ], align=True)
 """A finger's data: its god-object, coupling, torsion, counters and this tick's sample, which
 every tick reads and writes. `fd` in the kernels."""

@@ -52,7 +52,7 @@ def observe(fm, fd):
     fd.energy_in += dE
     stored = 0.0
     if fd.contact and fd.valid:
-        stored = 0.5 * fm.stiffness * dist2(fd.pos, fd.device_pos)
+        stored = 0.5 * fd.contact_stiffness * dist2(fd.pos, fd.device_pos)
         if fm.has_torsion and fd.in_contact and fm.torsion_stiffness > 0.0:
             stored += 0.5 * fd.spring_torque * fd.spring_torque / fm.torsion_stiffness
     E = fd.energy + dE
@@ -93,7 +93,7 @@ def control(fm, fd, dt):
     if fd.energy >= -TOLERANCE_J or not fd.valid or not fd.contact or fd.ramp < 1.0:
         return 0.0
     (wx, wy, wz), turn = fd.rel_move, fd.rel_turn
-    cap = fm.stiffness * dt + fm.damping  # N·s/m
+    cap = fd.contact_stiffness * dt + fd.contact_damping  # N·s/m
     cap_tau = fm.torsion_stiffness * dt + fm.torsion_damping if fm.has_torsion and fd.in_contact else 0.0
     ratio = cap_tau / cap if cap > 0.0 else 0.0  # the torsion's share, as the two caps stand
     w2 = wx * wx + wy * wy + wz * wz

@@ -1,0 +1,183 @@
+"""What a finger feels of the shape it touches (numba): the shape's material and its effects.
+
+A shape's material (fields of its SHAPE record, `softproxy.material` fills them) changes the
+contact a finger renders on it; a shape without one (`material` False) renders the finger's
+own coupling and friction, read as before. Rules (docs/materials.md):
+
+- the spring and damper are the finger's, or the surface's where that is softer (lesser):
+  a device renders at most what its finger was tuned to render stably, as CHAI3D clips a
+  material's stiffness at the device's;
+- the friction cone is the pair's static and dynamic coefficients where the material gives
+  them, otherwise the finger's times the geom's MJCF friction (1 for MuJoCo's default geom);
+- the torsional limit is the finger's law scaled as the sliding coefficient was (torsional
+  friction is that same coefficient integrated over the contact patch), times `torsion`;
+- effects (CHAI3D's `cMaterial`): viscosity, a damper on the finger's motion relative to the
+  surface; vibration along the normal; a height grating (texture) rendered as the lateral
+  force P·∇h of the slope under the finger (Minsky's lateral-force gradient); stick-slip,
+  a tangential spring to an anchor that jumps to the finger when the spring passes its break
+  force; and a magnet that pulls the finger onto the surface within its reach, in or out of
+  contact. Each is read only where a shape has it.
+Units: m, N, N·m, s, rad.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from softproxy.compiled.layout import PLANE_SHAPE
+from softproxy.compiled.shapes import shape_distance, shape_to_local, shape_to_world
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def shape_friction(S, fm, shape):
+    """The static and dynamic coefficients of a finger's cone on `shape` (a row of S)."""
+    r = S[shape]
+    if not r.material:
+        return fm.mu_s, fm.mu_d
+    mu_s, mu_d = r.friction[0], r.friction[1]
+    if mu_s == mu_s:  # the pair's, as the material gives them (or a geom of higher priority)
+        if mu_d != mu_d:  # a geom's own: dynamic at the finger's ratio of it
+            mu_d = mu_s * (fm.mu_d / fm.mu_s) if fm.mu_s > 0.0 else mu_s
+        return mu_s, mu_d
+    g = r.friction_scale
+    return fm.mu_s * g, fm.mu_d * g
+
+
+@njit(cache=True, error_model="numpy")
+def plane_friction(S, fm, pl, n):
+    """The cone of a proxy resting on planes pl[:n] (their shapes' coefficients): the least
+    static one and its dynamic one, so a corner of glass and rubber slides along the glass;
+    the finger's own with no plane."""
+    mu_s, mu_d = fm.mu_s, fm.mu_d
+    first = True
+    for i in range(n):
+        ms, md = shape_friction(S, fm, int(pl[i, PLANE_SHAPE]))
+        if first or ms < mu_s:
+            mu_s, mu_d, first = ms, md, False
+    return mu_s, mu_d
+
+
+@njit(cache=True, error_model="numpy")
+def touch(S, fm, fd, shape):
+    """The contact's spring, damper, cone and torsion factor from the touched shape's material
+    into the finger's contact_ fields (the finger's own where it has none)."""
+    r = S[shape]
+    if not r.material:
+        fd.contact_stiffness = fm.stiffness
+        fd.contact_damping = fm.damping
+        fd.contact_friction[0] = fm.mu_s
+        fd.contact_friction[1] = fm.mu_d
+        fd.contact_torsion = 1.0
+        return
+    k, b = r.stiffness, r.damping
+    fd.contact_stiffness = k if k < fm.stiffness else fm.stiffness
+    fd.contact_damping = b if b < fm.damping else fm.damping
+    mu_s, mu_d = shape_friction(S, fm, shape)
+    fd.contact_friction[0] = mu_s
+    fd.contact_friction[1] = mu_d
+    fd.contact_torsion = r.torsion * (mu_s / fm.mu_s if fm.mu_s > 0.0 else 1.0)
+
+
+@njit(cache=True, error_model="numpy")
+def surface_force(sh, fm, fd, shape, P, dt):
+    """What the touched shape's effects add to the finger's force this tick (N, world), in
+    contact: viscosity on the motion relative to the surface (`rel_move` over dt), the
+    vibration along n, the texture's lateral force and the stick-slip spring. P, the normal
+    force (N) the slope scales with, is the coupling's."""
+    S = sh.S
+    r = S[shape]
+    fx = fy = fz = 0.0
+    nx, ny, nz = fd.normal
+    eta = r.viscosity
+    if eta > 0.0:  # η(v_surface - v_device): rel_move is the surface's move less the device's
+        c = eta / dt
+        fx, fy, fz = c * fd.rel_move[0], c * fd.rel_move[1], c * fd.rel_move[2]
+    freq, amp = r.vibration[0], r.vibration[1]
+    if amp > 0.0:
+        v = amp * math.sin(fd.vibration_phase)
+        fx, fy, fz = fx + v * nx, fy + v * ny, fz + v * nz
+        phase = fd.vibration_phase + 2.0 * math.pi * freq * dt
+        fd.vibration_phase = phase - 2.0 * math.pi * math.floor(phase / (2.0 * math.pi))
+    period, height = r.texture[3], r.texture[4]
+    if height > 0.0 and period > 0.0:
+        # the slope of h(u) = height sin(2π u / period), u along the axis (geom frame), under
+        # the proxy; the lateral force -P dh/du along the axis's tangential part pushes back
+        # up every rise and forward down every fall
+        lx, ly, lz = shape_to_local(S, sh.xpos, sh.xmat, shape, fd.pos[0], fd.pos[1], fd.pos[2])
+        ax, ay, az = r.texture[0], r.texture[1], r.texture[2]
+        w = 2.0 * math.pi / period
+        slope = height * w * math.cos(w * (ax * lx + ay * ly + az * lz))
+        g = int(r.geom)
+        m = sh.xmat[g]
+        wx = m[0] * ax + m[1] * ay + m[2] * az
+        wy = m[3] * ax + m[4] * ay + m[5] * az
+        wz = m[6] * ax + m[7] * ay + m[8] * az
+        along = wx * nx + wy * ny + wz * nz
+        tx, ty, tz = wx - along * nx, wy - along * ny, wz - along * nz
+        q = -P * slope
+        fx, fy, fz = fx + q * tx, fy + q * ty, fz + q * tz
+    brk, k_ss = r.stick_slip[0], r.stick_slip[1]
+    if brk > 0.0 and k_ss > 0.0:
+        px, py, pz = fd.pos
+        if not fd.anchored:
+            fd.anchor[:] = shape_to_local(S, sh.xpos, sh.xmat, shape, px, py, pz)
+            fd.anchored = True
+        (ax, ay, az) = fd.anchor
+        ox, oy, oz = shape_to_world(S, sh.xpos, sh.xmat, shape, ax, ay, az)
+        ex, ey, ez = ox - px, oy - py, oz - pz
+        en = ex * nx + ey * ny + ez * nz  # along the surface only
+        ex, ey, ez = ex - en * nx, ey - en * ny, ez - en * nz
+        sx, sy, sz = k_ss * ex, k_ss * ey, k_ss * ez
+        if sx * sx + sy * sy + sz * sz > brk * brk:  # slips: the anchor jumps to the finger
+            fd.anchor[:] = shape_to_local(S, sh.xpos, sh.xmat, shape, px, py, pz)
+        else:
+            fx, fy, fz = fx + sx, fy + sy, fz + sz
+    return fx, fy, fz
+
+
+@njit(cache=True, error_model="numpy")
+def leave(fd):
+    """Contact broken: the effects' state cleared."""
+    fd.vibration_phase = 0.0
+    fd.anchored = False
+
+
+@njit(cache=True, error_model="numpy")
+def magnet(sh, fm, fd):
+    """The magnets' pull on the finger this tick into effect_force (N, world), added to its
+    force: each magnetic shape within reach of the proxy pulls it toward its nearest point
+    with F (1 - gap / reach), F at the surface (gap, the proxy's distance from the surface,
+    0 in contact). The pull grows toward the surface, so a hand moved in and out under the
+    zero-order hold takes in more than it gets: the field is passive as sampled. The touched
+    (or nearest pulling) body gets the reaction. False when nothing pulls."""
+    S = sh.S
+    fx = fy = fz = 0.0
+    pulled = False
+    x, y, z = fd.pos
+    best = math.inf
+    for s in range(S.shape[0]):
+        pull, reach = S[s].magnet[0], S[s].magnet[1]
+        if not (pull > 0.0 and reach > 0.0):
+            continue
+        d, nx, ny, nz = shape_distance(sh, s, x, y, z)
+        gap = d - fm.radius
+        if gap < 0.0:
+            gap = 0.0
+        if gap >= reach:
+            continue
+        f = pull * (1.0 - gap / reach)
+        fx, fy, fz = fx - f * nx, fy - f * ny, fz - f * nz
+        pulled = True
+        if fd.body < 0 and gap < best:  # out of contact: the nearest pulling body takes the reaction
+            best = gap
+            fd.body = S[s].body
+            r = d if d > 0.0 else 0.0
+            fd.contact_pos[:] = x - r * nx, y - r * ny, z - r * nz
+    fd.effect_force[:] = fx, fy, fz
+    if pulled:
+        fd.force[0] += fx
+        fd.force[1] += fy
+        fd.force[2] += fz
+    return pulled
