@@ -367,9 +367,12 @@ class DrakeSetup:
 
     def options(self) -> str:
         e = drake_modulus() if self.modulus is None else self.modulus
-        return (f"MultibodyPlant time_step {self.time_step:g}, contact_model hydroelastic, discrete_contact_approximation "
-                f"{self.solver}; finger: compliant hydroelastic sphere, modulus {e / 1e6:.4f} MPa (fitted to a "
-                f"fingertip's contact radii), resolution_hint {DRAKE_RESOLUTION * 1e3:g} mm; box: rigid hydroelastic")
+        stiction = "" if self.stiction_tolerance is None else f", stiction_tolerance {self.stiction_tolerance:g}"
+        return (f"MultibodyPlant time_step {self.time_step:g}, contact_model hydroelastic, "
+                f"discrete_contact_approximation {self.solver}{stiction}; finger: compliant hydroelastic sphere, "
+                f"modulus {e / 1e6:.4f} MPa (fitted to a fingertip's contact radii), resolution_hint "
+                f"{DRAKE_RESOLUTION * 1e3:g} mm, y and z on PD-controlled actuators; box: rigid hydroelastic; "
+                f"floor: compliant hydroelastic slab, {DRAKE_FLOOR_MODULUS:g} Pa")
 
 
 SETUPS["drake hydroelastic"] = DrakeSetup()
@@ -1013,10 +1016,11 @@ def print_report(result: dict) -> None:
               f"{_fmt(cost, '.2f', 7)}  {device}")
     d = result.get("drake_settings")
     if d:
-        print(f"  ({d['name']}: discrete_contact_approximation {d['solver']}, {d['time_step_s'] * 1e3:g} ms steps, one AdvanceTo a step; "
-              f"each finger a soft sphere, E = {d['modulus_Pa'] / 1e6:.4f} MPa fitted to a fingertip's contact radii, "
-              f"carrying at most πER²/3 = {d['capacity_N']:.2f} N (no limit at the grips past it); friction "
-              f"μ = {d['mu']:.2f}, static = dynamic, at which its limit at {result['grip_N']:g} N is softproxy's)")
+        print(f"  ({d['name']}: discrete_contact_approximation {d['solver']}, {d['time_step_s'] * 1e3:g} ms steps, "
+              f"one AdvanceTo a step; each finger a soft sphere, E = {d['modulus_Pa'] / 1e6:.4f} MPa fitted to a "
+              f"fingertip's contact radii, carrying at most πER²/3 = {d['capacity_N']:.2f} N (no limit at the grips "
+              f"past it); friction μ = {d['mu']:.2f}, one coefficient, at which its limit at {result['grip_N']:g} N "
+              "is softproxy's)")
     print(f"  (held: the box's centre still above {HELD_HEIGHT * 100:g} cm at the end; re-stick: applied torque at which "
           "a slipping contact sticks again / break-away; cost: step p50 / MuJoCo default step p50, this run)")
     if st:
