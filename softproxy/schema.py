@@ -483,7 +483,8 @@ class Material:
     vibration_hz: quantity("Hz", "frequency of a vibration along the contact normal", low=0.0, high=1e4) = 0.0
     vibration_amplitude: quantity("N", "its amplitude (0: none; a contact never pulls, so at most the grip "
                                   "of the negative half)", low=0.0, high=100.0) = 0.0
-    magnet_force: quantity("N", "a magnet's pull at the surface, in or out of contact (0: none)",
+    magnet_force: quantity("N", "a magnet's pull on a finger about to touch (out of contact; touching, the surface "
+                           "bears it) (0: none)",
                            low=0.0, high=100.0) = 0.0
     magnet_reach: quantity("m", "how far from the surface the pull reaches, falling linearly to zero",
                            low=0.0, high=0.1, hint_high="magnet_reach is in m: 1 cm is 0.01") = 0.0

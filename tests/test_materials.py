@@ -290,3 +290,29 @@ def test_scene_materials_by_class_body_and_geom(tmp_path):
     (tmp_path / "bad.toml").write_text(SCENE.replace("[materials.tile]", "[materials.tiles]"))
     with pytest.raises(SceneError, match=r"bad.toml: materials.tiles names no geom, body or default class"):
         load_scene(tmp_path / "bad.toml").load_model()
+
+
+def test_materials_tour_pads_feel_as_their_materials_say():
+    """The shipped `materials_tour`, lockstep: the finger strokes each pad 1.5 mm deep. On the
+    foam (250 N/m under the finger's 1000) the normal force is a quarter of the plain pad's;
+    on the glass (MJCF friction 0.2) the sliding force a fifth; the honey (15 N·s/m) adds about
+    η v to it (v the device's mean speed); and the passivity observer owes no more than the vibration's few µJ."""
+    from softproxy.run import build, open_device
+
+    scene = load_scene("materials_tour")
+    loop = build(scene, open_device("sim", scene), realtime=False)
+    finger = loop.fingers[0]
+    forces = []
+    with loop:
+        for _ in range(int(scene.duration_s * scene.rate_hz)):
+            loop.tick()
+            forces.append((finger.fy, finger.fz, finger.yd))
+    pads = {name: np.array(forces[k * 1000 + 300:k * 1000 + 700]) for k, name in
+            enumerate(["plain", "foam", "glass", "rubber", "honey", "ridges", "buzz", "magnet", "sticky"])}
+    plain = pads["plain"].mean(axis=0)
+    assert pads["foam"][:, 1].mean() == pytest.approx(0.25 * plain[1], rel=1e-6)
+    assert pads["glass"][:, 0].mean() == pytest.approx(0.2 * plain[0], rel=0.02)
+    honey = pads["honey"]
+    speed = (honey[-1, 2] - honey[0, 2]) / ((len(honey) - 1) * DT)  # the device's mean speed along y (m/s)
+    assert honey[:, 0].mean() == pytest.approx(plain[0] - 15.0 * speed, rel=0.05)
+    assert finger.energy_min > -1e-4

@@ -320,7 +320,8 @@ FINGER_DATA = np.dtype([
     ("vibration_phase", np.float64),        # rad, while in contact with a vibrating surface
     ("anchor", np.float64, 3),              # the stick-slip anchor (m, the touched geom's frame)
     ("anchored", np.bool_),
-    ("effect_force", np.float64, 3),        # the field effects' force this tick (magnet, vibration; N)
+    ("effect_force", np.float64, 3),        # the magnets' pull this tick (N, world)
+    ("field_energy", np.float64),           # what the magnets' fields gave the hand to get here, and take back leaving (J)
 ], align=True)
 """A finger's data: its god-object, coupling, torsion, counters and this tick's sample, which
 every tick reads and writes. `fd` in the kernels."""

@@ -15,8 +15,8 @@ own coupling and friction, read as before. Rules (docs/materials.md):
   surface; vibration along the normal; a height grating (texture) rendered as the lateral
   force P·∇h of the slope under the finger (Minsky's lateral-force gradient); stick-slip,
   a tangential spring to an anchor that jumps to the finger when the spring passes its break
-  force; and a magnet that pulls the finger onto the surface within its reach, in or out of
-  contact. Each is read only where a shape has it.
+  force; and a magnet that pulls the finger toward the surface within its reach (out of
+  contact: touching, the surface bears the pull).
 Units: m, N, N·m, s, rad.
 """
 
@@ -147,13 +147,17 @@ def leave(fd):
 @njit(cache=True, error_model="numpy")
 def magnet(sh, fm, fd):
     """The magnets' pull on the finger this tick into effect_force (N, world), added to its
-    force: each magnetic shape within reach of the proxy pulls it toward its nearest point
-    with F (1 - gap / reach), F at the surface (gap, the proxy's distance from the surface,
-    0 in contact). The pull grows toward the surface, so a hand moved in and out under the
-    zero-order hold takes in more than it gets: the field is passive as sampled. The touched
-    (or nearest pulling) body gets the reaction. False when nothing pulls."""
+    force out of contact: each magnetic shape within reach of the proxy pulls it toward its
+    nearest point with F (1 - gap / reach), F at the surface (gap, the proxy's distance from
+    the surface). In contact the pull holds the proxy on the surface, which bears it, and the
+    hand feels the coupling alone (the field's store stays full until the finger leaves). The pull grows toward the surface, so a hand moved in and out under the
+    zero-order hold takes in more than it gets: the field is passive as sampled; what it has
+    given the hand on the way to here goes to `field_energy` (J), the passivity observer's
+    account of the field. The touched (or nearest pulling) body gets the reaction. False when
+    nothing pulls."""
     S = sh.S
     fx = fy = fz = 0.0
+    given = 0.0
     pulled = False
     x, y, z = fd.pos
     best = math.inf
@@ -168,13 +172,18 @@ def magnet(sh, fm, fd):
         if gap >= reach:
             continue
         f = pull * (1.0 - gap / reach)
+        given += 0.5 * f * (reach - gap)  # the work of the pull from its reach down to here
         fx, fy, fz = fx - f * nx, fy - f * ny, fz - f * nz
         pulled = True
-        if fd.body < 0 and gap < best:  # out of contact: the nearest pulling body takes the reaction
+        if fd.body < 0 and gap < best:  # the nearest pulling body takes the reaction
             best = gap
             fd.body = S[s].body
             r = d if d > 0.0 else 0.0
             fd.contact_pos[:] = x - r * nx, y - r * ny, z - r * nz
+    fd.field_energy = given
+    if fd.contact:  # the pull holds the proxy on the surface, which bears it: the hand feels the coupling
+        fx = fy = fz = 0.0
+        pulled = False
     fd.effect_force[:] = fx, fy, fz
     if pulled:
         fd.force[0] += fx

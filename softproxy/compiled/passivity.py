@@ -6,7 +6,10 @@ device moves by Δx_d while it renders F (held over the tick), and the touched b
 contact point moves by Δx_b while it gets -F. The energy flowing into the coupling over a tick
 is F·(Δx_b - Δx_d) + M·(Δθ_b - Δα_s) (the torque about n, the body's turn and the device's
 twist), exact for the force the device held over that tick. The observer E is its running
-sum: a passive coupling never gives back more than it took, E >= 0. Credit is kept only up
+sum: a passive coupling never gives back more than it took, E >= 0. A magnet's pull
+(`softproxy.compiled.material.magnet`) is a conservative field, a store of its own: what it
+gave the hand on the way in (`field_energy`) it takes back on the way out, so the debt is
+E + field_energy. Credit is kept only up
 to what the springs could give back now (E is capped at ½k|x_p - x_d|² + ½k_τ(α_p - α_s)²):
 what the damper and friction dissipated cannot excuse energy created later. Under a
 zero-order hold a sampled spring gives back ½k·Δs² more than a continuous one each tick it
@@ -65,8 +68,9 @@ def observe(fm, fd):
         # (its stretch was never put in by the hand): no debt is counted until it is done
         E = 0.0
     fd.energy = E
-    if E < fd.energy_min:
-        fd.energy_min = E
+    owed = E + fd.field_energy  # a magnet's field is a store: what it gave on the way in it takes back
+    if owed < fd.energy_min:
+        fd.energy_min = owed
 
 
 @njit(cache=True, error_model="numpy")
@@ -90,7 +94,8 @@ def control(fm, fd, dt):
     lowers it (the motion gives energy back: a release) at CUT times that, and never past zero;
     the rest is left for the ticks after.
     The wrench is kept within the finger's laws. Returns the energy it plans to dissipate (J)."""
-    if fd.energy >= -TOLERANCE_J or not fd.valid or not fd.contact or fd.ramp < 1.0:
+    owed = fd.energy + fd.field_energy
+    if owed >= -TOLERANCE_J or not fd.valid or not fd.contact or fd.ramp < 1.0:
         return 0.0
     (wx, wy, wz), turn = fd.rel_move, fd.rel_turn
     cap = fd.contact_stiffness * dt + fd.contact_damping  # N·s/m
@@ -100,7 +105,7 @@ def control(fm, fd, dt):
     room = w2 + ratio * turn * turn
     if not room > 0.0:
         return 0.0
-    c = -fd.energy / room  # N/m of relative motion: dissipates the deficit in one tick at this speed
+    c = -owed / room  # N/m of relative motion: dissipates the deficit in one tick at this speed
     c_tau = ratio * c
     # (the wrench times the motion < 0: it gives energy back over this motion)
     fx, fy, fz = fd.force
