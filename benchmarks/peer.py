@@ -460,7 +460,7 @@ class DrakeRig:
         plant, _ = AddMultibodyPlant(config, builder)
         if not gravity:
             plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, 0.0])
-        friction = CoulombFriction(mu, mu)  # one coefficient, static = dynamic, as the other peers
+        friction = CoulombFriction(mu, mu)  # one coefficient: SAP reads only the dynamic one anyway
         bx, by, bz = BOX_HALF
         self.body = box = plant.AddRigidBody("box", SpatialInertia.SolidBoxWithMass(BOX_MASS, 2 * bx, 2 * by, 2 * bz))
         rigid = ProximityProperties()
@@ -495,6 +495,8 @@ class DrakeRig:
         self.plant = plant
         self.simulator = Simulator(builder.Build())
         self.context = plant.GetMyMutableContextFromRoot(self.simulator.get_mutable_context())
+        # 0.1 mm up, dropped onto the floor: a face lying exactly on a hydroelastic surface can
+        # stop Drake's mesh intersection (a failed assertion, not an exception)
         plant.SetFreeBodyPose(self.context, box, RigidTransform([0.0, 0.0, BOX_HALF[2] + 1e-4]))
         self.force = ExternallyAppliedSpatialForce()
         self.force.body_index = box.index()
