@@ -495,9 +495,7 @@ class DrakeRig:
         self.plant = plant
         self.simulator = Simulator(builder.Build())
         self.context = plant.GetMyMutableContextFromRoot(self.simulator.get_mutable_context())
-        # 0.1 mm up, dropped onto the floor: a face lying exactly on a hydroelastic surface can
-        # stop Drake's mesh intersection (a failed assertion, not an exception)
-        plant.SetFreeBodyPose(self.context, box, RigidTransform([0.0, 0.0, BOX_HALF[2] + 1e-4]))
+        plant.SetFreeBodyPose(self.context, box, RigidTransform([0.0, 0.0, BOX_HALF[2]]))
         self.force = ExternallyAppliedSpatialForce()
         self.force.body_index = box.index()
         self._applied = plant.get_applied_spatial_force_input_port()
