@@ -31,6 +31,7 @@ class FingerRows:
         self.model = np.zeros(n, dtype=FINGER_MODEL).view(np.recarray)
         self.data = np.zeros(n, dtype=FINGER_DATA).view(np.recarray)
         self.data.contact_torsion = 1.0  # no material: the finger's own torsional law
+        self.data.popped = -1  # inside no shape it popped through
         self.near = np.zeros((n, max(len(shapes or ()), 1)), dtype=np.int64)
         self.scratch = scratch()
         self.tables = Fingers(self.model, self.data, self.near, self.scratch)

@@ -101,7 +101,8 @@ def surface(model: mujoco.MjModel, geom: int, material: Material | None) -> dict
         out["vibration"] = (m.vibration_hz, m.vibration_amplitude)
         out["magnet"] = (m.magnet_force, m.magnet_reach)
         out["stick_slip"] = (m.stick_slip_force, m.stick_slip_stiffness)
-        out["texture"] = (*m.texture_axis, m.texture_period, m.texture_height)
+        out["texture"] = (*m.texture_axis, m.texture_period, m.texture_height, m.texture_friction)
+        out["popthrough"] = m.popthrough_force
     if not out:
         return None
     out["material"] = True

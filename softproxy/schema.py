@@ -495,7 +495,11 @@ class Material:
                              hint_high="texture_period is in m: 2 mm is 0.002") = 0.0
     texture_height: quantity("m", "the grating's height amplitude", low=0.0, high=0.01,
                              hint_high="texture_height is in m: 0.1 mm is 0.0001") = 0.0
+    texture_friction: quantity("", "the grating's friction modulation: μ × (1 + m sin(2π u / period))",
+                               low=-1.0, high=1.0) = 0.0
     texture_axis: vector3("the grating's axis in the geom's frame", direction=True) = (1.0, 0.0, 0.0)
+    popthrough_force: quantity("N", "a finger pressing harder than this passes through the surface, which it "
+                               "feels again once out of it (0: never)", low=0.0, high=1e3) = 0.0
 
     def __post_init__(self) -> None:
         _check_dataclass(self)
@@ -512,10 +516,11 @@ class Material:
             raise must_be("stick_slip_stiffness" if self.stick_slip_force > 0.0 else "stick_slip_force",
                           "given with the other: stick-slip needs both its break force and its stiffness",
                           self.stick_slip_stiffness if self.stick_slip_force > 0.0 else self.stick_slip_force)
-        if (self.texture_period > 0.0) != (self.texture_height > 0.0):
+        relief = self.texture_height > 0.0 or self.texture_friction != 0.0
+        if (self.texture_period > 0.0) != relief:
             raise must_be("texture_height" if self.texture_period > 0.0 else "texture_period",
-                          "given with the other: a grating needs both its period and its height",
-                          self.texture_height if self.texture_period > 0.0 else self.texture_period)
+                          "given with the other: a grating needs its period and a height or a friction "
+                          "modulation", self.texture_height if self.texture_period > 0.0 else self.texture_period)
 
 
 MaterialTable = create_model("MaterialTable", __base__=Table, __doc__="[materials.NAME]: Material's fields.",

@@ -296,7 +296,7 @@ def test_materials_tour_pads_feel_as_their_materials_say():
     """The shipped `materials_tour`, lockstep: the finger strokes each pad 1.5 mm deep. On the
     foam (250 N/m under the finger's 1000) the normal force is a quarter of the plain pad's;
     on the glass (MJCF friction 0.2) the sliding force a fifth; the honey (15 N·s/m) adds about
-    η v to it (v the device's mean speed); and the passivity observer owes no more than the vibration's few µJ."""
+    η v to it (v the device's mean speed); the paper gives way at 1 N; and the passivity observer owes no more than the vibration's few µJ."""
     from softproxy.run import build, open_device
 
     scene = load_scene("materials_tour")
@@ -308,7 +308,7 @@ def test_materials_tour_pads_feel_as_their_materials_say():
             loop.tick()
             forces.append((finger.fy, finger.fz, finger.yd))
     pads = {name: np.array(forces[k * 1000 + 300:k * 1000 + 700]) for k, name in
-            enumerate(["plain", "foam", "glass", "rubber", "honey", "ridges", "buzz", "magnet", "sticky"])}
+            enumerate(["plain", "foam", "glass", "rubber", "honey", "ridges", "buzz", "magnet", "sticky", "paper"])}
     plain = pads["plain"].mean(axis=0)
     assert pads["foam"][:, 1].mean() == pytest.approx(0.25 * plain[1], rel=1e-6)
     assert pads["glass"][:, 0].mean() == pytest.approx(0.2 * plain[0], rel=0.02)
@@ -316,3 +316,39 @@ def test_materials_tour_pads_feel_as_their_materials_say():
     speed = (honey[-1, 2] - honey[0, 2]) / ((len(honey) - 1) * DT)  # the device's mean speed along y (m/s)
     assert honey[:, 0].mean() == pytest.approx(plain[0] - 15.0 * speed, rel=0.05)
     assert finger.energy_min > -1e-4
+    paper = np.array(forces[9000:9800])
+    assert paper[:, 1].max() <= 1.0 + 1e-9 and paper[-100:, 1].max() == 0.0  # gives way at 1 N
+
+
+def test_friction_grating_modulates_the_sliding_force():
+    """Sliding at a steady speed along a friction grating μ × (1 + m sin(2π x / λ)) (λ 4 mm,
+    m 0.5): the trailing lag, μ_d(x)·depth, follows the grating, its spectrum's peak at v/λ."""
+    period = 0.004
+    finger = pressed({"plain": Material(texture_period=period, texture_friction=0.5)})
+    lags = slide(finger, 0.0, ticks=2000)[400:]
+    freq, amp = spectrum(lags)
+    assert freq[amp.argmax()] == pytest.approx(SPEED / period, abs=1.0)
+    assert lags.max() > 1.3 * MU[1] * DEPTH and lags.min() < 0.7 * MU[1] * DEPTH
+
+
+def test_popthrough():
+    """Pressed ever deeper into a surface that gives way at 3 N: the force rises as k·d to 3 N,
+    then the finger is through (nothing rendered, the proxy inside the box, no penetration
+    counted); drawn back out above it, the surface is felt again and holds up to 3 N."""
+    world = World(mujoco.MjModel.from_xml_string(BOXES), materials={"plain": Material(popthrough_force=3.0)})
+    finger = SoftFingerProxy(FingerParams(radius=R, stiffness=K, damping=0.0, soft_start=0.0), world.shapes,
+                             model("point"))
+    finger.place(0.0, 0.0, LEVEL + 0.001)
+    forces = []
+    for i in range(40):  # 0.1 mm a tick: 3 N at 1.5 mm
+        finger.update(0.0, 0.0, LEVEL - 1e-4 * i, 0.0, DT)
+        forces.append(finger.fz)
+    through = next(i for i, f in enumerate(forces) if i > 5 and f == 0.0)
+    assert 3.0 - K * 1e-4 - 1e-9 <= max(forces) <= 3.0 + 1e-9  # within a tick's step under 3 N
+    assert all(f == 0.0 for f in forces[through:])
+    assert finger.god.z == pytest.approx(LEVEL - 3.9e-3)  # free with the device, 3.9 mm into the box's top
+    assert finger.audit() == 0.0
+    for i in range(40):  # back out above the top and down again
+        finger.update(0.0, 0.0, LEVEL - 4e-3 + 2e-4 * i, 0.0, DT)
+    finger.update(0.0, 0.0, LEVEL - 1e-3, 0.0, DT)
+    assert finger.fz == pytest.approx(K * 1e-3, rel=1e-6)

@@ -241,6 +241,19 @@ def hold(sh, fm, fd, near):
 
 
 @njit(cache=True, error_model="numpy")
+def _free(fm, fd):
+    """A tick out of contact: torsion and the surface's effects let go, nothing rendered."""
+    fd.was_sticking = False
+    if fm.has_torsion and fd.in_contact:
+        torsion_release(fd)
+    material.leave(fd)
+    fd.force[:] = 0.0
+    fd.torque_n = fd.torque[:] = 0.0
+    fd.body = -1
+    fd.normal_force = 0.0
+
+
+@njit(cache=True, error_model="numpy")
 def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     """One tick from a device sample (device frame, m and rad) over period dt (s): god-object,
     virtual coupling, torsion. False when the sample was not used (a spike held back, a
@@ -281,24 +294,18 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
         cx, cy, cz = shape_to_world(S, xpos, xmat, shape, fd.local[0], fd.local[1], fd.local[2])
         wx, wy, wz = wx + cx - fd.pos[0], wy + cy - fd.pos[1], wz + cz - fd.pos[2]
     fd.rel_move[:] = wx, wy, wz  # (the passivity observer's port motion)
+    material.pop_done(sh, fm, fd)
     if not godobject.update(sh, fm, fd, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
         clear_output(fd)
         return False
     fd.device_pos[:] = xd, yd, zd
     fd.valid = True
     if not fd.contact:
-        fd.was_sticking = False
-        if fm.has_torsion and fd.in_contact:
-            torsion_release(fd)
-        material.leave(fd)
-        fd.force[:] = 0.0
-        fd.torque_n = fd.torque[:] = 0.0
-        fd.body = -1
-        fd.normal_force = 0.0
+        _free(fm, fd)
         return True
 
     touched = int(fd.touched)
-    material.touch(S, fm, fd, touched)
+    material.touch(sh, fm, fd, touched)
     if fd.was_sticking and not fd.sticking:
         fd.slide_events += 1
     fd.was_sticking = fd.sticking
@@ -325,6 +332,9 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     fz = k * sz + c * wz
     if S[touched].material:  # the surface's effects, scaled by the coupling's normal force
         P = fx * nx + fy * ny + fz * nz
+        if material.pops(S, fd, touched, P):  # through it: nothing to render this tick
+            _free(fm, fd)
+            return True
         ex, ey, ez = material.surface_force(sh, fm, fd, touched, P if P > 0.0 else 0.0, dt)
         fx, fy, fz = fx + ex, fy + ey, fz + ez
     ramp = fd.ramp
@@ -381,6 +391,8 @@ def audit(sh, fm, fd):
         return 0.0
     worst = 0.0
     for s in range(S.shape[0]):
+        if s == fd.popped:  # passed through on purpose
+            continue
         inside = fm.radius - shape_distance(sh, s, fd.pos[0], fd.pos[1], fd.pos[2])[0]
         if inside > worst:
             worst = inside

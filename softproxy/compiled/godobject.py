@@ -434,7 +434,10 @@ def gather_ball(sh, fm, fd, near, cx, cy, cz, room):
     fd.ball[0], fd.ball[1], fd.ball[2], fd.ball_room = cx, cy, cz, room
     reach = room + fm.radius
     count = 0
+    popped = fd.popped  # a shape the finger popped through is not there for it until it is out
     for s in range(S.shape[0]):
+        if s == popped:
+            continue
         k = int(S[s].geom)
         rb = S[s].rbound + reach
         if rb == math.inf:  # a plane: near when the ball reaches its surface
@@ -529,8 +532,8 @@ def _rest_squeezed(sh, fd, near, xd, yd, zd):
 
 @njit(cache=True, error_model="numpy")
 def reset(sh, fm, fd, near, x, y, z):
-    """Put the proxy at (x, y, z) with no contact, every shape near, pushed out of any it
-    overlaps; False (nothing changed) for a position outside the workspace."""
+    """Put the proxy at (x, y, z) with no contact, every shape near (none popped through),
+    pushed out of any it overlaps; False (nothing changed) for a position outside the workspace."""
     S = sh.S
     if not (-WORKSPACE_LIMIT < x < WORKSPACE_LIMIT and -WORKSPACE_LIMIT < y < WORKSPACE_LIMIT
             and -WORKSPACE_LIMIT < z < WORKSPACE_LIMIT):
@@ -544,6 +547,7 @@ def reset(sh, fm, fd, near, x, y, z):
     fd.slide_idle = 0.0
     fd.local[:] = 0.0
     fd.squeezed = False  # a new place has no past: pushed out of a moving shape as any proxy is
+    fd.popped = -1
     for s in range(S.shape[0]):
         near[s] = s
     fd.nnear = S.shape[0]
@@ -705,7 +709,7 @@ def _still_stuck(sh, fm, fd, near, xd, yd, zd, pl):
     if abs(df - d) > 1e-9 or nx * mx + ny * my + nz * mz < PARALLEL:
         return False
     sx, sy, sz = x - fx, y - fy, z - fz
-    if sx * sx + sy * sy + sz * sz > (shape_friction(S, fm, shape)[0] * depth) ** 2:
+    if sx * sx + sy * sy + sz * sz > (shape_friction(sh, fm, shape, x, y, z)[0] * depth) ** 2:
         return False
     for j in range(int(fd.nnear)):  # an obstacle on the face between the proxy and f changes f
         s = near[j]
@@ -1170,7 +1174,7 @@ def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
     # friction cone, tested from the first surface point the proxy reached this tick
     sx, sy, sz = hx - fx, hy - fy, hz - fz
     slide = math.sqrt(sx * sx + sy * sy + sz * sz)
-    mu_s, mu_d = plane_friction(S, fm, pl, n)  # the touched shapes' materials
+    mu_s, mu_d = plane_friction(sh, fm, pl, n, hx, hy, hz)  # the touched shapes' materials, where it touched
     slipping = _slips(fm, fd, sx, sy, sz, slide, depth, mu_s, mu_d)
     # held at h: stuck, or slipping with the device inside the dynamic cone (not pulling on)
     held = not slipping or slide <= mu_d * depth

@@ -134,7 +134,9 @@ SHAPE = np.dtype([
     ("vibration", np.float64, 2),  # frequency (Hz) and amplitude (N) along the normal, in contact
     ("magnet", np.float64, 2),  # the pull at the surface (N) and the distance it reaches (m)
     ("stick_slip", np.float64, 2),  # the anchor spring's break force (N) and stiffness (N/m), in contact
-    ("texture", np.float64, 5),  # a height grating in the geom frame: unit axis (3), period (m), height (m)
+    ("texture", np.float64, 6),  # a grating in the geom frame: unit axis (3), period (m), height (m),
+                                 # friction modulation (the cone's μ × (1 + m sin))
+    ("popthrough", np.float64),  # a finger pressing harder than this (N) passes through (0: never)
 ], align=True)
 """A shape's record; `shape_tables` fills one per shape. Poses are read from MuJoCo."""
 
@@ -321,6 +323,7 @@ FINGER_DATA = np.dtype([
     ("anchor", np.float64, 3),              # the stick-slip anchor (m, the touched geom's frame)
     ("anchored", np.bool_),
     ("effect_force", np.float64, 3),        # the magnets' pull this tick (N, world)
+    ("popped", np.int64),                   # the shape row it popped through and is still inside (-1: none)
     ("field_energy", np.float64),           # what the magnets' fields gave the hand to get here, and take back leaving (J)
 ], align=True)
 """A finger's data: its god-object, coupling, torsion, counters and this tick's sample, which

@@ -16,7 +16,8 @@ own coupling and friction, read as before. Rules (docs/materials.md):
   force P·∇h of the slope under the finger (Minsky's lateral-force gradient); stick-slip,
   a tangential spring to an anchor that jumps to the finger when the spring passes its break
   force; and a magnet that pulls the finger toward the surface within its reach (out of
-  contact: touching, the surface bears the pull).
+  contact: touching, the surface bears the pull); popthrough, a surface the finger passes
+  through when it presses harder than a force.
 Units: m, N, N·m, s, rad.
 """
 
@@ -30,40 +31,54 @@ from softproxy.compiled.layout import PLANE_SHAPE
 from softproxy.compiled.shapes import shape_distance, shape_to_local, shape_to_world
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def shape_friction(S, fm, shape):
-    """The static and dynamic coefficients of a finger's cone on `shape` (a row of S)."""
-    r = S[shape]
+@njit(cache=True, error_model="numpy")
+def shape_friction(sh, fm, shape, x, y, z):
+    """The static and dynamic coefficients of a finger's cone on `shape` (a row of S) at the
+    world point (x, y, z) (m): a textured shape's modulated along its grating."""
+    r = sh.S[shape]
     if not r.material:
         return fm.mu_s, fm.mu_d
     mu_s, mu_d = r.friction[0], r.friction[1]
     if mu_s == mu_s:  # the pair's, as the material gives them (or a geom of higher priority)
         if mu_d != mu_d:  # a geom's own: dynamic at the finger's ratio of it
             mu_d = mu_s * (fm.mu_d / fm.mu_s) if fm.mu_s > 0.0 else mu_s
-        return mu_s, mu_d
-    g = r.friction_scale
-    return fm.mu_s * g, fm.mu_d * g
+    else:
+        g = r.friction_scale
+        mu_s, mu_d = fm.mu_s * g, fm.mu_d * g
+    period, modulation = r.texture[3], r.texture[5]
+    if modulation != 0.0 and period > 0.0:
+        f = 1.0 + modulation * math.sin(2.0 * math.pi * _along_texture(sh, shape, x, y, z) / period)
+        mu_s, mu_d = mu_s * f, mu_d * f
+    return mu_s, mu_d
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _along_texture(sh, shape, x, y, z):
+    """The world point (m) along the shape's grating axis, in its geom frame (m)."""
+    t = sh.S[shape].texture
+    lx, ly, lz = shape_to_local(sh.S, sh.xpos, sh.xmat, shape, x, y, z)
+    return t[0] * lx + t[1] * ly + t[2] * lz
 
 
 @njit(cache=True, error_model="numpy")
-def plane_friction(S, fm, pl, n):
-    """The cone of a proxy resting on planes pl[:n] (their shapes' coefficients): the least
-    static one and its dynamic one, so a corner of glass and rubber slides along the glass;
-    the finger's own with no plane."""
+def plane_friction(sh, fm, pl, n, x, y, z):
+    """The cone of a proxy at (x, y, z) (m) resting on planes pl[:n] (their shapes'
+    coefficients): the least static one and its dynamic one, so a corner of glass and rubber
+    slides along the glass; the finger's own with no plane."""
     mu_s, mu_d = fm.mu_s, fm.mu_d
     first = True
     for i in range(n):
-        ms, md = shape_friction(S, fm, int(pl[i, PLANE_SHAPE]))
+        ms, md = shape_friction(sh, fm, int(pl[i, PLANE_SHAPE]), x, y, z)
         if first or ms < mu_s:
             mu_s, mu_d, first = ms, md, False
     return mu_s, mu_d
 
 
 @njit(cache=True, error_model="numpy")
-def touch(S, fm, fd, shape):
+def touch(sh, fm, fd, shape):
     """The contact's spring, damper, cone and torsion factor from the touched shape's material
     into the finger's contact_ fields (the finger's own where it has none)."""
-    r = S[shape]
+    r = sh.S[shape]
     if not r.material:
         fd.contact_stiffness = fm.stiffness
         fd.contact_damping = fm.damping
@@ -74,7 +89,7 @@ def touch(S, fm, fd, shape):
     k, b = r.stiffness, r.damping
     fd.contact_stiffness = k if k < fm.stiffness else fm.stiffness
     fd.contact_damping = b if b < fm.damping else fm.damping
-    mu_s, mu_d = shape_friction(S, fm, shape)
+    mu_s, mu_d = shape_friction(sh, fm, shape, fd.pos[0], fd.pos[1], fd.pos[2])
     fd.contact_friction[0] = mu_s
     fd.contact_friction[1] = mu_d
     fd.contact_torsion = r.torsion * (mu_s / fm.mu_s if fm.mu_s > 0.0 else 1.0)
@@ -105,10 +120,9 @@ def surface_force(sh, fm, fd, shape, P, dt):
         # the slope of h(u) = height sin(2π u / period), u along the axis (geom frame), under
         # the proxy; the lateral force -P dh/du along the axis's tangential part pushes back
         # up every rise and forward down every fall
-        lx, ly, lz = shape_to_local(S, sh.xpos, sh.xmat, shape, fd.pos[0], fd.pos[1], fd.pos[2])
         ax, ay, az = r.texture[0], r.texture[1], r.texture[2]
         w = 2.0 * math.pi / period
-        slope = height * w * math.cos(w * (ax * lx + ay * ly + az * lz))
+        slope = height * w * math.cos(w * _along_texture(sh, shape, fd.pos[0], fd.pos[1], fd.pos[2]))
         g = int(r.geom)
         m = sh.xmat[g]
         wx = m[0] * ax + m[1] * ay + m[2] * az
@@ -135,6 +149,32 @@ def surface_force(sh, fm, fd, shape, P, dt):
         else:
             fx, fy, fz = fx + sx, fy + sy, fz + sz
     return fx, fy, fz
+
+
+@njit(cache=True, error_model="numpy")
+def pops(S, fd, shape, P):
+    """True when the finger presses `shape` harder than its popthrough force (P, the
+    coupling's normal force, N): the finger passes through it. The god-object lets go of the
+    contact where it is (its stretch, stored in the spring, is dropped: energy lost, never
+    made), and the broad phase leaves the shape out until the proxy is out of it again."""
+    limit = S[shape].popthrough
+    if not (limit > 0.0 and P > limit):
+        return False
+    fd.popped = shape
+    fd.contact = False
+    fd.touched = -1
+    fd.nplanes = 0
+    fd.nfree = 0
+    fd.sticking = False
+    fd.depth = 0.0
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def pop_done(sh, fm, fd):
+    """The shape the finger popped through is felt again once the proxy is clear of it."""
+    if fd.popped >= 0 and shape_distance(sh, fd.popped, fd.pos[0], fd.pos[1], fd.pos[2])[0] > fm.radius:
+        fd.popped = -1
 
 
 @njit(cache=True, error_model="numpy")
@@ -181,6 +221,9 @@ def magnet(sh, fm, fd):
             r = d if d > 0.0 else 0.0
             fd.contact_pos[:] = x - r * nx, y - r * ny, z - r * nz
     fd.field_energy = given
+    owed = fd.energy + given  # the observer's E over this tick's motion, against the store now
+    if owed < fd.energy_min:
+        fd.energy_min = owed
     if fd.contact:  # the pull holds the proxy on the surface, which bears it: the hand feels the coupling
         fx = fy = fz = 0.0
         pulled = False

@@ -68,9 +68,8 @@ def observe(fm, fd):
         # (its stretch was never put in by the hand): no debt is counted until it is done
         E = 0.0
     fd.energy = E
-    owed = E + fd.field_energy  # a magnet's field is a store: what it gave on the way in it takes back
-    if owed < fd.energy_min:
-        fd.energy_min = owed
+    if not fm.magnets and E < fd.energy_min:  # (with magnets, `material.magnet` keeps it: E + their store)
+        fd.energy_min = E
 
 
 @njit(cache=True, error_model="numpy")
