@@ -1,12 +1,16 @@
 """What several test files share: a stepped clock, the box-on-a-floor world and a loop pressing
 a finger into it, an open haptic
-input report, and a scripted device's do-nothing send and close.
+input report, a scripted device's do-nothing send and close, a hand held still, and a
+world's kinetic energy after a nudge.
 
 The test files import these by name (`from conftest import Clock`): pytest puts this folder
 on the import path, as it does for the fakes beside it (`fake_dhd`, `mesh_oracle`).
 """
 
 import struct
+
+import mujoco
+import numpy as np
 
 BOX_ON_PLANE_XML = """<mujoco><option timestep="0.001"/><worldbody>
   <geom type="plane" size="1 1 .1"/>
@@ -58,3 +62,39 @@ class ScriptedDevice:
 
     def close(self):
         pass
+
+
+class Holding(ScriptedDevice):
+    """Fingers held still at given device positions (m), no twist: a hand that does not move."""
+
+    max_force, max_torque = 40.0, 1.0
+
+    def __init__(self, positions):
+        self.positions = positions
+        self.fingers = len(positions)
+
+    def read(self, t, samples):
+        for s, (x, y, z) in zip(samples, self.positions):
+            s.x, s.y, s.z, s.twist, s.valid = x, y, z, 0.0, True
+
+
+def kinetic_energy(world) -> float:
+    """½ q̇ᵀ M q̇ of the whole world (J)."""
+    m, d = world.model, world.data
+    Mv = np.zeros(m.nv)
+    mujoco.mj_mulM(m, d, Mv, d.qvel)
+    return 0.5 * float(d.qvel @ Mv)
+
+
+def nudged(world, loop, qvel, seconds):
+    """Settle, stop every body, nudge (qvel), then tick for `seconds`: the kinetic energy after
+    the nudge and at every tick after it (J)."""
+    for _ in range(int(0.3 * loop.rate_hz)):
+        loop.tick()
+    world.data.qvel[:] = qvel
+    start = kinetic_energy(world)
+    energy = []
+    for _ in range(int(seconds * loop.rate_hz)):
+        loop.tick()
+        energy.append(kinetic_energy(world))
+    return start, np.array(energy)

@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from conftest import ScriptedDevice
+from conftest import Holding, ScriptedDevice, nudged
 from softproxy import Material
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
@@ -352,3 +352,31 @@ def test_popthrough():
         finger.update(0.0, 0.0, LEVEL - 4e-3 + 2e-4 * i, 0.0, DT)
     finger.update(0.0, 0.0, LEVEL - 1e-3, 0.0, DT)
     assert finger.fz == pytest.approx(K * 1e-3, rel=1e-6)
+
+
+CUBE = """<mujoco><option gravity="0 0 0"/><worldbody>
+<body name="cube" pos="0 0 0.1"><freejoint/><geom name="cube" type="box" size="0.01 0.01 0.01" mass="0.008"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("material", [
+    Material(stiffness=300.0, damping=1.0), Material(viscosity=10.0),
+    Material(texture_period=0.002, texture_height=1e-4, texture_friction=0.5, texture_axis=(0.0, 1.0, 0.0)),
+    Material(mu_s=0.3, stick_slip_force=0.5, stick_slip_stiffness=500.0), Material(magnet_force=2.0, magnet_reach=0.01)],
+    ids=["soft", "viscous", "textured", "stick-slip", "magnetic"])
+def test_a_light_cube_of_any_material_pinched_stays_at_rest(material):
+    """An 8 g cube of each dissipative material (and a magnetic one) pinched at 3 N between
+    two soft fingers, nudged at 0.01 rad/s about the grasp axis and 1 mm/s across it: its
+    kinetic energy never rises above the nudge's (Passive by construction: the materials'
+    effects create no energy in a body, however light)."""
+    world = World(mujoco.MjModel.from_xml_string(CUBE), materials={"cube": material})
+    fingers = [SoftFingerProxy(FingerParams(name=f"f{i}", radius=0.008, soft_start=0.0, device_finger=i),
+                               world.shapes, model("CH")) for i in range(2)]
+    k = min(fingers[0].params.stiffness, material.stiffness or math.inf)
+    reach = 0.01 + 0.008 - 3.0 / k
+    with ServoLoop(world, fingers, Holding([(reach, 0.0, 0.1), (-reach, 0.0, 0.1)]), 1000.0) as loop:
+        start, energy = nudged(world, loop, [0, 0.001, 0, 0.01, 0, 0], 1.0)
+        grips = [f.normal_force for f in fingers]
+    print(f"{material}: grips {grips} N, nudge {start:.3g} J, largest after {energy.max():.3g} J")
+    assert all(g == pytest.approx(3.0, rel=0.05) for g in grips)
+    assert energy.max() <= start * (1 + 1e-6)

@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from conftest import ScriptedDevice
+from conftest import Holding, ScriptedDevice, nudged
 from mesh_oracle import point_triangle
 from softproxy.finger import FingerParams, SoftFingerProxy
 from softproxy.fingertip import model
@@ -172,42 +172,6 @@ KNOB = """<mujoco><option gravity="0 0 -9.81"/><worldbody>
 CUBE = """<mujoco><option gravity="0 0 0"/><worldbody>
 <body name="cube" pos="0 0 0.1"><freejoint/><geom type="box" size="{half} {half} {half}" mass="{mass}"/></body>
 </worldbody></mujoco>"""
-
-
-class Holding(ScriptedDevice):
-    """Fingers held still at given device positions (m), no twist: a hand that does not move."""
-
-    max_force, max_torque = 40.0, 1.0
-
-    def __init__(self, positions):
-        self.positions = positions
-        self.fingers = len(positions)
-
-    def read(self, t, samples):
-        for s, (x, y, z) in zip(samples, self.positions):
-            s.x, s.y, s.z, s.twist, s.valid = x, y, z, 0.0, True
-
-
-def kinetic_energy(world) -> float:
-    """½ q̇ᵀ M q̇ of the whole world (J)."""
-    m, d = world.model, world.data
-    Mv = np.zeros(m.nv)
-    mujoco.mj_mulM(m, d, Mv, d.qvel)
-    return 0.5 * float(d.qvel @ Mv)
-
-
-def nudged(world, loop, qvel, seconds):
-    """Settle, stop every body, nudge (qvel), then tick for `seconds`: the kinetic energy after
-    the nudge and at every tick after it (J)."""
-    for _ in range(int(0.3 * loop.rate_hz)):
-        loop.tick()
-    world.data.qvel[:] = qvel
-    start = kinetic_energy(world)
-    energy = []
-    for _ in range(int(seconds * loop.rate_hz)):
-        loop.tick()
-        energy.append(kinetic_energy(world))
-    return start, np.array(energy)
 
 
 @pytest.mark.parametrize("rate", [1000.0, 4000.0])

@@ -139,7 +139,8 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     if n == 0:
         return 0
     size = CHANNELS * n
-    # per channel r: H (h²K + hB; 0 where the channel is not a spring this tick), h K, the
+    # per channel r: H (h²K + h(B + η), η a viscous surface's; 0 where the channel is not a
+    # spring this tick), h K, the
     # finger's wrench last tick on this body (its share of last step's qacc), u, a_free
     for a in range(n):
         fm, fd = FM[rows[a]], FD[rows[a]]
@@ -147,14 +148,14 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         same = prev and fd.push_body == fd.body
         r0 = CHANNELS * a
         for c in range(3):
-            chan[r0 + c, 0] = h * h * fd.contact_stiffness + h * fd.contact_damping
+            chan[r0 + c, 0] = h * h * fd.contact_stiffness + h * (fd.contact_damping + fd.contact_viscosity)
             chan[r0 + c, 1] = h * fd.contact_stiffness
         chan[r0 + 3, 0] = h * h * fm.torsion_stiffness + h * fm.torsion_damping if spring_tau else 0.0
         chan[r0 + 3, 1] = h * fm.torsion_stiffness if spring_tau else 0.0
         # (sent_ still holds last tick's wrench here: this tick's clamp comes after)
-        chan[r0, 2] = fd.sent_force[0] if same else 0.0
-        chan[r0 + 1, 2] = fd.sent_force[1] if same else 0.0
-        chan[r0 + 2, 2] = fd.sent_force[2] if same else 0.0
+        chan[r0, 2] = fd.sent_force[0] - fd.texture_sent[0] if same else 0.0  # (what the body got)
+        chan[r0 + 1, 2] = fd.sent_force[1] - fd.texture_sent[1] if same else 0.0
+        chan[r0 + 2, 2] = fd.sent_force[2] - fd.texture_sent[2] if same else 0.0
         chan[r0 + 3, 2] = dot3(fd.sent_torque, fd.normal) if same else 0.0
     # A = G M⁻¹ Gᵀ into the system (zero between fingers on different trees), u = G qvel,
     # a_free = G qacc + A W_prev
@@ -169,7 +170,8 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         chan[r, 3] = _dot_columns(G[a, c], qvel, lo, hi)
         chan[r, 4] = acc
     # each finger's rows times its H, and the right-hand side W_exp + h K u + H a_free; the
-    # force block's H and K are k·I while the proxy sticks, k·n nᵀ while it slides
+    # force block's H and K are k·I while the proxy sticks, k·n nᵀ while it slides (H plus
+    # hη across n on a viscous surface, whose damper acts along the slide too)
     for a in range(n):
         fd = FD[rows[a]]
         r0 = CHANNELS * a
@@ -183,18 +185,24 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         else:
             un = nx * chan[r0, 3] + ny * chan[r0 + 1, 3] + nz * chan[r0 + 2, 3]
             an = nx * chan[r0, 4] + ny * chan[r0 + 1, 4] + nz * chan[r0 + 2, 4]
+            hv = h * fd.contact_viscosity  # a viscous surface damps the slide too: hη across n
             for e in range(size):
                 along = nx * system[r0, e] + ny * system[r0 + 1, e] + nz * system[r0 + 2, e]
-                system[r0, e], system[r0 + 1, e], system[r0 + 2, e] = hb * nx * along, hb * ny * along, hb * nz * along
+                system[r0, e] = hb * nx * along + hv * (system[r0, e] - nx * along)
+                system[r0 + 1, e] = hb * ny * along + hv * (system[r0 + 1, e] - ny * along)
+                system[r0 + 2, e] = hb * nz * along + hv * (system[r0 + 2, e] - nz * along)
             rhs = hk * un + hb * an
-            system[r0, size], system[r0 + 1, size], system[r0 + 2, size] = rhs * nx, rhs * ny, rhs * nz
+            system[r0, size] = rhs * nx + hv * (chan[r0, 4] - an * nx)
+            system[r0 + 1, size] = rhs * ny + hv * (chan[r0 + 1, 4] - an * ny)
+            system[r0 + 2, size] = rhs * nz + hv * (chan[r0 + 2, 4] - an * nz)
         hb_tau = chan[r0 + 3, 0]
         for e in range(size):
             system[r0 + 3, e] *= hb_tau
         system[r0 + 3, size] = chan[r0 + 3, 1] * chan[r0 + 3, 3] + hb_tau * chan[r0 + 3, 4]
-        system[r0, size] += fd.force[0]
-        system[r0 + 1, size] += fd.force[1]
-        system[r0 + 2, size] += fd.force[2]
+        # (a texture's relief is the hand's alone: not in the wrench the body answers)
+        system[r0, size] += fd.force[0] - fd.texture_force[0]
+        system[r0 + 1, size] += fd.force[1] - fd.texture_force[1]
+        system[r0 + 2, size] += fd.force[2] - fd.texture_force[2]
         system[r0 + 3, size] += fd.torque_n
     for r in range(size):
         system[r, r] += 1.0
@@ -202,7 +210,11 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         return n
     for a in range(n):
         r0 = CHANNELS * a
-        within_laws(FM[rows[a]], FD[rows[a]], system[r0, size], system[r0 + 1, size], system[r0 + 2, size], system[r0 + 3, size])
+        fd = FD[rows[a]]
+        within_laws(FM[rows[a]], fd, system[r0, size], system[r0 + 1, size], system[r0 + 2, size], system[r0 + 3, size])
+        fd.force[0] += fd.texture_force[0]
+        fd.force[1] += fd.texture_force[1]
+        fd.force[2] += fd.texture_force[2]
     return n
 
 

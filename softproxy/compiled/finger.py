@@ -230,6 +230,7 @@ def hold(sh, fm, fd, near):
     empties that)."""
     S, cvel = sh.S, sh.cvel
     fd.rel_move[:] = fd.rel_turn = 0.0  # (nothing was sent over a held tick to count)
+    fd.surface_move[:] = 0.0
     if fd.touched >= 0:
         _follow_body(S, cvel, fm, fd)
     if fm.soft_start > 0.0:
@@ -262,6 +263,7 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     fd.dt = dt
     fd.body_turn = 0.0
     fd.rel_move[:] = fd.rel_turn = 0.0
+    fd.surface_move[:] = 0.0
     if fd.touched >= 0:  # in contact last tick (or held since): the body it touches turns α_p with it
         _follow_body(S, cvel, fm, fd)
     if not fd.placed:
@@ -290,10 +292,13 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     was_contact = fd.contact
     wx, wy, wz = fd.device_pos[0] - xd, fd.device_pos[1] - yd, fd.device_pos[2] - zd
     shape = int(fd.touched)
+    bx = by = bz = 0.0
     if was_contact and shape >= 0 and not S[shape].static:
         cx, cy, cz = shape_to_world(S, xpos, xmat, shape, fd.local[0], fd.local[1], fd.local[2])
-        wx, wy, wz = wx + cx - fd.pos[0], wy + cy - fd.pos[1], wz + cz - fd.pos[2]
+        bx, by, bz = cx - fd.pos[0], cy - fd.pos[1], cz - fd.pos[2]
+        wx, wy, wz = wx + bx, wy + by, wz + bz
     fd.rel_move[:] = wx, wy, wz  # (the passivity observer's port motion)
+    fd.surface_move[:] = bx, by, bz
     material.pop_done(sh, fm, fd)
     if not godobject.update(sh, fm, fd, near, xd, yd, zd, dt, scratch[0], scratch[1], scratch[2], scratch[3]):
         clear_output(fd)
@@ -490,7 +495,8 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
     mjModel/mjData, their qvel and qacc; `fingers.ws` its workspace), and each finger's
     energy observed, and with `control` the excess dissipated (`passivity`). Adds the fingers'
     wrenches to `wrench` (`write_wrenches` puts them in xfrc_applied) and writes what each
-    device finger is sent into its sent_ fields. With two rates (`cr`, the local model; None
+    device finger is sent into its sent_ fields (the body gets the reaction less a texture's
+    relief, `material.surface_force`). With two rates (`cr`, the local model; None
     with one rate) the coupling solves against the local model's velocity and held
     acceleration (and the caller lets the sent wrenches move it: `carry.respond`). `bodies`:
     rows FIXED (welded to the world), TOUCHED and PUSHED (body lists, lengths in `counts`).
@@ -498,7 +504,8 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
     their finger: spikes, garbage positions, a non-finite twist), and how many wrenches were
     not finite (zeroed before they reached a body or the device), and how many fingers the
     implicit coupling coupled (their rows of `fingers.ws`). The touched body gets the
-    reaction of exactly the wrench the device is sent, after every clamp (the finger's, the
+    reaction of exactly the wrench the device is sent (less a texture's relief, the hand's
+    alone), after every clamp (the finger's, the
     device's, the soft start's), so both sides of the coupling exchange the same energy."""
     FM, FD, near, scratch = fingers.model, fingers.data, fingers.near, fingers.scratch
     wrench, bodies, counts = fingers.wrench, fingers.bodies, fingers.counts
@@ -541,8 +548,13 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
             unsafe += 1
             clear_output(fd)
         fd.push_body = -1
+        fd.texture_sent[:] = 0.0
         if fd.body >= 0.0:  # one wrench for both sides: the body gets the reaction of what the device is sent
             (fx, fy, fz), (tx, ty, tz), (px, py, pz) = fd.sent_force, fd.sent_torque, fd.contact_pos
+            if fd.valid and not safe:  # less a texture's relief, the hand's alone
+                (ex, ey, ez) = fd.texture_force
+                fx, fy, fz = fx - ex, fy - ey, fz - ez
+                fd.texture_sent[:] = ex, ey, ez
             push(wrench, bodies, counts, int(fd.body), -fx, -fy, -fz, px, py, pz, -tx, -ty, -tz)
             fd.push_body = fd.body
     return refused, unsafe, coupled

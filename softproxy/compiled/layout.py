@@ -317,8 +317,12 @@ FINGER_DATA = np.dtype([
     # the touched shape's material as this contact renders it (`softproxy.compiled.material`)
     ("contact_stiffness", np.float64),      # k (N/m): the finger's, or the surface's where softer
     ("contact_damping", np.float64),        # b (N·s/m)
+    ("contact_viscosity", np.float64),      # η (N·s/m): the surface's viscosity, a damper in every direction
     ("contact_friction", np.float64, 2),    # μ_s, μ_d of the friction cone
     ("contact_torsion", np.float64),        # the torsional limit's factor over the finger's law
+    ("texture_force", np.float64, 3),       # a texture's lateral force this tick (N, world): the hand's alone
+    ("texture_sent", np.float64, 3),        # the part of the last sent force the body did not get (N, world)
+    ("surface_move", np.float64, 3),        # the touched surface's move under the proxy over the last tick (m)
     ("vibration_phase", np.float64),        # rad, while in contact with a vibrating surface
     ("anchor", np.float64, 3),              # the stick-slip anchor (m, the touched geom's frame)
     ("anchored", np.bool_),

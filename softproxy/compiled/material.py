@@ -79,12 +79,14 @@ def touch(sh, fm, fd, shape):
     """The contact's spring, damper, cone and torsion factor from the touched shape's material
     into the finger's contact_ fields (the finger's own where it has none)."""
     r = sh.S[shape]
+    fd.texture_force[:] = 0.0
     if not r.material:
         fd.contact_stiffness = fm.stiffness
         fd.contact_damping = fm.damping
         fd.contact_friction[0] = fm.mu_s
         fd.contact_friction[1] = fm.mu_d
         fd.contact_torsion = 1.0
+        fd.contact_viscosity = 0.0
         return
     k, b = r.stiffness, r.damping
     fd.contact_stiffness = k if k < fm.stiffness else fm.stiffness
@@ -93,6 +95,7 @@ def touch(sh, fm, fd, shape):
     fd.contact_friction[0] = mu_s
     fd.contact_friction[1] = mu_d
     fd.contact_torsion = r.torsion * (mu_s / fm.mu_s if fm.mu_s > 0.0 else 1.0)
+    fd.contact_viscosity = r.viscosity
 
 
 @njit(cache=True, error_model="numpy")
@@ -117,12 +120,17 @@ def surface_force(sh, fm, fd, shape, P, dt):
         fd.vibration_phase = phase - 2.0 * math.pi * math.floor(phase / (2.0 * math.pi))
     period, height = r.texture[3], r.texture[4]
     if height > 0.0 and period > 0.0:
-        # the slope of h(u) = height sin(2π u / period), u along the axis (geom frame), under
-        # the proxy; the lateral force -P dh/du along the axis's tangential part pushes back
-        # up every rise and forward down every fall
+        # the slope of h(u) = height sin(2π u / period), u along the axis (geom frame); the
+        # lateral force -P dh/du along the axis's tangential part pushes back up every rise
+        # and forward down every fall
         ax, ay, az = r.texture[0], r.texture[1], r.texture[2]
         w = 2.0 * math.pi / period
-        slope = height * w * math.cos(w * _along_texture(sh, shape, fd.pos[0], fd.pos[1], fd.pos[2]))
+        # read under the device, the relief the hand moves over. It is the hand's alone: the
+        # body, flat in MuJoCo, gets no push from relief it does not have (`texture_force`
+        # is left out of its wrench); pushed, a light body pinched on a 0.1 mm grating shook
+        # itself out of the grip
+        dx, dy, dz = fd.device_pos
+        slope = height * w * math.cos(w * _along_texture(sh, shape, dx, dy, dz))
         g = int(r.geom)
         m = sh.xmat[g]
         wx = m[0] * ax + m[1] * ay + m[2] * az
@@ -132,6 +140,7 @@ def surface_force(sh, fm, fd, shape, P, dt):
         tx, ty, tz = wx - along * nx, wy - along * ny, wz - along * nz
         q = -P * slope
         fx, fy, fz = fx + q * tx, fy + q * ty, fz + q * tz
+        fd.texture_force[:] = q * tx, q * ty, q * tz
     brk, k_ss = r.stick_slip[0], r.stick_slip[1]
     if brk > 0.0 and k_ss > 0.0:
         px, py, pz = fd.pos
@@ -180,6 +189,7 @@ def pop_done(sh, fm, fd):
 @njit(cache=True, error_model="numpy")
 def leave(fd):
     """Contact broken: the effects' state cleared."""
+    fd.texture_force[:] = 0.0
     fd.vibration_phase = 0.0
     fd.anchored = False
 

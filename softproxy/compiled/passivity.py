@@ -50,6 +50,8 @@ def observe(fm, fd):
     ½k_τ(α_p - α_s)² (an upper bound: clamps, the controller and friction only lower what a
     spring returns); the lowest E kept."""
     dE = dot3(fd.sent_force, fd.rel_move) + dot3(fd.sent_torque, fd.normal) * fd.rel_turn
+    # a texture's relief is the hand's alone: the body did not get it over its own move
+    dE -= dot3(fd.texture_sent, fd.surface_move)
     if not math.isfinite(dE):
         return
     fd.energy_in += dE
