@@ -128,6 +128,17 @@ def models_verdict(rows: list[dict]) -> list[str]:
     return lines
 
 
+def _physics_rate(text: str) -> float | str:
+    """--physics-rate: a rate in Hz, or "auto" (`softproxy.local_model.AUTO`; not imported here,
+    which would load the compiled engine for `--help`)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a rate in Hz or 'auto', got {text!r}") from None
+
+
 def _parse_faults(text: str) -> dict:
     """`nan=0.01,drop=0.001` -> {"nan": 0.01, "drop": 0.001}; ValueError naming --faults and
     the bad item. The fault names are the device's to check (see `_open_run_device`)."""
@@ -731,9 +742,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="window, snapshot and video size in pixels (default 1024x768, at least 640x480)")
     p.add_argument("--duration", type=float, default=None, help="seconds to run (default: the scene's)")
     p.add_argument("--rate", type=float, default=None, help="servo rate in Hz (default: the scene's)")
-    p.add_argument("--physics-rate", type=float, default=None, metavar="HZ",
+    p.add_argument("--physics-rate", type=_physics_rate, default=None, metavar="HZ",
                    help="two rates: MuJoCo steps at HZ, a whole fraction of the servo rate, and the ticks between "
-                        "render against the shapes carried forward (default: the scene's; else a step every tick)")
+                        "render against the shapes carried forward; 'auto': as fast as the world's step cost lets "
+                        "it (default: the scene's; else a step every tick)")
     p.add_argument("--finger-model", choices=list(MODELS), default=None, help="override every finger's model")
     p.add_argument("--realtime", action="store_true", help="pace ticks in real time (default: lockstep)")
     p.add_argument("--rt-priority", type=int, default=None, metavar="N",

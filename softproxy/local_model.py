@@ -12,6 +12,7 @@ world, the carried poses).
 from __future__ import annotations
 
 import math
+import time
 
 import mujoco
 import numpy as np
@@ -23,9 +24,41 @@ MAX_EVERY = 1000
 """The most haptic ticks per MuJoCo step (a MuJoCo step of 1 s at 1 kHz)."""
 
 
+AUTO = "auto"
+"""`physics_rate_hz="auto"`: MuJoCo as fast as the world lets it (`every_for_cost`)."""
+PHYSICS_SHARE = 0.5
+"""The share of a core MuJoCo's steps may take at the rate "auto" picks: the rest is margin
+for a step that costs more than the measured one (contacts come and go) and for the
+machine's other work."""
+COARSE_STEP_S = 0.01
+"""A MuJoCo step longer than this (s; 100 Hz) is warned of: contacts resolved that coarsely
+let fast objects pass through thin ones and stiff ones ring."""
+
+
+def every_for_cost(rate_hz: float, step_cost_s: float, share: float = PHYSICS_SHARE) -> int:
+    """Haptic ticks per MuJoCo step "as fast as it goes": the fewest for which a step costing
+    `step_cost_s` (s) takes at most `share` of its period, at most MAX_EVERY."""
+    every = max(1, math.ceil(step_cost_s * rate_hz / share - 1e-9))
+    return min(every, MAX_EVERY)
+
+
+def step_cost(model: mujoco.MjModel, data: mujoco.MjData, steps: int = 30) -> float:
+    """What one mj_step of the world costs (s): the median of `steps` on a copy of its state,
+    what "auto" picks its rate from."""
+    d = mujoco.MjData(model)
+    mujoco.mj_copyData(d, model, data)
+    costs = []
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        mujoco.mj_step(model, d)
+        costs.append(time.perf_counter() - t0)
+    return float(np.median(costs))
+
+
 def physics_every(rate_hz: float, physics_rate_hz: float | None) -> int:
     """Haptic ticks per MuJoCo step for a physics rate (Hz) under a servo rate (Hz): 1 for
-    None (one rate). ValueError unless the physics rate divides the servo rate, at most it."""
+    None (one rate). ValueError unless the physics rate divides the servo rate, at most it
+    ("auto" is resolved by the loop, which has the world: `every_for_cost`)."""
     if physics_rate_hz is None:
         return 1
     if not (isinstance(physics_rate_hz, (int, float)) and math.isfinite(physics_rate_hz) and physics_rate_hz > 0):

@@ -19,6 +19,7 @@ from softproxy.device_group import DeviceGroup
 from softproxy.finger import SoftFingerProxy
 from softproxy.fingertip_sensors import attach as attach_sensors
 from softproxy.fingertip_sensors import summaries as sensor_summaries
+from softproxy.local_model import COARSE_STEP_S
 from softproxy.recording import RecordingDevice
 from softproxy.scheduling import realtime_thread
 from softproxy.scene import Scene, SceneError
@@ -161,7 +162,8 @@ MOSTLY = 0.5
 def run_warnings(loop: ServoLoop) -> list[str]:
     """One line for each thing a run's figures say went wrong though it ended cleanly: most
     samples invalid or most reads failed (a device in other units, outside the workspace, or
-    unplugged), every send failed, a finger that never touched anything."""
+    unplugged), every send failed, a finger that never touched anything, a MuJoCo step coarser
+    than COARSE_STEP_S (two rates)."""
     ticks, n = loop.ticks, len(loop.fingers)
     if ticks == 0:
         return []
@@ -175,6 +177,10 @@ def run_warnings(loop: ServoLoop) -> list[str]:
                     "within ±1 km; a twist in rad): check the device's units")
     if faults["send_error"] >= ticks * n:
         said.append(f"every send to the device failed ({faults['send_error']}): {loop.last_send_error or 'no reason given'}")
+    step = loop.period * loop.physics_every
+    if step > COARSE_STEP_S:
+        said.append(f"MuJoCo stepped every {step * 1e3:g} ms ({loop.physics_rate_hz:g} Hz): contacts resolved that "
+                    "coarsely let fast objects pass through thin ones and stiff ones ring; try a higher physics rate")
     for f in loop.fingers:
         if f.max_force_seen == 0.0:
             said.append(f"finger {f.params.name!r} never touched anything: are its device positions in m, and its "

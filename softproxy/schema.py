@@ -658,11 +658,11 @@ class SceneTable(Table):
                       hint_low="rate_hz is in Hz: 1 kHz is 1000") = 1000.0
     duration_s: quantity("s", "length of the run (24 h at most)", low=0.0, high=MAX_DURATION_S, open_low=True,
                          hint_high="duration_s is in s") = 5.0
-    physics_rate_hz: Optional[quantity("Hz", "MuJoCo's rate with two rates: it steps once every rate_hz / "
-                                       "physics_rate_hz haptic ticks, which render against the shapes carried "
-                                       "forward (default: one rate, a MuJoCo step every tick)", low=0.0,
-                                       high=SERVO_RATE_HZ[1], open_low=True,
-                                       hint_high="physics_rate_hz is in Hz")] = None
+    physics_rate_hz: Optional[Union[Literal["auto"], quantity(
+        "Hz", "MuJoCo's rate with two rates: it steps once every rate_hz / physics_rate_hz haptic ticks, which "
+        "render against the shapes carried forward; \"auto\": as fast as the world's step cost lets it (default: "
+        "one rate, a MuJoCo step every tick)", low=0.0, high=SERVO_RATE_HZ[1], open_low=True,
+        hint_high="physics_rate_hz is in Hz")]] = None
     audit: Annotated[Flag, Field(description="track proxy penetration every tick")] = True
     keyframe: Annotated[Optional[Name], Field(description="a <key> of the MJCF, by name: the world starts "
                                               "from its state (default: the model's qpos0)")] = None

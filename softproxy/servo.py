@@ -45,7 +45,7 @@ from softproxy.compiled import servo as kernel
 from softproxy.compiled.dispatch import entry
 from softproxy.compiled.godobject import WORKSPACE_LIMIT
 from softproxy.compiled.layout import DeviceIO, FingerTables, MassMatrix, MjViews, StatRings
-from softproxy.local_model import LocalModel, physics_every
+from softproxy.local_model import AUTO, LocalModel, every_for_cost, physics_every, step_cost
 from softproxy.physics_thread import PhysicsThread
 from softproxy.device import Device, check_device, DeviceSample
 from softproxy.device_group import DeviceGroup
@@ -218,14 +218,17 @@ class ServoLoop:
     the fingers' wrenches). For a world whose step costs more than a servo period. A
     real-time run (`run(realtime=True)`) steps MuJoCo in a thread of its own
     (`softproxy.physics_thread`): the servo ticks never wait for a step. Lockstep runs and
-    `tick()` step it in the servo thread, deterministically.
+    `tick()` step it in the servo thread, deterministically. `physics_rate_hz="auto"`: as fast
+    as the world lets MuJoCo go, the highest such rate at which a step (its cost measured
+    when the loop is built) takes at most half a core (`local_model.every_for_cost`); the
+    rate it chose is `physics_rate_hz` (give that number to repeat a run).
     """
 
     def __init__(self, world: World, fingers: list[SoftFingerProxy], device: Device | list[Device],
                  rate_hz: float = 1000.0,
                  overrun_factor: float = 3.0, stats_capacity: int = 1 << 16, audit: bool = False,
                  overrun_watchdog: bool | None = None, handle_signals: bool = True, passivity: bool = True,
-                 physics_rate_hz: float | None = None) -> None:
+                 physics_rate_hz: float | str | None = None) -> None:
         if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
             raise ValueError(f"rate_hz must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g}, got {rate_hz!r}")
         if isinstance(device, (list, tuple)):
@@ -259,6 +262,8 @@ class ServoLoop:
         self.device = device
         self.rate_hz = float(rate_hz)
         self.period = 1.0 / self.rate_hz
+        if physics_rate_hz == AUTO:  # as fast as the world lets MuJoCo go
+            physics_rate_hz = self.rate_hz / every_for_cost(self.rate_hz, step_cost(world.model, world.data))
         self.physics_every = physics_every(self.rate_hz, physics_rate_hz)
         """Haptic ticks per MuJoCo step: 1 (one rate), or rate_hz / physics_rate_hz."""
         self.physics_rate_hz = self.rate_hz / self.physics_every

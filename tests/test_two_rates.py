@@ -213,3 +213,52 @@ def test_pushing_a_free_box_in_two_threads_creates_no_energy():
     assert kinetic > 1e-4
     assert kinetic <= work * 1.001 + 1e-7
     loop.close()
+
+
+def test_auto_picks_the_fewest_ticks_per_step_the_step_cost_allows():
+    """"auto": the highest physics rate at which a step takes at most half a core: a 1.3 ms
+    step under 1 kHz needs 3 ticks (333 Hz), a 2.5 µs one runs every tick, one of 10 s the
+    most ticks a step may span."""
+    from softproxy.local_model import MAX_EVERY, every_for_cost
+
+    assert every_for_cost(1000.0, 1.3e-3) == 3
+    assert every_for_cost(4000.0, 1.3e-3) == 11
+    assert every_for_cost(1000.0, 2.5e-6) == 1
+    assert every_for_cost(1000.0, 10.0) == MAX_EVERY
+
+
+def test_auto_on_a_light_world_is_one_rate_and_says_its_rate():
+    """A box on a floor costs microseconds a step, far under half a 1 ms period even on a
+    loaded machine: "auto" keeps a step every tick, and the loop says the rate it chose."""
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
+    finger = SoftFingerProxy(FingerParams(radius=0.008), world.shapes, model("CH"))
+    with ServoLoop(world, [finger], PathDevice(lambda t: (0.0, 0.0, 0.1)), 1000.0, physics_rate_hz="auto") as loop:
+        assert loop.physics_every == 1 and loop.physics_rate_hz == 1000.0
+
+
+def test_a_coarse_physics_step_is_warned_of():
+    """MuJoCo at 50 Hz under 1 kHz (a 20 ms step): the run's warnings say so, once."""
+    from softproxy.run import run_warnings
+
+    world = World(mujoco.MjModel.from_xml_string(BOX_ON_PLANE_XML))
+    finger = SoftFingerProxy(FingerParams(radius=0.008), world.shapes, model("CH"))
+    with ServoLoop(world, [finger], PathDevice(lambda t: (0.0, 0.0, 0.061)), 1000.0, physics_rate_hz=50.0) as loop:
+        for _ in range(100):
+            loop.tick()
+        said = [w for w in run_warnings(loop) if "MuJoCo stepped every 20 ms (50 Hz)" in w]
+    assert len(said) == 1
+
+
+def test_physics_rate_auto_from_the_command_line(tmp_path):
+    """`--physics-rate auto` runs (the grasp's world: a step every tick); a word that is
+    neither a rate nor auto is refused in one line, status 2."""
+    import subprocess
+    import sys
+
+    ok = subprocess.run([sys.executable, "-m", "softproxy.cli", "run", "two_finger_grasp", "--headless", "--duration",
+                         "0.2", "--physics-rate", "auto", "--json"], capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    assert '"physics_rate_hz": 1000.0' in ok.stdout
+    bad = subprocess.run([sys.executable, "-m", "softproxy.cli", "run", "two_finger_grasp", "--headless",
+                          "--physics-rate", "fast"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "a rate in Hz or 'auto', got 'fast'" in bad.stderr
