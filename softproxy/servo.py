@@ -167,16 +167,10 @@ def _compiled_io(device):
 
 
 class _TreeDofs:
-    """What `_mass_matrix` points the kernels at, kept alive with the loop: 0..nv-1 as int32, and
-    each body's tree's dofs (first, end)."""
+    """What `_mass_matrix` points the kernels at, kept alive with the loop: 0..nv-1 as int32."""
 
     def __init__(self, model) -> None:
         self.dof_index = np.arange(model.nv, dtype=np.int32)
-        self.body_dofs = np.zeros((model.nbody, 2), dtype=np.int64)
-        for b, tree in enumerate(model.body_treeid):
-            if tree >= 0:
-                first = int(model.tree_dofadr[tree])
-                self.body_dofs[b] = first, first + int(model.tree_dofnum[tree])
 
 
 def _mass_matrix(model, data, trees: _TreeDofs) -> MassMatrix:
@@ -185,7 +179,7 @@ def _mass_matrix(model, data, trees: _TreeDofs) -> MassMatrix:
     def at(a):
         return np.uintp(a.ctypes.data)
     return MassMatrix(at(data.qLD), at(data.qLDiagInv), at(model.M_rownnz), at(model.M_rowadr), at(model.M_colind),
-                      at(trees.dof_index), trees.body_dofs)
+                      at(trees.dof_index))
 
 
 class ServoLoop:
@@ -341,7 +335,7 @@ class ServoLoop:
         self._idle = threading.Event()  # clear while run() is in progress, in whatever thread
         self._idle.set()
         self._limit_array = np.zeros(2)  # [max_force, max_torque] for a compiled block whose device keeps none
-        self._coupling = coupling.workspace(world.model.nv, len(fingers))  # the implicit coupling's scratch
+        self._coupling = coupling.workspace(world.model, len(fingers))  # the implicit coupling's scratch
         self.physics = None
         """With two rates, MuJoCo's thread for real-time runs (`softproxy.physics_thread.
         PhysicsThread`: its steps, late steps, costliest step); None with one rate."""

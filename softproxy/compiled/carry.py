@@ -229,7 +229,7 @@ def respond(cr, FD, ws, n, h, H):
     centre of mass (`body_spin`), and its integral over the tick into `body_off` (and its
     `body_bound` widened). A body keeps its change once touched, until the next MuJoCo step
     (of H s)."""
-    jacs, _, _, Q, _, _, rows, spans = ws
+    jacs, _, _, Q, _, _, rows, body_dofs = ws
     nv = cr.qvel.shape[0]
     dq, q, a = cr.dqvel, cr.qvel, cr.qacc_free
     for k in range(nv):
@@ -241,7 +241,9 @@ def respond(cr, FD, ws, n, h, H):
         W0, W1, W2 = fd.sent_force
         W3 = fd.sent_torque[0] * fd.normal[0] + fd.sent_torque[1] * fd.normal[1] + fd.sent_torque[2] * fd.normal[2]
         M = Q[f]
-        for k in range(spans[f, 0], spans[f, 1]):  # (Q is filled over the finger's tree only)
+        body = int(fd.body)
+        lo, hi = body_dofs[body, 0], body_dofs[body, 1]
+        for k in range(lo, hi):  # (Q is filled over the finger's tree only)
             step = h * (M[0, k] * W0 + M[1, k] * W1 + M[2, k] * W2 + M[3, k] * W3)
             dq[k] -= step
             q[k] -= step
@@ -250,7 +252,8 @@ def respond(cr, FD, ws, n, h, H):
         b = int(fd.body)
         J = jacs[f]
         lx = ly = lz = wx = wy = wz = 0.0
-        for k in range(spans[f, 0], spans[f, 1]):
+        lo, hi = body_dofs[b, 0], body_dofs[b, 1]
+        for k in range(lo, hi):
             d = q[k] - cr.qvel0[k]
             if d != 0.0:
                 lx += J[0, k] * d

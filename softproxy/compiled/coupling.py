@@ -43,18 +43,25 @@ CHANNELS = 4
 """Per finger: force x, y, z at the contact point (N, world) and torque about its normal (N·m)."""
 
 
-def workspace(nv: int, fingers: int) -> tuple:
-    """The scratch `implicit` needs for a model of `nv` dofs and a loop of `fingers` fingers:
+def workspace(model, fingers: int) -> tuple:
+    """The scratch `implicit` needs for an mjModel and a loop of `fingers` fingers:
     (J per finger, M⁻¹Jᵀ per finger, G and Q per finger (channels × nv),
     the system (4n × 4n+1), the channels' table (4n × 5: H, hK, W_prev, u, a_free), the
-    coupled fingers' rows (n), and the dofs of each one's tree (n × 2: first, end); G, Q and
-    M⁻¹Jᵀ are filled over those dofs only)."""
+    coupled fingers' rows (n), and per body the dofs of its tree (nbody × 2: first, end; 0, 0
+    for a body welded to the world); G, Q and M⁻¹Jᵀ are filled over a coupled finger's body's
+    tree only. Eight arrays: each array a kernel takes costs a reference count in and out of
+    every call it goes through, the tick's three deep."""
     n = max(1, int(fingers))
-    nv = int(nv)
+    nv = int(model.nv)
+    body_dofs = np.zeros((model.nbody, 2), dtype=np.int64)
+    for b, tree in enumerate(model.body_treeid):
+        if tree >= 0:
+            first = int(model.tree_dofadr[tree])
+            body_dofs[b] = first, first + int(model.tree_dofnum[tree])
     return (np.zeros((n, 6, nv)), np.zeros((n, 6, nv)),
             np.zeros((n, CHANNELS, nv)), np.zeros((n, CHANNELS, nv)),
             np.zeros((CHANNELS * n, CHANNELS * n + 1)), np.zeros((CHANNELS * n, 5)), np.zeros(n, dtype=np.int64),
-            np.zeros((n, 2), dtype=np.int64))
+            body_dofs)
 
 
 @njit(cache=True, error_model="numpy")
@@ -85,10 +92,11 @@ def _solve(system, n):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _dot_columns(a, b, lo, hi):
     """Σ_k a[k] b[k] over the dofs lo..hi of a's tree (a: a channel's Jacobian row, zero
-    outside them and mostly zeros within)."""
+    outside them and mostly zeros within). Inlined by numba: `implicit` calls it (4n)² times a
+    tick, and LLVM left it a call of its own, two reference counts in and out each time."""
     acc = 0.0
     for k in range(lo, hi):
         if a[k] != 0.0:
@@ -108,7 +116,7 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     fingers' last wrenches (added back to get a_free); without, already without them (two
     rates: `softproxy.compiled.carry`'s held acceleration). Returns how many fingers were
     coupled (their rows of ws filled, in `rows`)."""
-    jacs, mijs, G, Q, system, chan, rows, spans = ws
+    jacs, mijs, G, Q, system, chan, rows, body_dofs = ws
     nv = qvel.shape[0]
     n = 0
     point = chan[0, :3]  # (scratch: the table is filled after the last Jacobian)
@@ -118,8 +126,7 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
         if not fd.valid or body <= 0 or bodies_fixed[body] or n >= rows.shape[0]:
             continue
         point[0], point[1], point[2] = fd.contact_pos
-        lo, hi = mass.body_dofs[body, 0], mass.body_dofs[body, 1]
-        spans[n, 0], spans[n, 1] = lo, hi
+        lo, hi = body_dofs[body, 0], body_dofs[body, 1]
         point_jacobian(m, d, body, np.uintp(point.ctypes.data), jacs[n])
         if hi - lo == nv:  # one tree: one solve of the six rows
             response(m, d, jacs[n], mijs[n])
@@ -161,10 +168,12 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     # a_free = G qacc + A W_prev
     for r in range(size):
         a, c = r // CHANNELS, r % CHANNELS
-        lo, hi = spans[a, 0], spans[a, 1]
+        body = int(FD[rows[a]].body)
+        lo, hi = body_dofs[body, 0], body_dofs[body, 1]
         acc = _dot_columns(G[a, c], qacc, lo, hi)
         for e in range(size):
-            A = _dot_columns(G[a, c], Q[e // CHANNELS, e % CHANNELS], lo, hi) if spans[e // CHANNELS, 0] == lo else 0.0
+            other = int(FD[rows[e // CHANNELS]].body)  # (fingers on another tree: zero)
+            A = _dot_columns(G[a, c], Q[e // CHANNELS, e % CHANNELS], lo, hi) if body_dofs[other, 0] == lo else 0.0
             system[r, e] = A
             acc += A * chan[e, 2]
         chan[r, 3] = _dot_columns(G[a, c], qvel, lo, hi)

@@ -23,11 +23,12 @@ mj_step1/2 and the body response) and views of mjData: qvel, qacc, xfrc_applied 
 N and N·m), xipos (nbody × 3, m); and its mass matrix by tree (`MassMatrix`). Every array a
 kernel takes costs a reference count in and out of each call, so the tick's bundles hold
 few: the local model of two rates (`Carried`) is an argument of its own, None with one rate."""
-MassMatrix = namedtuple("MassMatrix", "qLD qLDiagInv rownnz rowadr colind dof_index body_dofs")
+MassMatrix = namedtuple("MassMatrix", "qLD qLDiagInv rownnz rowadr colind dof_index")
 """M's factorisation (the addresses of an mjData's qLD, qLDiagInv) and sparsity (of an
-mjModel's M_rownnz, M_rowadr, M_colind), the address of 0..nv-1 as int32 (the dofs a solve
-over one tree lists), and per body the dofs of its tree (nbody × 2: first, end; 0, 0 for the
-world): `body_response.response_in_tree`."""
+mjModel's M_rownnz, M_rowadr, M_colind), and the address of 0..nv-1 as int32 (the dofs a
+solve over one tree lists): `body_response.response_in_tree`. Addresses only, no array (each
+body's tree's dofs are in the coupling's workspace, `coupling.workspace`): `MjViews` goes
+down every call of the tick."""
 Carried = namedtuple("Carried", "d_xpos d_xmat d_cvel d_qvel d_qacc xipos ximat subtree_com body_rootid moving "
                                 "mover_geom mover_body mover_rbound "
                                 "geom_xpos geom_xmat cvel snap_xpos snap_xmat body_com body_xmat body_vel body_err "
