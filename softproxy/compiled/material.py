@@ -31,7 +31,7 @@ from softproxy.compiled.layout import PLANE_SHAPE
 from softproxy.compiled.shapes import shape_distance, shape_to_local, shape_to_world
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def shape_friction(sh, fm, shape, x, y, z):
     """The static and dynamic coefficients of a finger's cone on `shape` (a row of S) at the
     world point (x, y, z) (m): a textured shape's modulated along its grating."""
