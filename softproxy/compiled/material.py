@@ -120,15 +120,14 @@ def surface_force(sh, fm, fd, shape, P, dt):
         fd.vibration_phase = phase - 2.0 * math.pi * math.floor(phase / (2.0 * math.pi))
     period, height = r.texture[3], r.texture[4]
     if height > 0.0 and period > 0.0:
-        # the slope of h(u) = height sin(2π u / period), u along the axis (geom frame); the
-        # lateral force -P dh/du along the axis's tangential part pushes back up every rise
-        # and forward down every fall
+        # the slope of h(u) = height sin(2π u / period) under the device, u along the axis
+        # (geom frame); the lateral force -P dh/du along the axis's tangential part pushes
+        # back up every rise and forward down every fall. It is the hand's alone: the body,
+        # flat in MuJoCo, gets no push from relief it does not have (`texture_force` is left
+        # out of its wrench); pushed, a light body pinched on a 0.1 mm grating shook itself
+        # out of the grip
         ax, ay, az = r.texture[0], r.texture[1], r.texture[2]
         w = 2.0 * math.pi / period
-        # read under the device, the relief the hand moves over. It is the hand's alone: the
-        # body, flat in MuJoCo, gets no push from relief it does not have (`texture_force`
-        # is left out of its wrench); pushed, a light body pinched on a 0.1 mm grating shook
-        # itself out of the grip
         dx, dy, dz = fd.device_pos
         slope = height * w * math.cos(w * _along_texture(sh, shape, dx, dy, dz))
         g = int(r.geom)
