@@ -508,19 +508,19 @@ class Material:
                 raise must_be("mu_d", "given with mu_s (the pair's static friction)", self.mu_d)
             if self.mu_d > self.mu_s:
                 raise must_be("mu_d", f"<= mu_s ({self.mu_s!r})", self.mu_d)
-        if (self.magnet_force > 0.0) != (self.magnet_reach > 0.0):
-            raise must_be("magnet_reach" if self.magnet_force > 0.0 else "magnet_force",
-                          "given with the other: a magnet needs both its force and its reach",
-                          self.magnet_reach if self.magnet_force > 0.0 else self.magnet_force)
-        if (self.stick_slip_force > 0.0) != (self.stick_slip_stiffness > 0.0):
-            raise must_be("stick_slip_stiffness" if self.stick_slip_force > 0.0 else "stick_slip_force",
-                          "given with the other: stick-slip needs both its break force and its stiffness",
-                          self.stick_slip_stiffness if self.stick_slip_force > 0.0 else self.stick_slip_force)
-        relief = self.texture_height > 0.0 or self.texture_friction != 0.0
-        if (self.texture_period > 0.0) != relief:
-            raise must_be("texture_height" if self.texture_period > 0.0 else "texture_period",
-                          "given with the other: a grating needs its period and a height or a friction "
-                          "modulation", self.texture_height if self.texture_period > 0.0 else self.texture_period)
+        self._both("magnet_force", "magnet_reach", self.magnet_reach > 0.0,
+                   "a magnet needs both its force and its reach")
+        self._both("stick_slip_force", "stick_slip_stiffness", self.stick_slip_stiffness > 0.0,
+                   "stick-slip needs both its break force and its stiffness")
+        self._both("texture_period", "texture_height", self.texture_height > 0.0 or self.texture_friction != 0.0,
+                   "a grating needs its period and a height or a friction modulation")
+
+    def _both(self, first: str, second: str, second_given: bool, why: str) -> None:
+        """An effect of two fields, `first` (> 0 when given) and `second`: neither or both; the
+        one left out named otherwise."""
+        if (getattr(self, first) > 0.0) != second_given:
+            missing = second if getattr(self, first) > 0.0 else first
+            raise must_be(missing, f"given with the other: {why}", getattr(self, missing))
 
 
 MaterialTable = create_model("MaterialTable", __base__=Table, __doc__="[materials.NAME]: Material's fields.",
