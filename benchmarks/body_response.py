@@ -13,10 +13,11 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from numba import njit
 
 from softproxy.compiled import native
 from softproxy.compiled.body_response import mobility, workspace
+from softproxy.compiled.kernel import kernel
+
 
 CALLS = 20_000
 """Calls per timed run."""
@@ -39,7 +40,7 @@ def _boxes(n: int) -> str:
     return f"<mujoco><worldbody>{bodies}</worldbody></mujoco>"
 
 
-@njit(error_model="numpy")
+@kernel(cache=False)
 def _loop(m, d, a, pa, b, pb, out, jac_a, jac_b, work, n):
     for _ in range(n):
         mobility(m, d, a, pa, b, pb, out, jac_a, jac_b, work)

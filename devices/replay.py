@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit, types
 
 from softproxy import device_kernel as dk
+from softproxy.compiled.kernel import kernel
 from softproxy.device import DeviceError
 from softproxy.recording import dropped_error, load_recording, replay_error
 
@@ -43,7 +44,7 @@ FAILED = dk.DEVICE_KINDS + 2  # argument: the record of a read the recorded devi
 I_READS, I_NEXT, I_RECORDS, I_RECORDED_READS, I_FINGERS = range(1, 6)  # after I_CLOSED (0)
 
 
-@njit(cache=True)
+@kernel(entry=True)
 def _probe():
     """A cached function of this module: where numba keeps its kernels."""
     return 0

@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit, types
 
 from softproxy import device_kernel as dk
+from softproxy.compiled.kernel import kernel
 from softproxy.device import DeviceError
 from softproxy.input_error import PLAUSIBLE_TWIST_RAD, implausible
 
@@ -75,7 +76,7 @@ def _fail(source: str, field: str, expected: str, got) -> ValueError:
 
 # --- kernels ------------------------------------------------------------------------------------
 
-@njit(cache=True)
+@kernel(entry=True)
 def _probe():
     """A cached function of this module: where numba keeps its kernels."""
     return 0
@@ -84,7 +85,7 @@ def _probe():
 dk.drop_stale_kernels(_probe)  # before the kernels below are compiled or loaded
 
 
-@njit(error_model="numpy")
+@kernel(cache=False)
 def _scripted(ints, track, finger, ts):
     """(x, y, z, twist) of `finger` as scripted at time ts (s): minimum-jerk between keyframes,
     held outside them. The segment of the last call is tried first (reads move forward)."""
@@ -181,7 +182,7 @@ def _read(t, ints, rng, floats, track, samples):
     return 0
 
 
-@njit(error_model="numpy")
+@kernel(cache=False)
 def _saturate(a, b, c, limit):
     """(a, b, c) scaled, direction kept, to a norm of at most `limit`, and its norm before
     (computed without overflow for any finite components)."""

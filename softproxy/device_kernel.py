@@ -46,10 +46,12 @@ from typing import Callable, NamedTuple
 
 import numba
 import numpy as np
-from numba import carray, cfunc, njit, types
+from numba import carray, cfunc, types
 from numba.extending import intrinsic
 
 from softproxy.compiled.cache import renew
+from softproxy.compiled.kernel import kernel
+
 
 JIT = not numba.config.DISABLE_JIT
 """False under NUMBA_DISABLE_JIT=1: no cfunc can be built, `compiled_io()` returns None."""
@@ -84,7 +86,7 @@ DEVICE_KINDS = 8
 """Kinds from DEVICE_KINDS up are the device's own (a stall, a dropped recorded read, ...)."""
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def error_code(kind, argument):
     """The code of an error `kind` (1..15) with an `argument` >= 0 (clamped to MAX_ARGUMENT)."""
     if argument < 0:
@@ -142,37 +144,37 @@ _u8 = _pointer_to(types.uint8)
 _sample = _pointer_to(SAMPLE_TYPE)
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def f64_at(address, n):
     """The n float64 at `address` as an array (no copy)."""
     return carray(_f64(address), n)
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def i64_at(address, n):
     """The n int64 at `address` as an array (no copy)."""
     return carray(_i64(address), n)
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def u64_at(address, n):
     """The n uint64 at `address` as an array (no copy)."""
     return carray(_u64(address), n)
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def u8_at(address, n):
     """The n uint8 at `address` as an array (no copy)."""
     return carray(_u8(address), n)
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def samples_at(address, n):
     """The n SAMPLE rows at `address` as an array (no copy)."""
     return carray(_sample(address), n)
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def sample_table_at(address, rows, fingers):
     """The rows × fingers SAMPLE table at `address` as a 2-D array (no copy)."""
     return carray(_sample(address), (rows, fingers))
@@ -183,13 +185,13 @@ STATE_ARRAYS = 4
 send get the same block, each using the arrays it needs."""
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def state_at(address):
     """The [address, size] pairs of the state block at `address` (2 × STATE_ARRAYS int64)."""
     return i64_at(address, 2 * STATE_ARRAYS)
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def read_refused(state, samples, n, fingers_at):
     """A compiled read's first checks, before it touches its arrays: NULL for a null state or
     samples address, ROWS when the device's finger count (int64 `fingers_at` of the first
@@ -239,7 +241,7 @@ if JIT:
     _G, _M1, _M2 = np.uint64(_GAMMA), np.uint64(_MIX1), np.uint64(_MIX2)
     _S11, _S27, _S30, _S31 = np.uint64(11), np.uint64(27), np.uint64(30), np.uint64(31)
 
-    @njit(inline="always")
+    @kernel(inline="always", cache=False)
     def next_u64(state, k):
         """Advance stream `state[k]` (uint64 array) and return its next 64 random bits."""
         z = state[k] + _G
@@ -248,7 +250,7 @@ if JIT:
         z = (z ^ (z >> _S27)) * _M2
         return z ^ (z >> _S31)
 
-    @njit(inline="always")
+    @kernel(inline="always", cache=False)
     def uniform(state, k):
         """The next number of stream `state[k]`, uniform in [0, 1) with 53 random bits."""
         return np.float64(next_u64(state, k) >> _S11) * _UNIT
@@ -266,7 +268,7 @@ else:  # interpreted: the same numbers through Python ints (numpy's uint64 scala
         return float(next_u64(state, k) >> 11) * _UNIT
 
 
-@njit(inline="always")
+@kernel(inline="always", cache=False)
 def gauss_pair(state, k):
     """Two independent standard normal numbers from stream `state[k]` (Box–Muller: two draws)."""
     angle = _TWO_PI * uniform(state, k)

@@ -24,9 +24,9 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from softproxy.compiled.certificate import ABOVE_TOL, BALL_SLACK
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import FEW_SLOTS
 from softproxy.compiled.tree_walk import LEAF, STACK
 from softproxy.compiled.triangle import closest, segments_gap2
@@ -47,7 +47,7 @@ BALL_BUDGET = 64
 a wall of slivers, whose boxes the walk cannot tell from the few it reaches)."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _reaches(tri, V, F, t, i, lx, ly, lz, sx, sy, sz, off, radius, reach2):
     """Whether triangle t comes within sqrt(reach2) (m) of face i lifted by l = radius s (s
     its unit normal on the side asked, off = s · a vertex of i): the least of the distances
@@ -103,7 +103,7 @@ def _reaches(tri, V, F, t, i, lx, ly, lz, sx, sy, sz, off, radius, reach2):
     return False
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _bound_beyond(tri, V, F, t, i, sx, sy, sz, off, radius, spare):
     """Whether no ball of `radius` resting on face i (side s) reaches triangle t, by a lower
     bound: x is reached when φ(x) = dist(x, face)² - 2 radius z(x) <= spare (z the height over
@@ -122,7 +122,7 @@ def _bound_beyond(tri, V, F, t, i, sx, sy, sz, off, radius, spare):
     return phi + least > spare * (1.0 + 1e-9) + 1e-18
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _may_reach(lo, hi, top, flo, fhi, ulo, uhi, radius, spare):
     """Whether a box lo..hi may hold a point x that a ball of `radius` resting on the face of
     box flo..fhi (lifted by radius along the side's normal s: ulo..uhi) reaches: such a point
@@ -133,7 +133,7 @@ def _may_reach(lo, hi, top, flo, fhi, ulo, uhi, radius, spare):
             and box_gap2(lo, hi, ulo, uhi) <= radius * radius + spare)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel(nogil=True, entry=True)
 def ball_lists(faces, wanted, mesh, walk, tstamp, stamp0, count, listed):
     """Per face of `faces` (ids) of `mesh` (`softproxy.mesh_certificates.MeshArrays`) and side
     (front, back) where wanted[j, side], the triangles that a ball of `walk.radius` (m, a

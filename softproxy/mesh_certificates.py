@@ -14,9 +14,9 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from softproxy.compiled.certificate import ABOVE_TOL, STATIC_ABOVE
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import (
     T_ADJ, T_BALL, VERTEX_WIDTH, V_AXIS, V_COS, V_FAN, V_RING, V_SINES, V_THRESHOLD, V_X,
 )
@@ -127,7 +127,7 @@ def certificate_tables(s, t0: int, c0: int) -> tuple[np.ndarray, np.ndarray, flo
     return columns, np.concatenate([p.ravel() for p in parts]), float(s.kept), float(s.ball)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def oriented_heights(axes, ext, node, nx, ny, nz, off):
     """The highest and lowest points (m) over the plane n·x = off of a node's oriented box."""
     top = -off
@@ -140,7 +140,7 @@ def oriented_heights(axes, ext, node, nx, ny, nz, off):
     return top + 1e-15, bottom - 1e-15
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def box_gap2(lo, hi, qlo, qhi):
     """Squared distance (m²) between box lo..hi and box qlo..qhi (a point: qlo = qhi)."""
     g = 0.0
@@ -150,7 +150,7 @@ def box_gap2(lo, hi, qlo, qhi):
     return g
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def box_heights(lo, hi, nx, ny, nz, off):
     """The highest and lowest points (m) of box lo..hi over the plane n·x = off."""
     top = -off
@@ -165,7 +165,7 @@ def box_heights(lo, hi, nx, ny, nz, off):
     return top, bottom
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
     """Whether triangle t may come within reach (m) of a face of box qlo..qhi and bounding
     ball (c, ri): both its box and its ball do."""
@@ -175,7 +175,7 @@ def _near_face(t, qlo, qhi, cx, cy, cz, ri, tlo, thi, centre, rho, reach):
     return math.sqrt(ex * ex + ey * ey + ez * ez) - rho[t] - ri <= reach
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp):
     """Record triangle t on the sides of the plane its vertices rise above (by ABOVE_TOL):
     appended to the rows fj (front) and bj (back) while they hold STATIC_ABOVE, else that
@@ -201,7 +201,7 @@ def _rise(t, V, F, nx, ny, nz, off, front, back, fj, bj, tstamp, stamp):
     return front, back
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel(nogil=True, entry=True)
 def face_lists(faces, mesh, walk, tstamp, stamp0, count, listed):
     """Per face of `faces` (ids) and side (front, back) of `mesh` (MeshArrays), the triangles
     within `walk.reach` (m, a FaceWalk) of it
@@ -300,7 +300,7 @@ def face_lists(faces, mesh, walk, tstamp, stamp0, count, listed):
         count[j, 0], count[j, 1] = front, back
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _least_sine(lo, hi, px, py, pz, ax, ay, az, av, rise):
     """The least sin β a point w of box lo..hi can have, -(w - p)·a / |w - p|: its lowest
     numerator (-rise at most: rise, how high another box about the same points rises over
@@ -325,7 +325,7 @@ def _least_sine(lo, hi, px, py, pz, ax, ay, az, av, rise):
     return bound - 1e-12
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sine(w, V, px, py, pz, ax, ay, az):
     """Vertex w's sin β seen from p (axis a), rounded down to 1/SINE_GRID."""
     ux, uy, uz = V[w, 0] - px, V[w, 1] - py, V[w, 2] - pz
@@ -333,7 +333,7 @@ def _sine(w, V, px, py, pz, ax, ay, az):
     return math.floor((s + 1.0) * SINE_GRID) / SINE_GRID - 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _long_near(w, v, p, F, fan_start, fan, longest, long_edge, tlo, thi, centre, rho, reach):
     """Whether vertex w has a long triangle (longest edge over long_edge) in its fan that may
     come within `reach` (m) of point p (box and bounding ball) and is not one of vertex v's
@@ -352,7 +352,7 @@ def _long_near(w, v, p, F, fan_start, fan, longest, long_edge, tlo, thi, centre,
     return False
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel(nogil=True, entry=True)
 def vertex_tables(verts, mesh, walk, mark, stamp0, sines, ids, counts):
     """Per vertex v of `verts` (ids) of `mesh` (MeshArrays): among the vertices w of the
     triangles within `walk.reach` (m, a VertexWalk) of it but its fan, w other than v and the ends of its edges, the VERTEX_READ + 1 of least

@@ -16,8 +16,8 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.tree_walk import LEAF
 
 BoxTree = namedtuple("BoxTree", "order lo hi size")
@@ -108,7 +108,7 @@ def node_boxes(order: np.ndarray, size: int, lo: np.ndarray, hi: np.ndarray) -> 
     return nlo, nhi
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _set_frame(axes, node, ux, uy, uz, vx, vy, vz):
     """A node's oriented axes: the unit u, the unit v square to it, and u × v."""
     axes[node, 0, 0], axes[node, 0, 1], axes[node, 0, 2] = ux, uy, uz
@@ -116,7 +116,7 @@ def _set_frame(axes, node, ux, uy, uz, vx, vy, vz):
     axes[node, 2, 0], axes[node, 2, 1], axes[node, 2, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _widen(axes, ext, node, V, w):
     """A node's extents along its axes (m), stretched to hold vertex w."""
     for a in range(3):
@@ -141,7 +141,7 @@ def node_frames(order: np.ndarray, size: int, V: np.ndarray, F: np.ndarray, plan
     return Frames(axes, ext)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def _fill_frames(order, size, V, F, plane, axes, ext):
     """`node_frames`' work, level by level: each node's items are a run of `order` (the leaves'
     LEAF triangles under it), every vertex of each projected on its first triangle's axes
@@ -190,7 +190,7 @@ def apex_frames(order: np.ndarray, size: int, V: np.ndarray, F: np.ndarray, fram
     return ApexFrames(axes, ext, lo, hi, apex)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def _fill_apex(order, size, V, F, axes, ext, lo, hi, apex):
     """`apex_frames`' work, level by level: each node's apex, and its extents along its axes
     and its box over its vertices but that one (the others keep their extents; their box is
@@ -248,7 +248,7 @@ def point_frames(order: np.ndarray, size: int, V: np.ndarray, normal: np.ndarray
     return Frames(axes, ext)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def _fill_point_frames(order, size, V, N, axes, ext):
     """`point_frames`' work, level by level: each node's vertices are a run of `order`."""
     n = len(order)

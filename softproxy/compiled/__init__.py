@@ -10,9 +10,10 @@ keeps numba's on-disk cache in step with every file the kernels are built from. 
 users see (`softproxy.finger`, `proxy`, `torsion`, `geometry`, `mesh`) are views onto the
 records these kernels read and write. `NUMBA_DISABLE_JIT=1` runs the same source as Python.
 
-Every kernel is compiled with numpy's error model: a division by zero (a NaN pose from a
-diverged simulation, say) gives Inf or NaN, which the device guard turns into zero force
-and a counted fault, never an exception out of a tick.
+Every kernel is compiled by `kernel.kernel`: numpy's error model (a division by zero, from a
+NaN pose of a diverged simulation, say, gives Inf or NaN, which the device guard turns into
+zero force and a counted fault, never an exception out of a tick), cached, one machine code
+per argument types, and numba's Python wrapper only where Python calls.
 """
 
 from softproxy.compiled.cache import drop_stale

@@ -20,8 +20,8 @@ ctypes (`mobility.py_func`, or under NUMBA_DISABLE_JIT=1).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.native import mj_jac, mj_solveLD, mj_solveM
 
 _F64 = 8
@@ -36,7 +36,7 @@ def workspace(nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return np.zeros((6, 6)), np.zeros((6, nv)), np.zeros((6, nv)), np.zeros((6, nv))
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def point_jacobian(m, d, body, point, jac):
     """jac (C-contiguous 6×nv) = [jacp; jacr] of `body` at the world point whose 3 float64 are at
     address `point` (np.uintp): MuJoCo's mj_jac."""
@@ -45,14 +45,14 @@ def point_jacobian(m, d, body, point, jac):
     mj_jac(m, d, base, base + np.uintp(3 * nv * _F64), point, body)  # (uintp + int64 would be a float)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def response(m, d, jac, work):
     """work (C-contiguous 6×nv) = the rows of (M⁻¹ Jᵀ)ᵀ: the 6 rows of J are 6 vectors of nv,
     one mj_solveM over the factorisation mj_step1 left."""
     mj_solveM(m, d, np.uintp(work.ctypes.data), np.uintp(jac.ctypes.data), 6)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def response_in_tree(mass, jac, work, lo, hi):
     """`response` over the dofs lo..hi of one kinematic tree (the rows of jac zero outside
     them, as a body's Jacobian is): work[:, lo:hi] = the rows of (M⁻¹ Jᵀ)ᵀ there, bit for bit
@@ -66,7 +66,7 @@ def response_in_tree(mass, jac, work, lo, hi):
                    mass.colind, idx)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def mobility(m, d, body_a, pa, body_b, pb, out, jac_a, jac_b, work):
     """out (6×6) = J_a M⁻¹ J_bᵀ: body a's (v, ω) at world point pa (m) per unit (linear,
     angular) impulse on body b at world point pb, world frame (see the module docstring).

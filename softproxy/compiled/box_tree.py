@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import (
     NODE_WIDTH, N_AXES, N_EXT, N_HI, N_LO, RECORD_WIDTH, TREE_NODES, TREE_RECORDS, TREE_SIZE,
 )
@@ -26,7 +25,7 @@ TREE_MARGIN = 1e-12
 radius) beyond their triangles, so that no rounding of a box test leaves a triangle out."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def node_gap2(C, at, x, y, z):
     """A lower bound on the squared distance (m²) from p to any triangle of the node at C[at]:
     the larger of the squared distances to its axis-aligned and to its oriented box (inf for
@@ -45,7 +44,7 @@ def node_gap2(C, at, x, y, z):
     return box if box > oriented else oriented
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _slab_entry(p, u, lo, hi, t0, t1):
     """The part [t0, t1] of the line p + t u (one axis) that lies within lo..hi (t0 > t1: none)."""
     if u == 0.0:
@@ -58,7 +57,7 @@ def _slab_entry(p, u, lo, hi, t0, t1):
     return (a if a > t0 else t0), (b if b < t1 else t1)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _span_gap(p0, p1, lo, hi):
     """The gap (m) between the span p0..p1 and lo..hi on one axis (0 where they overlap)."""
     if p0 > p1:
@@ -66,7 +65,7 @@ def _span_gap(p0, p1, lo, hi):
     return lo - p1 if p1 < lo else p0 - hi if p0 > hi else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def span_gap2(C, at, ax, ay, az, ux, uy, uz, tmax):
     """A lower bound on the squared distance (m²) from the segment a + t u (t in [0, tmax])
     to the node at C[at]'s triangles: over either box, the sum over its axes of the squared
@@ -85,7 +84,7 @@ def span_gap2(C, at, ax, ay, az, ux, uy, uz, tmax):
     return box if box > oriented else oriented
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
     """True when a sphere of radius r (m) on the segment a + t u, t in [0, tmax], stays r
     off the node at C[at]'s oriented box along its first axis (the plane of its first
@@ -99,7 +98,7 @@ def _stays_above(C, at, ax, ay, az, ux, uy, uz, r, slack, tmax):
     return (n0 - top >= r and n1 - top >= r) or (bottom - n0 >= r and bottom - n1 >= r)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     """Where (fraction of the segment a + t u, t in [0, tmax], |u| = length (m)) it enters
     the node at C[at]'s boxes, each grown by `grow` (m) on every side; > tmax when it does
@@ -152,7 +151,7 @@ def node_entry(C, at, ax, ay, az, ux, uy, uz, length, r, grow, slack, tmax):
     return t0 if t0 > lower else lower
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def tree_of(S, C, k):
     """Mesh k's box tree: where it begins in C, its number of leaves, the mesh's number of
     triangles, and `base`, from which node j's record is at base + NODE_WIDTH j."""
@@ -160,7 +159,7 @@ def tree_of(S, C, k):
     return tree, int(C[tree + TREE_SIZE]), int(S[k].nt), tree + TREE_NODES - NODE_WIDTH
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def leaf_records(C, tree, leaf, n):
     """The records (C[j0:j1]) of the triangles of leaf number `leaf` (node size + leaf) of a
     tree of n triangles at C[tree]."""
@@ -170,7 +169,7 @@ def leaf_records(C, tree, leaf, n):
     return rec + first * RECORD_WIDTH, rec + max(last, first) * RECORD_WIDTH
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def segment_gap(ax, ay, az, bx, by, bz, px, py, pz):
     """The distance (m) from p to the segment a..b."""
     ux, uy, uz = bx - ax, by - ay, bz - az
@@ -182,7 +181,7 @@ def segment_gap(ax, ay, az, bx, by, bz, px, py, pz):
     return math.sqrt(ex * ex + ey * ey + ez * ez)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _across(C, j):
     """The unit vector across the rectangle of the record at C[j]: its plane's normal × its
     axis."""
@@ -191,7 +190,7 @@ def _across(C, j):
     return ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def record_beyond2(C, j, ex, ey, ez):
     """How far (m², squared) the foot of a point at e (m) from the centre of the record at
     C[j] lies beyond its rectangle, in the triangle's plane."""
@@ -206,14 +205,14 @@ def record_beyond2(C, j, ex, ey, ez):
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _span_beyond(s0, s1, half):
     """How far (m) the span s0..s1 lies from the span -half..half."""
     lo, hi = (s0, s1) if s0 <= s1 else (s1, s0)
     return lo - half if lo > half else -half - hi if hi < -half else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
     """A lower bound on the squared distance (m²) from the segment a..b to the triangle of
     the record at C[j], whose plane a and b lie ha and hb (m) over: at every point of the
@@ -230,7 +229,7 @@ def record_gap2(C, j, ax, ay, az, bx, by, bz, ha, hb):
     return low * low + along * along + across * across
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def capsule_gap(C, at, ax, ay, az, bx, by, bz):
     """How far (m) the segment a..b strays from the segment whose ends are at C[at:at + 6]:
     the larger of its ends' distances (the distance to a segment is convex along a segment)."""
@@ -238,7 +237,7 @@ def capsule_gap(C, at, ax, ay, az, bx, by, bz):
                segment_gap(C[at], C[at + 1], C[at + 2], C[at + 3], C[at + 4], C[at + 5], bx, by, bz))
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def record_top(C, j, nx, ny, nz):
     """The highest point (m, along unit n) of the rectangle of the record at C[j]."""
     ux, uy, uz = C[j + 7], C[j + 8], C[j + 9]
@@ -247,7 +246,7 @@ def record_top(C, j, nx, ny, nz):
             + C[j + 11] * abs(nx * wx + ny * wy + nz * wz))
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def node_top(C, at, nx, ny, nz):
     """The highest point (m, along unit n) of the oriented box of the node at C[at]."""
     top = 0.0

@@ -14,7 +14,8 @@ import ast
 import hashlib
 from pathlib import Path
 
-from numba import njit
+from softproxy.compiled.kernel import kernel
+
 
 _PACKAGE = Path(__file__).resolve().parent
 _ROOT = _PACKAGE.parent
@@ -51,7 +52,7 @@ def sources() -> list[Path]:
     return sorted(seen)
 
 
-@njit(cache=True)
+@kernel(entry=True)
 def _probe():
     """A cached function of this package: where numba keeps the cache (in-tree or per user)."""
     return 0

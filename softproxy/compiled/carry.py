@@ -39,7 +39,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from softproxy.compiled.kernel import kernel
+
 
 # a body's rows in body_vel, body_err, body_off and body_spin: angular (3), then linear (3)
 FADE_STEPS = 4.0
@@ -50,7 +51,7 @@ NEAR_MARGIN = 2e-3
 which a moving shape is carried every tick."""
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _rotate(tx, ty, tz, x, y, z):
     """R(θ) applied to (x, y, z): the rotation by the rotation vector θ (rad), Rodrigues."""
     a2 = tx * tx + ty * ty + tz * tz
@@ -65,7 +66,7 @@ def _rotate(tx, ty, tz, x, y, z):
     return x + s * cx + c * dx, y + s * cy + c * dy, z + s * cz + c * dz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _log(R):
     """The rotation vector (rad) of the 3×3 rotation R (row-major 9): axis × angle."""
     tr = R[0] + R[4] + R[8]
@@ -87,7 +88,7 @@ def _log(R):
     return k * wx, k * wy, k * wz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def snapshot(cr, dt, H, fresh):
     """At a MuJoCo step (after mj_step1): its state becomes the local model's. The offset each
     moving body's carried pose had from the new state is kept to fade (none when `fresh`:
@@ -155,7 +156,7 @@ def snapshot(cr, dt, H, fresh):
     cr.cvel[:] = cr.d_cvel
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _bound(cr, b, H):
     """How far body b's carried pose may get from where the step began, within the fade:
     body_bound[b] = (displacement (m), turn (rad)), from its velocity, the fingers' change of
@@ -170,7 +171,7 @@ def _bound(cr, b, H):
         cr.body_off[b, 0] ** 2 + cr.body_off[b, 1] ** 2 + cr.body_off[b, 2] ** 2)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _carry_shape(cr, k, b, tau, fade, H):
     """Geom k at its body b's carried pose, τ s into the step (fade: what is left of the offset)."""
     v, e, o, c = cr.body_vel[b], cr.body_err[b], cr.body_off[b], cr.body_com[b]
@@ -192,7 +193,7 @@ def _carry_shape(cr, k, b, tau, fade, H):
     w[2] = v[2] + spin[2] - e[2] / (H * FADE_STEPS)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def carry(cr, fingers, tau, H):
     """Every moving shape near a placed finger at its carried pose τ s into the step of H s
     (into the local geom_xpos, geom_xmat and cvel the haptic side's `Shapes` read). Near: its
@@ -220,7 +221,7 @@ def carry(cr, fingers, tau, H):
             _carry_shape(cr, k, b, tau, fade, H)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def respond(cr, FD, ws, n, h, H):
     """The local model over one haptic tick of h s: its generalised velocity under the held
     acceleration (`qacc_free`) and this tick's sent wrenches (on the fingers; the bodies get

@@ -28,8 +28,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, FEW_SLOTS, T_ADJ, T_CLEAR, T_N, T_TV, VERTEX_A, VERTEX_WIDTH, V_AXIS,
     V_COS, V_FAN, V_RING, V_SINES, V_THRESHOLD, V_X,
@@ -54,7 +53,7 @@ as much: vertices are float32 in MuJoCo (≈4e-9 m at 5 cm), a list is a superse
 assert FEW_SLOTS >= 2 * STATIC_ABOVE, "the scratch run must hold two faces' lists (an edge's certificate)"
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
     """The side (±1.0) of neighbour row o that the tangent plane of normal n at a point on its
     edge with row i sees (side0: the side of row i it sees, dot0 = n · row i's normal), when
@@ -74,7 +73,7 @@ def _convex_edge(T, i, o, nx, ny, nz, side0, dot0):
     return side1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def face_few(T, C, i, side, at, lists=T_CLEAR):
     """Row i's list on `side` (`lists`: T_CLEAR, the triangles rising above its plane; T_BALL,
     those a ball resting on it reaches), copied to C[C_FEW + at:]; the new count, or -1 when
@@ -89,7 +88,7 @@ def face_few(T, C, i, side, at, lists=T_CLEAR):
     return at + count
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     """`static_clear` when the nearest point is vertex `feature - VERTEX_A` of row `hint`: the fan lies
     behind the tangent plane when n is inside the vertex's cone (else every edge leaving it is
@@ -136,7 +135,7 @@ def _vertex_few(S, T, C, k, hint, feature, nx, ny, nz):
     return count
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def static_clear(S, T, C, k, hint, feature, nx, ny, nz, need):
     """How many triangles (rows of T, listed in C[C_FEW:]) within
     `need` (m) of the nearest point on `feature` of row `hint` may reach above the tangent

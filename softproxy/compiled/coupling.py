@@ -34,9 +34,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from softproxy.compiled.body_response import point_jacobian, response, response_in_tree
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.vector import dot3
 
 CHANNELS = 4
@@ -64,7 +64,7 @@ def workspace(model, fingers: int) -> tuple:
             body_dofs)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _solve(system, n):
     """Solve the n × n system in system[:, :n] against system[:, n] in place (Gaussian
     elimination, partial pivoting); the solution in system[:, n]. False when singular."""
@@ -92,7 +92,7 @@ def _solve(system, n):
     return True
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _dot_columns(a, b, lo, hi):
     """Σ_k a[k] b[k] over the dofs lo..hi of a's tree (a: a channel's Jacobian row, zero
     outside them and mostly zeros within). Inlined by numba: `implicit` calls it (4n)² times a
@@ -104,7 +104,7 @@ def _dot_columns(a, b, lo, hi):
     return acc
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     """Every finger in contact with a body that moves: its wrench (fd.force, fd.torque,
     fd.torque_n, fd.normal_force) solved implicitly with the bodies' answer over this tick of h s (the module
@@ -227,7 +227,7 @@ def implicit(m, d, mass, qvel, qacc, FM, FD, bodies_fixed, h, ws, prev):
     return n
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def within_laws(fm, fd, fx, fy, fz, M):
     """The solved wrench into the finger's data, within its laws: no pull through the surface,
     the tangential force within the static cone μ_s·P, the torque within what friction holds
@@ -256,7 +256,7 @@ def within_laws(fm, fd, fx, fy, fz, M):
         torque_within_laws(fm, fd, M)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def torque_within_laws(fm, fd, M):
     """A torque M about n (N·m) into the finger's data (torque_n, and M·n in torque): never past what
     friction holds (the static limit, or the spring torque where that is larger), nor past

@@ -6,8 +6,8 @@ servo loop resolves the types once, when it is built, and then calls the compile
 point straight (~0.1 µs). The caller promises to pass arguments of exactly those types (the
 same arrays every tick): the entry point does not check them.
 
-The first run after an install or an update compiles the kernels (~20 s for a world of
-primitives, ~1 min with meshes, on a 2-core machine); later runs load them from numba's
+The first run after an install or an update compiles the kernels (about a minute of CPU on a
+2-core machine); later runs load them from numba's
 on-disk cache in about a second. `announced` says so while it happens, so a first run is
 never silent for a minute; a load from the cache is never announced, however long a busy
 machine takes over it (numba's "numba:compile" event marks a real compile, a cache hit
@@ -86,6 +86,7 @@ def entry(kernel, args: tuple, what: str | None = None):
     """The compiled `kernel` for the types of `args` (compiling it, announced as `what`, or
     loading it from the cache, if needed), as a plain callable; `kernel` itself where nothing
     is compiled (NUMBA_DISABLE_JIT=1)."""
+    kernel = getattr(kernel, "python", kernel)  # a `Kernel`: its twin with numba's Python wrapper
     overloads = getattr(kernel, "overloads", None)
     if overloads is None:
         return kernel

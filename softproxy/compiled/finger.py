@@ -26,12 +26,12 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
 
 from softproxy.compiled import coupling, godobject, material, passivity
 from softproxy.compiled.finite import finite
 from softproxy.compiled.guard import P_MAX, guard_wrench
 from softproxy.compiled.godobject import RESTICK_FRACTION, RESTICK_SPIN, RESTICK_TRAVEL, restick_travel
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.shapes import shape_distance, shape_to_world
 
 SPIKE_PATIENCE = 3
@@ -53,7 +53,7 @@ SPIKE_PATIENCE = 3
 # than `torsion_restick` s to slide a further RESTICK_TRAVEL of its offset) or reverses (k_τ(α_p - α_g) along the slip below RESTICK_FRACTION of
 # μ_d|P|^γ); only then is eq 39's static limit needed to slip again. `torsion_restick` = 0
 # is eq 39 as printed, every tick.
-@njit(cache=True, error_model="numpy")
+@kernel
 def torsion_touch(fd, alpha_s):
     """Contact made: the proxy twist starts at the finger's current twist α_s (rad), so the
     torque starts at zero (a non-finite twist counts as 0); stuck."""
@@ -66,7 +66,7 @@ def torsion_touch(fd, alpha_s):
     fd.slip_dir = fd.slip_idle = fd.slip_travel = 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def torsion_release(fd):
     """Contact broken: torsion state cleared, no torque."""
     fd.in_contact = False
@@ -76,7 +76,7 @@ def torsion_release(fd):
     fd.slip_dir = fd.slip_idle = fd.slip_travel = 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def torsion_step(fm, fd, alpha_s, P, dt):
     """One servo tick of dt s (eqs 38-40, with the slip state): new α_p from device twist α_s
     (rad) and normal force P (N).
@@ -156,7 +156,7 @@ def torsion_step(fm, fd, alpha_s, P, dt):
     return fd.spring_torque
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def torsion_follow(fd, omega_n, dt):
     """Eqs 41-42: α_p += (ω·n)Δt, the touched object's signed spin about n (rad/s) over Δt (s).
     The seed's |ω·n| would drag the proxy forwards whichever way the object turned; the signed
@@ -169,7 +169,7 @@ def torsion_follow(fd, omega_n, dt):
 
 
 # -- the finger (softproxy.finger.SoftFingerProxy) -------------------------------------------
-@njit(cache=True, error_model="numpy")
+@kernel
 def clear_output(fd):
     """Zero force and torque, no contact reported, the sample not used: the safe state."""
     fd.force[:] = 0.0
@@ -181,7 +181,7 @@ def clear_output(fd):
     fd.twist_prev = math.nan  # the torsional damper starts afresh at the next rendered tick
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _follow_body(S, cvel, fm, fd):
     """Eqs 41-42: the touched body's spin about n (rad/s, world; MuJoCo's cvel after mj_step1)
     drags α_p, signed."""
@@ -192,7 +192,7 @@ def _follow_body(S, cvel, fm, fd):
         fd.body_turn = omega_n * fd.dt
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def to_world(fm, x, y, z):
     """A device position (device frame, m) in the world (m): origin + scale × device."""
     ox, oy, oz = fm.origin
@@ -200,7 +200,7 @@ def to_world(fm, x, y, z):
     return ox + s * x, oy + s * y, oz + s * z
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def place(sh, fm, fd, near, x, y, z):
     """Put the proxy at a device position (device frame, m), out of contact and torsion, the
     soft start's ramp back at zero. False, and the finger left unplaced, for a position
@@ -219,7 +219,7 @@ def place(sh, fm, fd, near, x, y, z):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def hold(sh, fm, fd, near):
     """No usable device sample this tick: zero force, the proxy only follows its body. The
     soft start's ramp winds down as fast as it winds up, so after an outage of T s (a device
@@ -241,7 +241,7 @@ def hold(sh, fm, fd, near):
     clear_output(fd)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _free(fm, fd):
     """A tick out of contact: torsion and the surface's effects let go, nothing rendered."""
     fd.was_sticking = False
@@ -254,7 +254,7 @@ def _free(fm, fd):
     fd.normal_force = 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     """One tick from a device sample (device frame, m and rad) over period dt (s): god-object,
     virtual coupling, torsion. False when the sample was not used (a spike held back, a
@@ -387,7 +387,7 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def audit(sh, fm, fd):
     """Deepest the proxy sits inside any shape now (m, >= 0), kept in penetration_max: the
     check that no finger was let in. An unplaced finger has no proxy in the world yet: 0."""
@@ -411,7 +411,7 @@ FIXED, TOUCHED, PUSHED = 0, 1, 2
 """Rows of the `bodies` array: welded to the world (1/0), touched this tick, pushed last tick."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _listed(bodies, n, body):
     """True when body is among bodies[:n]."""
     for j in range(n):
@@ -420,7 +420,7 @@ def _listed(bodies, n, body):
     return False
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
     """Force (N) at world point p (m) plus a pure torque (N·m) on `body`, added to this tick's
     wrench about the world origin (so no body position is read per push); nothing on a body
@@ -440,7 +440,7 @@ def push(wrench, bodies, counts, body, fx, fy, fz, px, py, pz, tx, ty, tz):
     w[5] += px * fy - py * fx + tz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def write_wrenches(xfrc, xipos, wrench, bodies, counts, scale):
     """The wrenches summed since the last write into xfrc_applied, times `scale` (1 / the
     haptic ticks summed: their average), each moved to its body's centre of mass
@@ -467,7 +467,7 @@ def write_wrenches(xfrc, xipos, wrench, bodies, counts, scale):
     counts[0] = 0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _clamp_for_device(fm, fd, safe, fmax, tmax):
     """What the device is sent for this finger, into its sent_ fields: zero on the watchdog's
     zero-force tick (`safe`) or when the sample was not used, otherwise the wrench through
@@ -484,7 +484,7 @@ def _clamp_for_device(fm, fd, safe, fmax, tmax):
     return good
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
     """Every finger's part of `ServoLoop.tick`, after mj_step1 and before mj_step2 (`mj`,
     `sh`, `fingers`: MjViews, Shapes, FingerTables of `softproxy.compiled.layout`).
@@ -561,46 +561,46 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
 
 
 # -- entries for the views: finger i of a table (`fg`: a `layout.Fingers`) ----------------------
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def torsion_touch_row(fg, i, alpha_s):
     torsion_touch(fg.data[i], alpha_s)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def torsion_release_row(fg, i):
     torsion_release(fg.data[i])
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def torsion_step_row(fg, i, alpha_s, P, dt):
     return torsion_step(fg.model[i], fg.data[i], alpha_s, P, dt)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def torsion_follow_row(fg, i, omega_n, dt):
     torsion_follow(fg.data[i], omega_n, dt)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def place_row(sh, fg, i, x, y, z):
     return place(sh, fg.model[i], fg.data[i], fg.near[i], x, y, z)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def hold_row(sh, fg, i):
     hold(sh, fg.model[i], fg.data[i], fg.near[i])
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def update_row(sh, fg, i, x, y, z, twist, dt):
     return update(sh, fg.model[i], fg.data[i], fg.near[i], x, y, z, twist, dt, fg.scratch)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def clear_output_row(fg, i):
     clear_output(fg.data[i])
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def audit_row(sh, fg, i):
     return audit(sh, fg.model[i], fg.data[i])

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from softproxy.compiled.kernel import kernel
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def finite(v):
     """True for a number that is neither NaN nor ±Inf (a sum of several tests them all: NaN
     or an infinity in any term carries through)."""

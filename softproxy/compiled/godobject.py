@@ -49,9 +49,9 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from softproxy.compiled.finite import finite
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.material import plane_friction, shape_friction
 from softproxy.compiled.layout import GEOM_MESH, PLANE_NORMAL, PLANE_OFFSET, PLANE_ROW, PLANE_SHAPE, PLANE_WIDTH
 from softproxy.compiled.shapes import (shape_distance, shape_feature, shape_feature_distance, shape_on_face, shape_sweep,
@@ -102,7 +102,7 @@ Move = namedtuple("Move", "x y z hx hy hz straight planes")
 reached (or the end point), whether the way from that first point to the end was one straight
 swept segment (any point on it is reachable), and how many planes it rests on at the end."""
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def restick_travel(offset_travel, speed, restick_time):
     """The slide a slipping contact must add up within its re-stick time to count as still
     moving: RESTICK_TRAVEL of its dynamic offset (`offset_travel`), or `speed` (RESTICK_SPEED,
@@ -136,33 +136,33 @@ and a proxy held in the dents of a scanned sphere (five sweeps) pays three queri
 for none."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def plane(pl, i):
     """Plane i of pl: its unit normal and offset (nx, ny, nz, c; the plane is n·x = c, m)."""
     return pl[i, PLANE_NORMAL], pl[i, PLANE_NORMAL + 1], pl[i, PLANE_NORMAL + 2], pl[i, PLANE_OFFSET]
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def normal(pl, i):
     """Plane i's unit normal (nx, ny, nz)."""
     return pl[i, PLANE_NORMAL], pl[i, PLANE_NORMAL + 1], pl[i, PLANE_NORMAL + 2]
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def along(pl, i, x, y, z):
     """Plane i's normal dotted with (x, y, z): a point's n·x (m, compared with the offset) or a
     direction's cosine to it."""
     return pl[i, PLANE_NORMAL] * x + pl[i, PLANE_NORMAL + 1] * y + pl[i, PLANE_NORMAL + 2] * z
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def set_plane(pl, i, nx, ny, nz, c, shape, row):
     """Row i of pl := the plane n·x = c of shape row `shape`, from row `row` of T (-1: none)."""
     pl[i, PLANE_NORMAL], pl[i, PLANE_NORMAL + 1], pl[i, PLANE_NORMAL + 2], pl[i, PLANE_OFFSET] = nx, ny, nz, c
     pl[i, PLANE_SHAPE], pl[i, PLANE_ROW] = shape, row
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _load_planes(fd, pl):
     """Copy the finger's planes into the scratch list pl; returns their count."""
     n = int(fd.nplanes)
@@ -172,7 +172,7 @@ def _load_planes(fd, pl):
     return n
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _newest_three(dst, pl, n):
     """dst := the newest three of pl[:n] (a proxy rests on three at most); returns how many."""
     start = n - 3 if n > 3 else 0
@@ -182,13 +182,13 @@ def _newest_three(dst, pl, n):
     return n - start
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _store_planes(fd, pl, n):
     """The finger's planes := the newest three of pl[:n]."""
     fd.nplanes = _newest_three(fd.planes, pl, n)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _feasible(pl, n, x, y, z, skip0, skip1):
     """True when (x, y, z) is on or above every plane of pl[:n] (within CONTACT_TOL) but
     pl[skip0] and pl[skip1], the ones it was put on."""
@@ -198,7 +198,7 @@ def _feasible(pl, n, x, y, z, skip0, skip1):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _corner(px, py, pz, pl):
     """The point q on all three planes of pl when it is the projection of p, i.e. q - p =
     Σ λ_i n_i with every λ_i >= 0 (each plane pushes, none pulls): (found, qx, qy, qz)."""
@@ -233,7 +233,7 @@ def _corner(px, py, pz, pl):
     return True, px + dx, py + dy, pz + dz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _project_by_enumeration(px, py, pz, pl, n):
     """`_project` by trying active sets of one, two, then three planes in turn: (found, qx, qy, qz)."""
     if _feasible(pl, n, px, py, pz, -1, -1):
@@ -275,7 +275,7 @@ def _project_by_enumeration(px, py, pz, pl, n):
     return False, 0.0, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _project(px, py, pz, pl, n):
     """Closest point to p in the intersection of the n <= 3 half-spaces of pl (KKT, active
     sets): (found, qx, qy, qz); not found when the planes admit no point (a degenerate set,
@@ -300,7 +300,7 @@ def _project(px, py, pz, pl, n):
     return _project_by_enumeration(px, py, pz, pl, n)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _plane_of(pl, n, s, nx, ny, nz):
     """Index in pl[:n] of shape s's plane of normal n (parallel within PARALLEL), or -1."""
     for i in range(n):
@@ -309,7 +309,7 @@ def _plane_of(pl, n, s, nx, ny, nz):
     return -1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _add_plane(pl, n, nx, ny, nz, c, s, f):
     """Add a constraint plane just hit (shape row s, feature f) to pl[:n]; returns the new
     count. The same plane met again is replaced, not doubled, and the oldest goes when there
@@ -330,7 +330,7 @@ def _add_plane(pl, n, nx, ny, nz, c, s, f):
     return n
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _touched(pl, n, nx, ny, nz):
     """The touched shape of a proxy resting on all the planes pl[:n] (a corner): the row whose
     plane is most aligned with the force's n, `_touched_at`'s rule."""
@@ -342,7 +342,7 @@ def _touched(pl, n, nx, ny, nz):
     return best
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _touched_at(sh, fm, fd, near, x, y, z, nx, ny, nz, rested):
     """The shape the proxy at (x, y, z) touches, where it ends the tick (the pushed body is
     its body, the proxy is carried in its frame): among the near shapes whose surface is
@@ -385,7 +385,7 @@ def _touched_at(sh, fm, fd, near, x, y, z, nx, ny, nz, rested):
     return best
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _nearest(sh, fd, near, x, y, z):
     """The near shape nearest the point (x, y, z) and its answer there: (row, signed distance
     (m), outward normal); row -1 when no shape is near."""
@@ -398,7 +398,7 @@ def _nearest(sh, fd, near, x, y, z):
     return best, best_d, bx, by, bz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _land(sh, fm, fd, near, x, y, z, xd, yd, zd, pl):
     """A proxy in contact that touches no shape at (x, y, z), brought onto a surface: a
     slipping proxy's point on the dynamic cone's edge lies on the chord from where it was
@@ -413,7 +413,7 @@ def _land(sh, fm, fd, near, x, y, z, xd, yd, zd, pl):
     return x, y, z
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _on_static_faces(S, xmat, pl, n):
     """True when every plane is a planar face of a shape that never moves: such a plane holds
     from tick to tick for as long as the proxy touches the face."""
@@ -424,7 +424,7 @@ def _on_static_faces(S, xmat, pl, n):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def gather_ball(sh, fm, fd, near, cx, cy, cz, room):
     """near: every shape the proxy can touch while its centre stays within `room` (m) of c,
     the shapes whose bounding sphere meets the ball of radius room + r (a plane: when the
@@ -452,7 +452,7 @@ def gather_ball(sh, fm, fd, near, cx, cy, cz, room):
     fd.nnear = count
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _push_out_of(sh, fm, fd, near, static):
     """One pass: the proxy out of every shape of `near` that is static (or moving) it overlaps,
     to CONTACT_TOL outside. True when it moved."""
@@ -474,7 +474,7 @@ def _push_out_of(sh, fm, fd, near, static):
     return moved
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def push_out(sh, fm, fd, near):
     """Move the proxy out of any shape of `near` it overlaps (an object moved into it), to
     CONTACT_TOL outside: out of the moving shapes, then out of the static ones, a few rounds
@@ -499,7 +499,7 @@ def push_out(sh, fm, fd, near):
             return
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _rest_squeezed(sh, fd, near, xd, yd, zd):
     """A squeezed proxy (`push_out`) rests where the static surfaces put it, in contact with
     the nearest static shape: the finger renders that surface's spring force (never into it),
@@ -530,7 +530,7 @@ def _rest_squeezed(sh, fd, near, xd, yd, zd):
     set_plane(fd.planes, 0, bnx, bny, bnz, bnx * fd.pos[0] + bny * fd.pos[1] + bnz * fd.pos[2], best, -1.0)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def reset(sh, fm, fd, near, x, y, z):
     """Put the proxy at (x, y, z) with no contact, every shape near (none popped through),
     pushed out of any it overlaps; False (nothing changed) for a position outside the workspace."""
@@ -555,7 +555,7 @@ def reset(sh, fm, fd, near, x, y, z):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _settle(sh, fm, fd, near, xd, yd, zd, around_proxy):
     """Carry the proxy with the touched body, gather the shapes near it and the device, push
     it out of any that moved into it. Returns the proxy position before the push."""
@@ -587,14 +587,14 @@ def _settle(sh, fm, fd, near, xd, yd, zd, around_proxy):
     return x, y, z
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def follow(sh, fm, fd, near):
     """Without a device sample: the proxy stays on the body it touches and out of anything
     that moved into it, so a skipped tick never leaves it inside a moving object."""
     _settle(sh, fm, fd, near, fd.pos[0], fd.pos[1], fd.pos[2], True)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sweep(sh, fm, fd, near, x, y, z, dx, dy, dz, pl, n):
     """Earliest hit over the near shapes of the sphere moving by (dx, dy, dz): (found, lam,
     nx, ny, nz, shape row).
@@ -623,7 +623,7 @@ def _sweep(sh, fm, fd, near, x, y, z, dx, dy, dz, pl, n):
     return found, best_lam, bnx, bny, bnz, bs
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _rests_on(sh, fm, fd, pl, i, x, y, z, on_surface):
     """True when the proxy at (x, y, z) still rests on plane pl[i] and on its shape's real
     surface, both within LIFT_TOL (m): a plane runs on past a face's edge, a curved shape
@@ -642,7 +642,7 @@ def _rests_on(sh, fm, fd, pl, i, x, y, z, on_surface):
     return shape_distance(sh, s, x, y, z)[0] - fm.radius <= LIFT_TOL
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _keep_resting(sh, fm, fd, resting, nr, pl, n, x, y, z):
     """After friction held the proxy back from the frictionless end: the planes it rests on
     at (x, y, z), resting[:nr] (those a slide itself ran into) plus those of pl[:n] (the
@@ -657,7 +657,7 @@ def _keep_resting(sh, fm, fd, resting, nr, pl, n, x, y, z):
     _store_planes(fd, resting, nr)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _still_in_corner(sh, fd, xd, yd, zd, pl, n):
     """`_still_stuck` in a corner of three static faces: holds while projecting the device
     onto the three planes gives the corner point, where the proxy is (every plane pushes)."""
@@ -680,7 +680,7 @@ def _still_in_corner(sh, fd, xd, yd, zd, pl, n):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _still_stuck(sh, fm, fd, near, xd, yd, zd, pl):
     """Fast path of the hold: a stuck proxy that stays stuck, on one flat face or pinned in a
     corner of three static faces; True when it does (n, depth and planes updated).
@@ -722,7 +722,7 @@ def _still_stuck(sh, fm, fd, near, xd, yd, zd, pl):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _warm_planes(sh, fm, fd, x, y, z, warm):
     """Last tick's planes to start the solve from, into warm; returns their count (0: solve
     cold), when every one belongs to a static shape.
@@ -773,7 +773,7 @@ def _warm_planes(sh, fm, fd, x, y, z, warm):
     return count
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _free_from_last(sh, fm, fd, near, xd, yd, zd, warm):
     """Last tick's frictionless proxy's planes, to solve this tick's frictionless proxy from
     there, into warm; returns their count (0: solve from the proxy) and the proxy's gap (m)
@@ -827,7 +827,7 @@ def _free_from_last(sh, fm, fd, near, xd, yd, zd, warm):
     return m, d - fm.radius
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _arrives(sh, fm, fd, near, x, y, z, dx, dy, dz, pl):
     """True when a sweep by (dx, dy, dz) (m) from (x, y, z) meets nothing before its end,
     where it may arrive touching (within LIFT_TOL); never for a way with NaN or inf in it."""
@@ -838,7 +838,7 @@ def _arrives(sh, fm, fd, near, x, y, z, dx, dy, dz, pl):
     return not hit or (1.0 - lam) * length <= LIFT_TOL
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _clear_way(sh, fm, fd, near, x, y, z, px, py, pz, nx, ny, nz, pl):
     """True when the proxy can move from (x, y, z), on the surface, to (px, py, pz), resting
     on it with outward normal n there, through free space: straight, or over the arc.
@@ -865,7 +865,7 @@ def _clear_way(sh, fm, fd, near, x, y, z, px, py, pz, nx, ny, nz, pl):
         and _arrives(sh, fm, fd, near, vx, vy, vz, px - vx, py - vy, pz - vz, pl)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _rest_nearest(sh, fm, fd, near, x, y, z, gx, gy, gz, pl):
     """The end of a move toward the goal g (m, world) from (x, y, z), when it is the position
     r off the surface point q nearest the goal, along the normal there: (found, the
@@ -897,7 +897,7 @@ def _rest_nearest(sh, fm, fd, near, x, y, z, gx, gy, gz, pl):
     return True, px, py, pz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """Constrained motion from (x, y, z) toward (gx, gy, gz), starting from the planes
     warm[:nwarm] the proxy rests on (none: cold). Returns (restart, Move): restart when what
@@ -1080,7 +1080,7 @@ def _move_once(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, fol
     return False, Move(x, y, z, hx, hy, hz, straight, nr)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _move(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_lifts):
     """`_move_once`, warm-started, and solved again cold when the warm start's planes did not
     hold: a `Move`, the resting planes in pl[:Move.planes]."""
@@ -1090,7 +1090,7 @@ def _move(sh, fm, fd, near, x, y, z, gx, gy, gz, warm, nwarm, pl, kept, follow_l
     return move
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _slips(fm, fd, sx, sy, sz, slide, depth, mu_s, mu_d):
     """The friction cone's state this tick, from the offset s = h - f (m) of the proxy's first
     surface point h from the frictionless proxy f, |s| = slide, and the depth (m): True for
@@ -1109,7 +1109,7 @@ def _slips(fm, fd, sx, sy, sz, slide, depth, mu_s, mu_d):
     return slide > mu_s * depth
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
     """Move the proxy toward the device position (m, world) over a tick of dt s (the friction
     cone's re-stick time counts in it): the tick's god-object.
@@ -1234,17 +1234,17 @@ def scratch() -> np.ndarray:
 
 
 # -- entries for the views (`softproxy.proxy.GodObject`): finger i of a table ------------------
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def reset_row(sh, fg, i, x, y, z):
     return reset(sh, fg.model[i], fg.data[i], fg.near[i], x, y, z)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def update_row(sh, fg, i, xd, yd, zd, dt):
     sc = fg.scratch
     return update(sh, fg.model[i], fg.data[i], fg.near[i], xd, yd, zd, dt, sc[0], sc[1], sc[2], sc[3])
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def follow_row(sh, fg, i):
     follow(sh, fg.model[i], fg.data[i], fg.near[i])

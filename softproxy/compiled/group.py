@@ -16,9 +16,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from softproxy.compiled.guard import MAX_LIMIT
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.native import monotonic_ns, sleep_until_ns
 from softproxy.compiled.servo import READ_STAGE, SENDS_STAGE, _stage, begin_tick, end_tick, pace, paced_done
 
@@ -26,7 +26,7 @@ SAMPLE_BYTES = 88
 """Bytes of one SAMPLE row (`softproxy.device_kernel.SAMPLE`): a member's rows start at its first row × this."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def clamp_length(lim, x, y, z):
     """(x, y, z) scaled, direction kept, to length ≤ lim; zero when lim is no number in
     [0, MAX_LIMIT] (a member whose limits turned to garbage renders nothing)."""
@@ -39,7 +39,7 @@ def clamp_length(lim, x, y, z):
     return x, y, z
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel(nogil=True, entry=True)
 def run_group_ticks(loop, reads, sends, members, limits, samples, samples_at, mj, sh, fingers, stats, n, paced, cr):
     """Up to n ticks (fewer if `L.stop` is set) of a group of compiled devices; returns how
     many ran. `reads`, `sends`: the members' cfuncs (tuples); `members`: an int64 table, one

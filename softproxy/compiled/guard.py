@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from softproxy.compiled.kernel import kernel
+
 
 MAX_LIMIT = 1e6
 """Largest force (N) or torque (N·m) limit a device may declare; more is a broken number."""
@@ -20,7 +21,7 @@ MAX_SQUARE = 1e300
 """A |F|² or |M|² above this (or NaN) means the wrench was computed from broken numbers."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def guard_wrench(fx, fy, fz, tx, ty, tz, finger_fmax, finger_tmax, device_fmax, device_tmax):
     """(ok, fx, fy, fz, tx, ty, tz): the wrench scaled, direction kept, into |F| ≤ the smaller
     force limit (N) and |M| ≤ the smaller torque limit (N·m) of the finger and the device;

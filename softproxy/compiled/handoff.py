@@ -19,8 +19,7 @@ The counters are read and written around full fences (`native.fence`). Units: m,
 
 from __future__ import annotations
 
-from numba import njit
-
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.native import fence, mj_step1, mj_step2, monotonic_ns, sleep_until_ns
 
 STOP, STEPS, LATE, COST_NS, MAX_COST_NS, SEEN, SEEN_STAMP, TAKEN, TORN = range(9)
@@ -30,7 +29,7 @@ their deadline, the last and the largest step's cost (ns); the servo side's last
 CTL_SIZE = 9
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def copy_state(dst, src):
     """Every array of one `MjArrays` into another's (same model)."""
     dst.xpos[:, :] = src.xpos
@@ -46,7 +45,7 @@ def copy_state(dst, src):
     dst.qLDiagInv[:] = src.qLDiagInv
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def publish(ho, state, stamp_ns):
     """The physics thread: MuJoCo's state (after mj_step1) into the published copy, current
     at `stamp_ns`."""
@@ -58,7 +57,7 @@ def publish(ho, state, stamp_ns):
     ho.seq[0] += 1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def take(ho):
     """The servo thread: the newest published state into the mirror, if there is one it has
     not taken and the copy was not torn by a publish meanwhile. Returns the interval (s)
@@ -81,7 +80,7 @@ def take(ho):
     return interval
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def add_wrenches(ho, wrench, bodies_touched, counts):
     """The servo thread, at the end of a tick: this tick's wrenches (about the world origin)
     into the running sums, the tick counted; the tick's table emptied."""
@@ -98,7 +97,7 @@ def add_wrenches(ho, wrench, bodies_touched, counts):
     counts[0] = 0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _read_sums(ho, moving, out):
     """The physics thread: a consistent copy of the sums' rows of the `moving` bodies into
     out, and the tick count (retried while the servo thread is writing them)."""
@@ -116,7 +115,7 @@ def _read_sums(ho, moving, out):
             return count
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel(nogil=True, entry=True)
 def run_physics(m, d, state, ho, xfrc, moving, period_ns, start_ns, sums):
     """MuJoCo's thread: steps of period_ns from start_ns (CLOCK_MONOTONIC) until ctl[STOP].
 

@@ -25,13 +25,12 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import PLANE_SHAPE
 from softproxy.compiled.shapes import shape_distance, shape_to_local, shape_to_world
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def shape_friction(sh, fm, shape, x, y, z):
     """The static and dynamic coefficients of a finger's cone on `shape` (a row of S) at the
     world point (x, y, z) (m): a textured shape's modulated along its grating."""
@@ -52,7 +51,7 @@ def shape_friction(sh, fm, shape, x, y, z):
     return mu_s, mu_d
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _along_texture(sh, shape, x, y, z):
     """The world point (m) along the shape's grating axis, in its geom frame (m)."""
     t = sh.S[shape].texture
@@ -60,7 +59,7 @@ def _along_texture(sh, shape, x, y, z):
     return t[0] * lx + t[1] * ly + t[2] * lz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def plane_friction(sh, fm, pl, n, x, y, z):
     """The cone of a proxy at (x, y, z) (m) resting on planes pl[:n] (their shapes'
     coefficients): the least static one and its dynamic one, so a corner of glass and rubber
@@ -74,7 +73,7 @@ def plane_friction(sh, fm, pl, n, x, y, z):
     return mu_s, mu_d
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def touch(sh, fm, fd, shape):
     """The contact's spring, damper, cone and torsion factor from the touched shape's material
     into the finger's contact_ fields (the finger's own where it has none)."""
@@ -98,7 +97,7 @@ def touch(sh, fm, fd, shape):
     fd.contact_viscosity = r.viscosity
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def surface_force(sh, fm, fd, shape, P, dt):
     """What the touched shape's effects add to the finger's force this tick (N, world), in
     contact: viscosity on the motion relative to the surface (`rel_move` over dt), the
@@ -159,7 +158,7 @@ def surface_force(sh, fm, fd, shape, P, dt):
     return fx, fy, fz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def pops(S, fd, shape, P):
     """True when the finger presses `shape` harder than its popthrough force (P, the
     coupling's normal force, N): the finger passes through it. The god-object lets go of the
@@ -178,14 +177,14 @@ def pops(S, fd, shape, P):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def pop_done(sh, fm, fd):
     """The shape the finger popped through is felt again once the proxy is clear of it."""
     if fd.popped >= 0 and shape_distance(sh, fd.popped, fd.pos[0], fd.pos[1], fd.pos[2])[0] > fm.radius:
         fd.popped = -1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def leave(fd):
     """Contact broken: the effects' state cleared."""
     fd.texture_force[:] = 0.0
@@ -193,7 +192,7 @@ def leave(fd):
     fd.anchored = False
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def magnet(sh, fm, fd):
     """The magnets' pull on the finger this tick into effect_force (N, world), added to its
     force out of contact: each magnetic shape within reach of the proxy pulls it toward its

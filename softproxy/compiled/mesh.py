@@ -72,12 +72,12 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 
-from numba import njit
 
 from softproxy.compiled.box_tree import (
     TREE_MARGIN, leaf_records, node_entry, node_gap2, node_top, record_beyond2, record_gap2, record_top, tree_of,
 )
 from softproxy.compiled.certificate import ABOVE_TOL, BALL_SLACK, face_few, static_clear
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import (
     C_FEW, C_STAMP, C_STAMPS, EDGE_AB, FACE, HINT_SLOTS, KEPT_DISTANCE, KEPT_NORMAL, KEPT_POINT, KEPT_ROW,
     KEPT_WIDTH, NODE_WIDTH, P_RECORDS, RECORD_WIDTH, R_ROW, SLOT_AGE, SLOT_HINT, SLOT_KEPT, T_ADJ, T_BALL, T_N,
@@ -99,7 +99,7 @@ WALK_STEPS = 8
 """Most steps from a vertex to a nearer triangle around it before a query reads the fan."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
     """From the hint's nearest point q to p on an edge or a vertex, step to a nearer triangle:
     across the edge (p may lie over the neighbour's face, or beyond it), or from a vertex to
@@ -133,7 +133,7 @@ def _walk(S, T, C, k, hint, d2, qx, qy, qz, feature, x, y, z):
     return d2, qx, qy, qz, feature, hint
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _from_hint(S, T, C, k, hint0, x, y, z):
     """The nearest point to p (geom frame) on row hint0, or on the triangle across the edge it
     lies on when that is nearer (p may lie over the neighbour's face), walked on from there
@@ -158,7 +158,7 @@ C, its number of triangles, its nodes' base) and the point p (geom frame, m). It
 state: (best2 (m²), q, feature, row of T) of the nearest found so far."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _nearest_run(q, j0, j1, s):
     """The nearest so far to p among the triangles of the records C[j0:j1] and the one found
     before (the state s: best2 (m²), q, feature bf, row bi; bi itself is not read again)."""
@@ -183,13 +183,13 @@ def _nearest_run(q, j0, j1, s):
     return best2, qx, qy, qz, bf, bi
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _nearest_bound(q, s, node):
     """A node's bound: the squared gap (m²) from p to its boxes."""
     return node_gap2(q.C, q.base + NODE_WIDTH * node, q.x, q.y, q.z)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _nearest_leaf(q, s, leaf):
     """The nearest so far after the triangles of a leaf."""
     j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
@@ -200,7 +200,7 @@ _nearest_walk = depth_first(_nearest_bound, _nearest_leaf, limit=best_so_far)
 """The box tree walked nearest node first, leaving out every node farther than the best found."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _ball_holds(T, i, sx, sy, sz, radius, cx, cy, cz, rho):
     """Whether the ball of radius rho (m) about c lies inside a ball of `radius` (m) resting on
     row i's face on the side of unit normal s: c is within radius - rho of the face lifted
@@ -211,7 +211,7 @@ def _ball_holds(T, i, sx, sy, sz, radius, cx, cy, cz, rho):
     return closest(T, i, cx - radius * sx, cy - radius * sy, cz - radius * sz)[0] <= room * room
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _ball_few(S, T, C, k, i, cx, cy, cz, rho):
     """The ball certificate of row i at c: how many triangles (listed in C[C_FEW:]) besides
     row i may come within rho (m) of c, and the unit normal of the side of row i that c is
@@ -230,7 +230,7 @@ def _ball_few(S, T, C, k, i, cx, cy, cz, rho):
     return m, nx, ny, nz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _nearest(S, T, C, k, sl, x, y, z):
     """(distance, qx, qy, qz, feature, row of T) of mesh k's triangle nearest p (geom frame),
     for a query of hint slot sl.
@@ -279,7 +279,7 @@ def _nearest(S, T, C, k, sl, x, y, z):
     return math.sqrt(best2), qx, qy, qz, bf, bi
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
     """The signed distance (m) and outward normal at p (geom frame) from its nearest point q
     (at distance `best`) on `feature` of row i: negative behind the feature's pseudo-normal
@@ -308,14 +308,14 @@ def _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i):
     return sign * best, nx, ny, nz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _local_distance(S, T, C, k, sl, x, y, z):
     """Signed distance (m) and outward normal at p, geom frame, for a query of hint slot sl."""
     best, qx, qy, qz, feature, i = _nearest(S, T, C, k, sl, x, y, z)
     return _answer(S, T, k, x, y, z, best, qx, qy, qz, feature, i)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _keep(S, k, sl, x, y, z, d, nx, ny, nz, row):
     """Keep the answer (signed distance (m), outward normal, row of T of the nearest point)
     at p (geom frame) as the newest of the two of mesh k's hint slot sl, the older dropped."""
@@ -329,7 +329,7 @@ def _keep(S, k, sl, x, y, z, d, nx, ny, nz, row):
     key[sl, SLOT_KEPT + KEPT_DISTANCE], key[sl, SLOT_KEPT + KEPT_ROW] = d, row
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _slot(S, k, x, y, z):
     """The hint slot of mesh k a query at p (geom frame) keeps its state in, and the hint it
     starts from: the slot whose last query was nearest p, if within SLOT_NEAR, else the one
@@ -355,7 +355,7 @@ def _slot(S, k, x, y, z):
     return (best if best2 <= SLOT_NEAR * SLOT_NEAR else old), hint
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _touch(S, k, sl, x, y, z, hint):
     """Slot sl of mesh k was used last, by a query at p (geom frame) that ended on row `hint`."""
     key = S[k].key
@@ -368,7 +368,7 @@ def _touch(S, k, sl, x, y, z, hint):
     key[sl, SLOT_AGE] = newest + 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _to_geom(xmat, g, x, y, z):
     """The world vector (x, y, z) in geom g's frame (MuJoCo's geom_xmat, row-major)."""
     return (xmat[g, 0] * x + xmat[g, 3] * y + xmat[g, 6] * z,
@@ -376,7 +376,7 @@ def _to_geom(xmat, g, x, y, z):
             xmat[g, 2] * x + xmat[g, 5] * y + xmat[g, 8] * z)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _to_world(xmat, g, x, y, z):
     """The geom-frame vector (x, y, z) of geom g in the world frame."""
     return (xmat[g, 0] * x + xmat[g, 1] * y + xmat[g, 2] * z,
@@ -384,7 +384,7 @@ def _to_world(xmat, g, x, y, z):
             xmat[g, 6] * x + xmat[g, 7] * y + xmat[g, 8] * z)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def mesh_distance(sh, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
     the outward unit normal, world frame; S[k].feature is then the row of T of the nearest
@@ -413,7 +413,7 @@ def mesh_distance(sh, k, x, y, z):
     return key[sl, a + KEPT_DISTANCE], nx, ny, nz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
     """Unsigned distance (m) from the world point p to one triangle (row of T) of the mesh of
     geom g, and the unit direction (world) from its nearest point to p: whether the feature
@@ -429,7 +429,7 @@ def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
     return d, nx, ny, nz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def mesh_walk_distance(sh, k, row, x, y, z):
     """Distance (m, unsigned) and normal (world, from the triangle toward p) at the world
     point p from the triangle nearest p found by walking from triangle `row` (`_from_hint`:
@@ -460,7 +460,7 @@ above. Its walk's state: the earliest touch so far (lam, normal, row of T; -1 fo
 far² (m², how far a triangle may lie from the start and be touched before it)."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sweep_run(q, j0, j1, s):
     """Sweep the sphere against the triangles of the records C[j0:j1] not read yet this scan;
     returns the state: the earliest hit so far (lam, normal, row of T; -1 for none) and the
@@ -503,7 +503,7 @@ def _sweep_run(q, j0, j1, s):
     return best_lam, bnx, bny, bnz, bi, far2
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _sweep_bound(q, s, node):
     """A node's bound: where (fraction of the segment) the sweep enters its boxes grown by
     the reach, before the earliest touch so far (`node_entry`; beyond it when not)."""
@@ -512,13 +512,13 @@ def _sweep_bound(q, s, node):
                       q.slack, s[0])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _sweep_opened(q, s, node):
     """Not a node wholly behind the cull plane."""
     return not (q.cull and node_top(q.C, q.base + NODE_WIDTH * node, q.pnx, q.pny, q.pnz) <= q.poff)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _sweep_leaf(q, s, leaf):
     """The earliest touch so far after the triangles of a leaf."""
     j0, j1 = leaf_records(q.C, q.tree, leaf, q.n)
@@ -531,7 +531,7 @@ reach, before the earliest touch found (a node taken up after a touch was found 
 entry was is entered again up to that touch)."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, sweep):
     """The touch of row `tri` at fraction lam: its normal (geom frame) shaded when asked (while
     the shaded one still opposes the motion) and turned into the world frame; the triangle
@@ -547,7 +547,7 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, sweep):
     return lam, nx, ny, nz
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
     """The earliest touch (lam, normal, row; row -1 for none) among the m triangles in
     C[C_FEW:] and the hint's own (lam < 0: none); when sd2 >= 0, also the start's nearest
@@ -575,7 +575,7 @@ def _few_run(T, C, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz
     return best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _few_answer(S, T, k, xmat, sl, g, best_lam, mx, my, mz, bi, sd2, sqx, sqy, sqz, sf, si, sweep):
     """`mesh_sweep`'s answer from `_few_run`'s: the touch (`_hit`), and the start's nearest
     point kept for `mesh_distance` when it was asked for (sd2 >= 0)."""
@@ -589,7 +589,7 @@ def _few_answer(S, T, k, xmat, sl, g, best_lam, mx, my, mz, bi, sd2, sqx, sqy, s
     return _hit(S, T, k, xmat, g, bi, best_lam, mx, my, mz, sweep)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, sweep, far2, lam, mx, my, mz):
     """The end of `mesh_sweep` when a certificate left the m triangles in C[C_FEW:] to read
     besides the hint: the earliest touch among them and the hint's own (lam < 0: none). When
@@ -599,7 +599,7 @@ def _sweep_few(S, T, C, xmat, k, sl, g, m, hint, sd2, sqx, sqy, sqz, sf, sweep, 
     return _few_answer(S, T, k, xmat, sl, g, *out, sweep)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2):
     """`mesh_sweep` by the ball certificate of the start's nearest row `hint` (at d2, q,
     `feature`), for a sweep not moving into it: the earliest touch among its ball list, when
@@ -619,7 +619,7 @@ def _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, f
     return True, _few_answer(S, T, k, xmat, sl, g, *out, sweep)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx, ny, nz, span, sweep, far2):
     """`mesh_sweep` of a sphere staying r above the tangent plane (normal n) at the start's
     nearest point q on row `hint` (at d2, `feature`), by the kept certificates: the triangles
@@ -632,7 +632,7 @@ def _sweep_certified(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, nx,
     return _sweep_ball(S, T, C, xmat, k, sl, g, hint, d2, qx, qy, qz, feature, sweep, far2)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by d (m) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none (`_sweep`), from
@@ -648,7 +648,7 @@ def mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     a (geom frame) by d (m, world) into mesh k's triangles; (-1.0, 0.0, 0.0, 0.0) when none.

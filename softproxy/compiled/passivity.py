@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
 
 from softproxy.compiled.coupling import within_laws
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.vector import dist2, dot3
 
 TOLERANCE_J = 1e-9
@@ -42,7 +42,7 @@ near-still contact (a held grasp's lift: ~10 µJ at µm per tick) is paid over t
 a fraction of a newton at a time, not by dropping the grip."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def observe(fm, fd):
     """After the finger's update: the energy the coupling took in over the last tick (what
     the device was sent then, `sent_`, times this tick's relative motion, `rel_`) into the
@@ -74,7 +74,7 @@ def observe(fm, fd):
         fd.energy_min = E
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _gain_cap(along, square, cap):
     """The largest damper gain the controller may use on one channel (N/m or N·m/rad over a
     tick), `along` the wrench times the relative motion, `square` the wrench squared: raising
@@ -86,7 +86,7 @@ def _gain_cap(along, square, cap):
     return cap
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def control(fm, fd, dt):
     """While E < 0: a damper on the relative motion for the next tick of dt s, the wrench the
     same on the device and the body, sized to dissipate the deficit at the last tick's relative

@@ -14,10 +14,10 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from softproxy.compiled.box_tree import capsule_gap, leaf_records, record_gap2, segment_gap, span_gap2, tree_of
 from softproxy.compiled.finite import finite
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import (
     CUT_NODES, NODE_WIDTH, PATCH_RECORDS, PATCH_WIDTH, P_COUNT, P_CUT, P_END, P_FULL, P_KEYS, P_RADIUS, P_RECORDS,
     RECORD_WIDTH,
@@ -56,7 +56,7 @@ the ~30 within 20 µm of a 5 mm proxy make a patch where the ~300 within 0.1 mm 
 tree walk it saves: ~3 µs an update)."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def slot_patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     """Where the patch of mesh k's hint slot sl is in C, and how many of its records (the
     first ones) may lie within `need` (m) of the segment a..b (geom frame; a point when
@@ -124,7 +124,7 @@ def slot_patch(S, C, k, sl, ax, ay, az, bx, by, bz, need):
     return _read(C, at, gap, need)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _read(C, at, gap, need):
     """(at, how many of the patch's first records to read, -1) for a query `need` (m) wide
     whose segment strays `gap` (m) from the patch's at C[at]."""
@@ -142,7 +142,7 @@ def _read(C, at, gap, need):
     return at, lo, -1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _ahead(C, at, kept, ax, ay, az, bx, by, bz, ahead):
     """The far end c of a capsule for the query a..b stretched `ahead` (m) along the way its
     slot travelled since the capsule at C[at] began (when `kept`, and it is 1 µm to 4 mm
@@ -157,7 +157,7 @@ def _ahead(C, at, kept, ax, ay, az, bx, by, bz, ahead):
     return cx, cy, cz, segment_gap(ax, ay, az, cx, cy, cz, bx, by, bz)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _cut(S, C, k, at, ax, ay, az, bx, by, bz, radius):
     """Fill the cut at C[at] with the nodes of mesh k's box tree, at the deepest level where at
     most CUT_NODES come within `radius` (m) of the segment a..b (geom frame; a leaf counted
@@ -211,26 +211,26 @@ a max-heap of their bounds (m²) and their rows in `kept`. Its walk's state: (r2
 below `least`)."""
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _gather_bound(q, s, node):
     """A node's bound: the squared gap (m²) between the segment and its boxes."""
     return span_gap2(q.C, q.base + NODE_WIDTH * node, q.ax, q.ay, q.az, q.ux, q.uy, q.uz, 1.0)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _gather_done(q, s):
     """Given up: the patch would hold less than `least`."""
     return s[2]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _gather_overflow(q, s, g2):
     """A node with no room to wait: the patch holds only what lies nearer (g2, m²)."""
     _, m, given_up = s
     return g2, m, given_up or g2 < q.least * q.least
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def _gather_leaf(q, s, leaf):
     """Keep the records of a leaf that lie within the radius, the nearest PATCH_RECORDS of
     all kept so far; when full, the radius shrinks to the least bound left out."""
@@ -267,7 +267,7 @@ _gather_walk = best_first(_gather_bound, _gather_leaf, limit=best_so_far, done=_
 """The box tree walked nearest node first, out to the radius gathered so far."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _gather(S, C, k, at, ax, ay, az, bx, by, bz, radius, least, room=FRONTIER):
     """Fill the patch at C[at] with the records of mesh k's triangles nearest the segment a..b
     (geom frame), out to `radius` (m) from it, or to less where more than PATCH_RECORDS lie

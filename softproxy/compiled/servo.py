@@ -20,9 +20,9 @@ stage of the last tick (`STAGES`; the device's stages only in a compiled block).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from softproxy.compiled import carry, finger, handoff
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.native import mj_step1, mj_step2, monotonic_ns, sleep_until_ns
 
 STAGES = ("device read", "mj_step1", "fingers", "device sends", "wrenches + mj_step2")
@@ -61,7 +61,7 @@ COUNT, MISSES = 0, 1
 """Slots of TickStats' counters."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _stage(L, k):
     """While profiling: stage k ended now; its time since the last mark into stage_ns[k]."""
     if L.profile:
@@ -70,7 +70,7 @@ def _stage(L, k):
         L.mark = now
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def pace(loop):
     """Wait for the next paced tick's deadline: sleep until `spin_ns` before it, then spin
     (a sleep can overshoot by a millisecond on a busy machine; the spin cannot)."""
@@ -82,7 +82,7 @@ def pace(loop):
         pass
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def paced_done(loop, counters):
     """After a paced tick: a miss when it ended after the next deadline; next deadline."""
     L = loop[0]
@@ -91,7 +91,7 @@ def paced_done(loop, counters):
     L.next_ns += L.period_ns
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def begin_tick(loop, samples, ok, mj, sh, fingers, cr):
     """The tick up to the sends: this tick's samples (SAMPLE rows; `ok` False when the read
     failed) into the finger records, mj_step1 (on the first tick of a MuJoCo step; with two
@@ -143,7 +143,7 @@ def begin_tick(loop, samples, ok, mj, sh, fingers, cr):
     _stage(L, FINGERS_STAGE)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(entry=True)
 def end_tick(loop, mj, fingers, stats, start_ns, cr):
     """The tick after the sends: on the last tick of a MuJoCo step the wrenches into
     xfrc_applied (averaged over the step's haptic ticks) and mj_step2; loop time, and the
@@ -175,7 +175,7 @@ def end_tick(loop, mj, fingers, stats, start_ns, cr):
     counters[COUNT] += 1
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@kernel(nogil=True, entry=True)
 def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced, cr):
     """Up to n ticks (fewer if `L.stop` is set), paced in real time or not; returns how many
     ran. `read`/`send`: the device's cfuncs over its `device` (DeviceIO: its state, SAMPLE

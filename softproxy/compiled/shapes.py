@@ -12,8 +12,7 @@ branch on that type, so the mesh kernels are not compiled at all.
 
 import math
 
-from numba import njit
-
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import (
     GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE, GEOM_SPHERE,
 )
@@ -26,7 +25,7 @@ is slow). It reaches the root to rounding in at most 12 over 10⁵ random points
 from round to 1 nm thin, on and off their mid-planes and axes, from 1e-300 m to 5 km out."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_to_local(S, xpos, xmat, k, x, y, z):
     """World point (m) to shape k's geom frame (m), as `Shape.to_local`."""
     g = int(S[k].geom)
@@ -36,7 +35,7 @@ def shape_to_local(S, xpos, xmat, k, x, y, z):
             xmat[g, 2] * dx + xmat[g, 5] * dy + xmat[g, 8] * dz)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
     """Point in shape k's geom frame (m) to world (m): the inverse of `shape_to_local`."""
     g = int(S[k].geom)
@@ -45,7 +44,7 @@ def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
             xmat[g, 6] * lx + xmat[g, 7] * ly + xmat[g, 8] * lz + xpos[g, 2])
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _capsule_local(radius, half, x, y, z):
     """Capsule (radius, half-length along z): signed distance (m) and outward normal, geom frame."""
     h = half
@@ -56,7 +55,7 @@ def _capsule_local(radius, half, x, y, z):
     return (n - radius, x / n, y / n, zc / n)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _cylinder_local(radius, half, x, y, z):
     """Cylinder (radius, half-height along z): signed distance (m) and outward normal, geom frame."""
     rho = math.sqrt(x * x + y * y)
@@ -79,7 +78,7 @@ def _cylinder_local(radius, half, x, y, z):
     return (n, ux * dr / n, uy * dr / n, sz * dz / n)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _ellipsoid_f(k0, k1, k2, d0, d1, d2, w):
     """F(w) = Σ (k_i / (d_i + w))² - 1 and F'(w), the terms with k_i = 0 left out (they are 0,
     even where d_i + w is: on the mid-plane of a shortest semi-axis at w = 0)."""
@@ -99,7 +98,7 @@ def _ellipsoid_f(k0, k1, k2, d0, d1, d2, w):
     return f, df
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _ellipsoid_local(a, b, c, x, y, z):
     """Ellipsoid (semi-axes a, b, c): signed distance (m) and outward normal, geom frame.
 
@@ -170,7 +169,7 @@ def _ellipsoid_local(a, b, c, x, y, z):
     return ((-dist if inside else dist), gx / gn, gy / gn, gz / gn)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_feature(S, k):
     """The feature of shape k its last distance query or touching sweep ended on: on a mesh
     the row of T of the triangle, as a float for a plane's column; -1.0 for any other shape
@@ -178,7 +177,7 @@ def shape_feature(S, k):
     return float(S[k].feature) if int(S[k].type) == GEOM_MESH else -1.0
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_feature_distance(S, T, xpos, xmat, k, row, x, y, z):
     """Unsigned distance (m) from the world point p to feature `row` of mesh shape k (a
     triangle), and the unit direction (world) from the feature's nearest point to p."""
@@ -187,7 +186,7 @@ def shape_feature_distance(S, T, xpos, xmat, k, row, x, y, z):
     return mesh_triangle_distance(T, xpos, xmat, int(S[k].geom), row, x, y, z)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_walk_distance(sh, k, row, x, y, z):
     """Distance (m, unsigned) from mesh shape k at the world point p, unit normal toward p and
     row of T, as seen from triangle `row` of it (`mesh_walk_distance`): the nearest triangle
@@ -198,28 +197,28 @@ def shape_walk_distance(sh, k, row, x, y, z):
 # A world without meshes has T and C None and never compiles the mesh kernels: numba drops
 # the branch of an `is None` test on a None argument, so the test is on T as an argument.
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _mesh_walk_distance(T, sh, k, row, x, y, z):
     if T is None:
         return (math.inf, 0.0, 0.0, 1.0, -1)
     return mesh_walk_distance(sh, k, row, x, y, z)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _mesh_distance(T, sh, k, x, y, z):
     if T is None:
         return (math.inf, 0.0, 0.0, 1.0)
     return mesh_distance(sh, k, x, y, z)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _mesh_sweep(T, sh, k, x0, y0, z0, dx, dy, dz, r):
     if T is None:
         return (-1.0, 0.0, 0.0, 0.0)
     return mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_distance(sh, k, x, y, z):
     """Signed distance (m, < 0 inside) from shape k and outward unit normal, world frame."""
     S, xpos, xmat = sh.S, sh.xpos, sh.xmat
@@ -278,7 +277,7 @@ def shape_distance(sh, k, x, y, z):
             r20 * nx + r21 * ny + r22 * nz)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     """First touch (fraction in [0, 1), world normal) of a sphere of radius r (m) moving from
     x0 by (dx, dy, dz) (m) into shape k; (-1.0, 0.0, 0.0, 0.0) when it touches nothing."""
@@ -319,7 +318,7 @@ def shape_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     return (lam, nx, ny, nz)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shape_on_face(S, xmat, k, nx, ny, nz):
     """True when world normal n lies on a planar face of shape k (plane always, box faces;
     never on a mesh: see `softproxy.compiled.mesh`)."""

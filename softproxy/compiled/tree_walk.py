@@ -61,7 +61,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from softproxy.compiled.kernel import kernel
+
 
 LEAF = 8
 """Items (triangles or vertices) per leaf of a box tree."""
@@ -71,50 +73,50 @@ FROM_ROOT = np.zeros(0)
 """The `cut` of a walk that starts at the root."""
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def unlimited(q, s):
     """No limit: every node whose bound is finite is read."""
     return math.inf
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def best_so_far(q, s):
     """The limit is the state's first entry: the best found so far."""
     return s[0]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def always(q, s, node):
     """Every node taken up is opened."""
     return True
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def never(q, s):
     """The walk runs until no node waits."""
     return False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def left_out(q, s, bound):
     """A node with no room in the heap is left out (the state unchanged)."""
     return s
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def depth_scratch():
     """The scratch of a depth-first walk: node numbers, their bounds, and the limit when each
     bound was taken (STACK each)."""
     return np.empty(STACK, dtype=np.int64), np.empty(STACK), np.empty(STACK)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def best_scratch(room):
     """The scratch of a best-first walk: a heap of room nodes (minus their bounds, numbers)."""
     return np.empty(room), np.empty(room, dtype=np.int64)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def push_ordered(nodes, keys, top, node, key):
     """Push `node` with `key` onto a walk's stack nodes[:top], keys[:top] kept in descending
     key order, so the least (the nearest, the earliest entered) is read first; returns the
@@ -127,7 +129,7 @@ def push_ordered(nodes, keys, top, node, key):
     return top + 1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def heap_offer(hs, hw, m, keep, s, w):
     """Offer (s, w) to the max-heap (by hs) of hs[:m], hw[:m] of at most `keep` entries: added
     while there is room, else in place of the top when s is below it; returns the new m."""
@@ -148,7 +150,7 @@ def heap_offer(hs, hw, m, keep, s, w):
     return m
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def heap_pop(hs, hw, m):
     """Take the top (the largest hs) off the max-heap hs[:m], hw[:m]: (its hs, its hw, new m)."""
     s, w = hs[0], hw[0]
@@ -159,7 +161,7 @@ def heap_pop(hs, hw, m):
     return s, w, m
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _sift_down(hs, hw, m):
     """Restore the max-heap (by hs) of hs[:m], hw[:m] after its top was replaced."""
     j = 0
@@ -183,7 +185,7 @@ def depth_first(bound, visit, limit=unlimited, opened=always, done=never, ties_l
     with a `depth_scratch` stack; `waiting`: how many nodes were left on the stack (0 unless
     `done` stopped it)."""
 
-    @njit(error_model="numpy")
+    @kernel(cache=False)
     def walk(size, cut, q, s, stack):
         nodes, keys, asked = stack
         lim = limit(q, s)
@@ -254,7 +256,7 @@ def best_first(bound, visit, limit=unlimited, opened=always, done=never, overflo
     the limit (every node waiting lies as far). `waiting`: how many nodes were left in the
     heap (0 unless `done` stopped it or it ended at that node)."""
 
-    @njit(error_model="numpy")
+    @kernel(cache=False)
     def walk(size, cut, q, s, heap):
         hs, hw = heap
         room = len(hs)

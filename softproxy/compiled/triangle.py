@@ -10,14 +10,13 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 
-from numba import njit
-
+from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import (EDGE_AB, EDGE_BC, EDGE_CA, EDGE_WIDTH, FACE, T_A, T_AA, T_AB, T_ABAC, T_AC, T_B,
                                        T_C, T_CC, T_EDGES, T_INV, T_N, T_VN, VERTEX_A, VERTEX_B, VERTEX_C)
 from softproxy.compiled.tolerances import CONTACT_TOL
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def closest(T, i, px, py, pz):
     """Closest point of triangle row i to p: (squared distance, qx, qy, qz, feature).
     Ericson's Voronoi-region walk, the dot products about B and C derived from those about A."""
@@ -66,7 +65,7 @@ def closest(T, i, px, py, pz):
     return (h * h, px - h * nx, py - h * ny, pz - h * nz, FACE)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def segments_gap2(px, py, pz, qx, qy, qz, sx, sy, sz, tx, ty, tz):
     """Squared distance (m²) between segments p..q and s..t (Ericson, Real-Time Collision
     Detection, 5.1.9)."""
@@ -101,7 +100,7 @@ MISS = (-1.0, 0.0, 0.0, 0.0, FACE)
 """A sweep's answer when the sphere does not touch the triangle: lam -1 (no feature)."""
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def pressed(dist, into, r, graze):
     """Whether a sphere of radius r touching a triangle, its centre `dist` (m) from it, is
     pressed into it by a motion whose component along the outward direction (from the nearest
@@ -116,7 +115,7 @@ def pressed(dist, into, r, graze):
     return into < -graze and dist + into < r - CONTACT_TOL
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def sweep_triangle(T, i, sweep, far2):
     """First touch of a sphere (radius r) from a moving by d into triangle row i, geom frame:
     (lam, nx, ny, nz, feature), lam in [0, 1), n the unit normal of the inflated triangle at
@@ -221,7 +220,7 @@ def sweep_triangle(T, i, sweep, far2):
     return (best if best > 0.0 else 0.0, mx, my, mz, feature)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def shade(T, i, qx, qy, qz, nx, ny, nz):
     """Force shading: the vertex normals of triangle row i interpolated at q (barycentric,
     clamped to the triangle), on n's side; n itself where they disagree with the face."""

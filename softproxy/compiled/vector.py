@@ -3,16 +3,16 @@ float64 arrays of 3). numba inlines them; they spell out nothing the caller coul
 
 from __future__ import annotations
 
-from numba import njit
+from softproxy.compiled.kernel import kernel
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def dot3(a, b):
     """a·b of two 3-vectors."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(inline="always")
 def dist2(a, b):
     """|a - b|² of two 3-vectors."""
     x, y, z = a[0] - b[0], a[1] - b[1], a[2] - b[2]
