@@ -338,6 +338,7 @@ def update(sh, fm, fd, near, x, y, z, twist, dt, scratch):
     if S[touched].material:  # the surface's effects, scaled by the coupling's normal force
         P = fx * nx + fy * ny + fz * nz
         if material.pops(S, fd, touched, P):  # through it: nothing to render this tick
+            godobject.let_go(fd)
             _free(fm, fd)
             return True
         ex, ey, ez = material.surface_force(sh, fm, fd, touched, P if P > 0.0 else 0.0, dt)

@@ -499,6 +499,18 @@ def push_out(sh, fm, fd, near):
             return
 
 
+@kernel(inline="always")
+def let_go(fd):
+    """The proxy touches nothing: no contact, no touched shape, no planes, no depth, no stick
+    (where it is stays: `pos` is the caller's)."""
+    fd.contact = False
+    fd.touched = -1
+    fd.nplanes = 0
+    fd.nfree = 0
+    fd.depth = 0.0
+    fd.sticking = False
+
+
 @kernel
 def _rest_squeezed(sh, fd, near, xd, yd, zd):
     """A squeezed proxy (`push_out`) rests where the static surfaces put it, in contact with
@@ -515,10 +527,7 @@ def _rest_squeezed(sh, fd, near, xd, yd, zd):
     fd.free_pos[:] = fd.pos
     fd.nfree = 0
     if best < 0:  # squeezed against no static shape: not expected (only a static one pushes last)
-        fd.contact = False
-        fd.touched = -1
-        fd.nplanes = 0
-        fd.depth = 0.0
+        let_go(fd)
         return
     fd.contact = True
     fd.touched = best
@@ -1155,12 +1164,8 @@ def update(sh, fm, fd, near, xd, yd, zd, dt, pl, saved, warm, kept):
     fd.free_pos[:] = fx, fy, fz
     fd.nfree = _newest_three(fd.free_planes, pl, n)
     if n == 0:
-        fd.nplanes = 0
         fd.pos[:] = fx, fy, fz
-        fd.contact = False
-        fd.touched = -1
-        fd.depth = 0.0
-        fd.sticking = False
+        let_go(fd)
         return True
 
     # constraint direction: from the device to the frictionless proxy

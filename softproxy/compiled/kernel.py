@@ -15,7 +15,10 @@
   compiled twice over, on demand: without wrappers for kernels (`Kernel.jit`), and with them,
   cached apart, for Python (`Kernel.python`, built the first time Python calls it). A kernel
   that Python calls in every run (a loop's entry points) says `entry=True` and is one plain
-  numba function for both.
+  numba function for both. Not a kernel that many kernels call, though Python calls it too
+  (the shape queries behind the library's `Shape`): numba links a callee's wrappers into
+  every caller's code and compiles them again there (the grasp: +3 s of CPU with the four
+  shape queries as entry points).
 
 The grasp's first compile (`softproxy compile two_finger_grasp`, a fresh cache) took 99 s of
 CPU with the constants' copies and the wrappers, 73 s without the copies, 58 s without either.

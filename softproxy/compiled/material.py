@@ -28,6 +28,7 @@ import math
 from softproxy.compiled.kernel import kernel
 from softproxy.compiled.layout import PLANE_SHAPE
 from softproxy.compiled.shapes import shape_distance, shape_to_local, shape_to_world
+from softproxy.compiled.vector import to_world_frame
 
 
 @kernel(inline="always")
@@ -129,11 +130,7 @@ def surface_force(sh, fm, fd, shape, P, dt):
         w = 2.0 * math.pi / period
         dx, dy, dz = fd.device_pos
         slope = height * w * math.cos(w * _along_texture(sh, shape, dx, dy, dz))
-        g = int(r.geom)
-        m = sh.xmat[g]
-        wx = m[0] * ax + m[1] * ay + m[2] * az
-        wy = m[3] * ax + m[4] * ay + m[5] * az
-        wz = m[6] * ax + m[7] * ay + m[8] * az
+        wx, wy, wz = to_world_frame(sh.xmat, int(r.geom), ax, ay, az)
         along = wx * nx + wy * ny + wz * nz
         tx, ty, tz = wx - along * nx, wy - along * ny, wz - along * nz
         q = -P * slope
@@ -161,19 +158,14 @@ def surface_force(sh, fm, fd, shape, P, dt):
 @kernel
 def pops(S, fd, shape, P):
     """True when the finger presses `shape` harder than its popthrough force (P, the
-    coupling's normal force, N): the finger passes through it. The god-object lets go of the
-    contact where it is (its stretch, stored in the spring, is dropped: energy lost, never
-    made), and the broad phase leaves the shape out until the proxy is out of it again."""
+    coupling's normal force, N): the finger passes through it, and the broad phase leaves the
+    shape out (`popped`) until the proxy is out of it again. The caller lets the god-object go
+    of the contact where it is (its stretch, stored in the spring, is dropped: energy lost,
+    never made)."""
     limit = S[shape].popthrough
     if not (limit > 0.0 and P > limit):
         return False
     fd.popped = shape
-    fd.contact = False
-    fd.touched = -1
-    fd.nplanes = 0
-    fd.nfree = 0
-    fd.sticking = False
-    fd.depth = 0.0
     return True
 
 

@@ -87,6 +87,7 @@ from softproxy.compiled.patch import slot_patch
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 from softproxy.compiled.tree_walk import best_so_far, depth_first, depth_scratch
 from softproxy.compiled.triangle import Sweep, closest, pressed, shade, sweep_triangle
+from softproxy.compiled.vector import to_geom_frame, to_world_frame
 
 POINT_RADIUS = 1e-8
 """A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
@@ -369,22 +370,6 @@ def _touch(S, k, sl, x, y, z, hint):
 
 
 @kernel
-def _to_geom(xmat, g, x, y, z):
-    """The world vector (x, y, z) in geom g's frame (MuJoCo's geom_xmat, row-major)."""
-    return (xmat[g, 0] * x + xmat[g, 3] * y + xmat[g, 6] * z,
-            xmat[g, 1] * x + xmat[g, 4] * y + xmat[g, 7] * z,
-            xmat[g, 2] * x + xmat[g, 5] * y + xmat[g, 8] * z)
-
-
-@kernel
-def _to_world(xmat, g, x, y, z):
-    """The geom-frame vector (x, y, z) of geom g in the world frame."""
-    return (xmat[g, 0] * x + xmat[g, 1] * y + xmat[g, 2] * z,
-            xmat[g, 3] * x + xmat[g, 4] * y + xmat[g, 5] * z,
-            xmat[g, 6] * x + xmat[g, 7] * y + xmat[g, 8] * z)
-
-
-@kernel
 def mesh_distance(sh, k, x, y, z):
     """Signed distance (m, < 0 inside; unsigned on an open mesh) from mesh k's triangles and
     the outward unit normal, world frame; S[k].feature is then the row of T of the nearest
@@ -394,7 +379,7 @@ def mesh_distance(sh, k, x, y, z):
     sweep proved)."""
     S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
-    lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+    lx, ly, lz = to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     sl, hint = _slot(S, k, lx, ly, lz)
     key = S[k].key
     a, b = SLOT_KEPT, SLOT_KEPT + KEPT_WIDTH
@@ -409,7 +394,7 @@ def mesh_distance(sh, k, x, y, z):
             _touch(S, k, sl, lx, ly, lz, S[k].hint)
     S[k].feature = int(key[sl, a + KEPT_ROW])
     n = a + KEPT_NORMAL
-    nx, ny, nz = _to_world(xmat, g, key[sl, n], key[sl, n + 1], key[sl, n + 2])
+    nx, ny, nz = to_world_frame(xmat, g, key[sl, n], key[sl, n + 1], key[sl, n + 2])
     return key[sl, a + KEPT_DISTANCE], nx, ny, nz
 
 
@@ -418,14 +403,14 @@ def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
     """Unsigned distance (m) from the world point p to one triangle (row of T) of the mesh of
     geom g, and the unit direction (world) from its nearest point to p: whether the feature
     a constraint plane came from is still under the proxy, and its tangent plane there."""
-    lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+    lx, ly, lz = to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     d2, qx, qy, qz, _ = closest(T, row, lx, ly, lz)
     d = math.sqrt(d2)
     if d == 0.0:  # on the triangle: its normal
         nx, ny, nz = T[row, T_N], T[row, T_N + 1], T[row, T_N + 2]
     else:
         nx, ny, nz = (lx - qx) / d, (ly - qy) / d, (lz - qz) / d
-    nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
+    nx, ny, nz = to_world_frame(xmat, g, nx, ny, nz)
     return d, nx, ny, nz
 
 
@@ -443,12 +428,12 @@ def mesh_walk_distance(sh, k, row, x, y, z):
     resting on it, and floated 4 mm off the sphere with the device inside)."""
     S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
-    lx, ly, lz = _to_geom(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+    lx, ly, lz = to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
     d2, qx, qy, qz, f, i = _from_hint(S, T, C, k, row, lx, ly, lz)
     d, nx, ny, nz = _answer(S, T, k, lx, ly, lz, math.sqrt(d2), qx, qy, qz, f, i)
     if d < 0.0:
         d, nx, ny, nz = -d, -nx, -ny, -nz
-    nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
+    nx, ny, nz = to_world_frame(xmat, g, nx, ny, nz)
     return d, nx, ny, nz, i
 
 
@@ -543,7 +528,7 @@ def _hit(S, T, k, xmat, g, tri, lam, nx, ny, nz, sweep):
         sx, sy, sz = shade(T, tri, qx, qy, qz, nx, ny, nz)
         if sx * ux + sy * uy + sz * uz < -graze:  # still against the motion: use it
             nx, ny, nz = sx, sy, sz
-    nx, ny, nz = _to_world(xmat, g, nx, ny, nz)
+    nx, ny, nz = to_world_frame(xmat, g, nx, ny, nz)
     return lam, nx, ny, nz
 
 
@@ -640,7 +625,7 @@ def mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     touched (`_hit`)."""
     S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
-    ax, ay, az = _to_geom(xmat, g, x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2])
+    ax, ay, az = to_geom_frame(xmat, g, x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2])
     sl, hint = _slot(S, k, ax, ay, az)
     S[k].hint = hint
     out = _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r)
@@ -674,7 +659,7 @@ def _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r):
     far = reach + length
     far2 = far * far
     g = int(S[k].geom)
-    ux, uy, uz = _to_geom(xmat, g, dx, dy, dz)
+    ux, uy, uz = to_geom_frame(xmat, g, dx, dy, dz)
     sweep = Sweep(ax, ay, az, ux, uy, uz, r, dd, graze)
     best_lam, bnx, bny, bnz, bi = 1.0, 0.0, 0.0, 0.0, -1
     cull, pnx, pny, pnz, poff = False, 0.0, 0.0, 0.0, 0.0

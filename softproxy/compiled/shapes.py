@@ -18,6 +18,7 @@ from softproxy.compiled.layout import (
 )
 from softproxy.compiled.mesh import mesh_distance, mesh_sweep, mesh_triangle_distance, mesh_walk_distance
 from softproxy.compiled.tolerances import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
+from softproxy.compiled.vector import to_geom_frame, to_world_frame
 
 ELLIPSOID_STEPS = 64
 """Most steps of the ellipsoid's root finder (a Newton step each, and a bisection where Newton
@@ -29,19 +30,15 @@ from round to 1 nm thin, on and off their mid-planes and axes, from 1e-300 m to 
 def shape_to_local(S, xpos, xmat, k, x, y, z):
     """World point (m) to shape k's geom frame (m), as `Shape.to_local`."""
     g = int(S[k].geom)
-    dx, dy, dz = x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2]
-    return (xmat[g, 0] * dx + xmat[g, 3] * dy + xmat[g, 6] * dz,
-            xmat[g, 1] * dx + xmat[g, 4] * dy + xmat[g, 7] * dz,
-            xmat[g, 2] * dx + xmat[g, 5] * dy + xmat[g, 8] * dz)
+    return to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
 
 
 @kernel
 def shape_to_world(S, xpos, xmat, k, lx, ly, lz):
     """Point in shape k's geom frame (m) to world (m): the inverse of `shape_to_local`."""
     g = int(S[k].geom)
-    return (xmat[g, 0] * lx + xmat[g, 1] * ly + xmat[g, 2] * lz + xpos[g, 0],
-            xmat[g, 3] * lx + xmat[g, 4] * ly + xmat[g, 5] * lz + xpos[g, 1],
-            xmat[g, 6] * lx + xmat[g, 7] * ly + xmat[g, 8] * lz + xpos[g, 2])
+    wx, wy, wz = to_world_frame(xmat, g, lx, ly, lz)
+    return wx + xpos[g, 0], wy + xpos[g, 1], wz + xpos[g, 2]
 
 
 @kernel
