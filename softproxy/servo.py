@@ -409,8 +409,8 @@ class ServoLoop:
             self._cr = self._cr_lockstep = self.local.carried
             self._shapes = self.local.shapes
             self.physics = PhysicsThread(world, self.local, self.period * self.physics_every)
-        self._fingers = FingerTables(self.rows.model, self.rows.data, self.rows.near, self._device_of, self.rows.scratch, world.wrench,
-                                     world.bodies, world.counts, self._coupling)
+        self._fingers = FingerTables(self.rows.tables, self._device_of, world.wrench, world.bodies, world.counts,
+                                     self._coupling)
         stats = self.stats
         self._stats = StatRings(stats.duration, stats.period, stats.counters)
         self._samples = self._sample_rows.array.view(np.recarray)  # fields by attribute, interpreted too

@@ -199,7 +199,7 @@ def carry(cr, fingers, tau, H):
     (into the local geom_xpos, geom_xmat and cvel the haptic side's `Shapes` read). Near: its
     bounding sphere where the step began, widened by as far as its body may get within the
     fade (`body_bound`), within NEAR_MARGIN of the ball the finger's broad phase last gathered."""
-    FM, FD = fingers.model, fingers.data
+    FM, FD = fingers.rows.model, fingers.rows.data
     fade = 1.0 - tau / (H * FADE_STEPS)
     for j in range(cr.mover_geom.shape[0]):
         k, b, rb = cr.mover_geom[j], cr.mover_body[j], cr.mover_rbound[j]

@@ -508,7 +508,7 @@ def tick(mj, sh, fingers, dt, safe, check, fmax, tmax, control, cr):
     reaction of exactly the wrench the device is sent (less a texture's relief, the hand's
     alone), after every clamp (the finger's, the
     device's, the soft start's), so both sides of the coupling exchange the same energy."""
-    FM, FD, near, scratch = fingers.model, fingers.data, fingers.near, fingers.scratch
+    FM, FD, near, scratch = fingers.rows
     wrench, bodies, counts = fingers.wrench, fingers.bodies, fingers.counts
     refused = 0
     unsafe = 0

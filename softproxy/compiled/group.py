@@ -47,7 +47,7 @@ def run_group_ticks(loop, reads, sends, members, limits, samples, samples_at, mj
     last read code, last send code]; `limits`: the members' [max_force, max_torque] arrays
     (tuple), read every tick; `samples`: the group's SAMPLE rows, at `samples_at`."""
     L = loop[0]
-    FD, device_of = fingers.data, fingers.device_of
+    FD, device_of = fingers.rows.data, fingers.device_of
     m = members.shape[0]
     owner = np.empty(samples.shape[0], dtype=np.int64)  # the member of each row
     for k in range(m):

@@ -63,10 +63,10 @@ Fingers = namedtuple("Fingers", "model data near scratch")
 """A table of fingers as the kernels take it (`fg`): their FINGER_MODEL and FINGER_DATA records,
 each one's near shapes (rows of the shape table) and the god-object's scratch.
 `softproxy.finger_rows.FingerRows.tables` holds one."""
-FingerTables = namedtuple("FingerTables", "model data near device_of scratch wrench bodies counts ws")
-"""The fingers: their FINGER_MODEL and FINGER_DATA records, each one's near shapes, the device sample row each
-reads, the god-object's scratch, the body wrenches with their body lists and counts, and the
-implicit coupling's workspace (`softproxy.compiled.coupling`)."""
+FingerTables = namedtuple("FingerTables", "rows device_of wrench bodies counts ws")
+"""The fingers as a loop's tick takes them: their table (`rows`, a `Fingers`), the device sample
+row each reads, the body wrenches with their body lists and counts, and the implicit
+coupling's workspace (`softproxy.compiled.coupling`)."""
 DeviceIO = namedtuple("DeviceIO", "io samples samples_at limits")
 """A compiled device: the address of its state, its SAMPLE rows (and their address), its
 [max_force (N), max_torque (N·m)], read every tick."""

@@ -104,7 +104,7 @@ def begin_tick(loop, samples, ok, mj, sh, fingers, cr):
     L = loop[0]
     safe = L.safe_next
     L.safe_next = False
-    FD, device_of = fingers.data, fingers.device_of
+    FD, device_of = fingers.rows.data, fingers.device_of
     for i in range(FD.shape[0]):
         fd = FD[i]
         if not ok:
@@ -137,7 +137,7 @@ def begin_tick(loop, samples, ok, mj, sh, fingers, cr):
     _stage(L, STEP1_STAGE)
     refused, unsafe, coupled = finger.tick(mj, sh, fingers, L.period, safe, L.audit, L.fmax, L.tmax, L.passivity, cr)
     if cr is not None:  # the bodies answer the sent wrenches in the local model
-        carry.respond(cr, fingers.data, fingers.ws, coupled, L.period, L.every * L.period)
+        carry.respond(cr, fingers.rows.data, fingers.ws, coupled, L.period, L.every * L.period)
     L.invalid_sample += refused
     L.unsafe_output += unsafe
     _stage(L, FINGERS_STAGE)
@@ -184,7 +184,7 @@ def run_ticks(loop, read, send, device, mj, sh, fingers, stats, n, paced, cr):
     counts a device_error; one that stalled waits the device's stall time first."""
     L = loop[0]
     samples, limits, io = device.samples, device.limits, device.io
-    FD, device_of = fingers.data, fingers.device_of
+    FD, device_of = fingers.rows.data, fingers.device_of
     rows = samples.shape[0]
     done = 0
     while done < n and not L.stop and not L.halt:
