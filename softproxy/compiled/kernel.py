@@ -21,7 +21,7 @@
   shape queries as entry points).
 
 The grasp's first compile (`softproxy compile two_finger_grasp`, a fresh cache) took 99 s of
-CPU with the constants' copies and the wrappers, 73 s without the copies, 58 s without either.
+CPU with the constants' copies and the wrappers, 73 s without the copies, 56–59 s without either.
 """
 
 from __future__ import annotations
