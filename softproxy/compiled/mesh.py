@@ -87,7 +87,7 @@ from softproxy.compiled.patch import slot_patch
 from softproxy.compiled.tolerances import CONTACT_TOL, GRAZE
 from softproxy.compiled.tree_walk import best_so_far, depth_first, depth_scratch
 from softproxy.compiled.triangle import Sweep, closest, pressed, shade, sweep_triangle
-from softproxy.compiled.vector import to_geom_frame, to_world_frame
+from softproxy.compiled.vector import point_in_geom_frame, to_geom_frame, to_world_frame
 
 POINT_RADIUS = 1e-8
 """A point proxy (r = 0) is swept as a sphere this big (m). On an edge or a vertex the direction
@@ -379,7 +379,7 @@ def mesh_distance(sh, k, x, y, z):
     sweep proved)."""
     S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
-    lx, ly, lz = to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+    lx, ly, lz = point_in_geom_frame(xpos, xmat, g, x, y, z)
     sl, hint = _slot(S, k, lx, ly, lz)
     key = S[k].key
     a, b = SLOT_KEPT, SLOT_KEPT + KEPT_WIDTH
@@ -403,7 +403,7 @@ def mesh_triangle_distance(T, xpos, xmat, g, row, x, y, z):
     """Unsigned distance (m) from the world point p to one triangle (row of T) of the mesh of
     geom g, and the unit direction (world) from its nearest point to p: whether the feature
     a constraint plane came from is still under the proxy, and its tangent plane there."""
-    lx, ly, lz = to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+    lx, ly, lz = point_in_geom_frame(xpos, xmat, g, x, y, z)
     d2, qx, qy, qz, _ = closest(T, row, lx, ly, lz)
     d = math.sqrt(d2)
     if d == 0.0:  # on the triangle: its normal
@@ -428,7 +428,7 @@ def mesh_walk_distance(sh, k, row, x, y, z):
     resting on it, and floated 4 mm off the sphere with the device inside)."""
     S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
-    lx, ly, lz = to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+    lx, ly, lz = point_in_geom_frame(xpos, xmat, g, x, y, z)
     d2, qx, qy, qz, f, i = _from_hint(S, T, C, k, row, lx, ly, lz)
     d, nx, ny, nz = _answer(S, T, k, lx, ly, lz, math.sqrt(d2), qx, qy, qz, f, i)
     if d < 0.0:
@@ -625,7 +625,7 @@ def mesh_sweep(sh, k, x0, y0, z0, dx, dy, dz, r):
     touched (`_hit`)."""
     S, T, C, xpos, xmat = sh.S, sh.T, sh.C, sh.xpos, sh.xmat
     g = int(S[k].geom)
-    ax, ay, az = to_geom_frame(xmat, g, x0 - xpos[g, 0], y0 - xpos[g, 1], z0 - xpos[g, 2])
+    ax, ay, az = point_in_geom_frame(xpos, xmat, g, x0, y0, z0)
     sl, hint = _slot(S, k, ax, ay, az)
     S[k].hint = hint
     out = _sweep(S, T, C, xmat, k, sl, ax, ay, az, dx, dy, dz, r)

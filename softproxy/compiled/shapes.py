@@ -18,7 +18,7 @@ from softproxy.compiled.layout import (
 )
 from softproxy.compiled.mesh import mesh_distance, mesh_sweep, mesh_triangle_distance, mesh_walk_distance
 from softproxy.compiled.tolerances import CONTACT_TOL, FACE_PARALLEL, GRAZE, MAX_ADVANCE_STEPS
-from softproxy.compiled.vector import to_geom_frame, to_world_frame
+from softproxy.compiled.vector import point_in_geom_frame, to_world_frame
 
 ELLIPSOID_STEPS = 64
 """Most steps of the ellipsoid's root finder (a Newton step each, and a bisection where Newton
@@ -30,7 +30,7 @@ from round to 1 nm thin, on and off their mid-planes and axes, from 1e-300 m to 
 def shape_to_local(S, xpos, xmat, k, x, y, z):
     """World point (m) to shape k's geom frame (m), as `Shape.to_local`."""
     g = int(S[k].geom)
-    return to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+    return point_in_geom_frame(xpos, xmat, g, x, y, z)
 
 
 @kernel

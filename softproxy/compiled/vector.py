@@ -29,6 +29,12 @@ def to_geom_frame(xmat, g, x, y, z):
 
 
 @kernel(inline="always")
+def point_in_geom_frame(xpos, xmat, g, x, y, z):
+    """The world point (x, y, z) (m) in geom g's frame (m): Rᵀ(p - geom_xpos[g])."""
+    return to_geom_frame(xmat, g, x - xpos[g, 0], y - xpos[g, 1], z - xpos[g, 2])
+
+
+@kernel(inline="always")
 def to_world_frame(xmat, g, x, y, z):
     """The geom-frame vector (x, y, z) of geom g in the world frame: Rv, R = xmat[g]."""
     return (xmat[g, 0] * x + xmat[g, 1] * y + xmat[g, 2] * z,
